@@ -1,0 +1,60 @@
+"""``gnss-sim`` command line tool.
+
+Each subcommand lives in ``gnss_sim_ros2/commands/<name>.py`` and exposes
+``add_arguments(parser)`` and ``run(args) -> int``.  Modules are imported only
+when their subcommand runs, so ``gnss-sim --help`` stays fast and a command
+never pays for another's dependencies.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from . import __version__
+
+#: subcommand -> (module under gnss_sim_ros2.commands, one-line help)
+COMMANDS = {
+    "roundtrip": ("roundtrip", "publish every gnss_sim_msgs type and receive it in another process"),
+}
+
+
+def build_parser(load_all: bool = True) -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="gnss-sim",
+        description="GNSS receiver simulator for ROS 2 robots: satellites, visibility, observations, RINEX.",
+    )
+    parser.add_argument("--version", action="version", version=f"gnss-sim {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name, (module, help_text) in COMMANDS.items():
+        p = sub.add_parser(name, help=help_text, description=help_text)
+        if load_all:
+            importlib.import_module(f"gnss_sim_ros2.commands.{module}").add_arguments(p)
+    return parser
+
+
+def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    # Only the chosen subcommand's module is imported.
+    chosen = next((a for a in argv if not a.startswith("-")), None)
+    if chosen in COMMANDS:
+        parser = build_parser(load_all=False)
+        sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+        module = importlib.import_module(f"gnss_sim_ros2.commands.{COMMANDS[chosen][0]}")
+        module.add_arguments(sub.choices[chosen])
+    else:
+        parser = build_parser(load_all=False)
+    args = parser.parse_args(argv)
+    if args.command is None:
+        parser.print_help()
+        return 0
+    module = importlib.import_module(f"gnss_sim_ros2.commands.{COMMANDS[args.command][0]}")
+    try:
+        return int(module.run(args) or 0)
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())
