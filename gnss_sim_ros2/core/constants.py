@@ -68,3 +68,28 @@ DF_G1_HZ = 0.5625e6    # GLONASS G1 channel spacing
 F_G2_HZ = 1246.0e6     # GLONASS G2 channel 0
 DF_G2_HZ = 0.4375e6    # GLONASS G2 channel spacing
 F_G3_HZ = 1202.025e6   # GLONASS G3 CDMA
+
+# --- Added for the broadcast ephemeris (core/ephemeris) --------------------------
+#: QZSS GM [m^3/s^2] (IS-QZSS-PNT-005 5.2.4.13, table 5.2.4-2: WGS 84 value as GPS)
+GM_QZS_M3PS2 = 3.986005e14
+#: NavIC GM [m^3/s^2] (IRNSS SIS ICD for SPS 1.1, 6.2.1.3: WGS 84 value as GPS)
+GM_IRN_M3PS2 = 3.986005e14
+#: QZSS / NavIC Earth rotation rate [rad/s] (IS-QZSS-PNT-005 table 5.2.4-2; IRNSS SIS ICD 1.1 6.2.1.3)
+OMEGA_E_QZS_RADPS = 7.2921151467e-5
+OMEGA_E_IRN_RADPS = 7.2921151467e-5
+#: QZSS / NavIC relativistic constant F [s/m^0.5] (as GPS: IS-QZSS-PNT-005 5.2.4.10; IRNSS SIS ICD 1.1 6.2.1.2)
+F_REL_QZS_S_PER_SQRTM = -4.442807633e-10
+F_REL_IRN_S_PER_SQRTM = -4.442807633e-10
+#: tilt of the BeiDou GEO orbit frame about X [deg] (BDS-SIS-ICD-B1I 3.0, 5.2.4.12: R_X(-5 deg))
+BDS_GEO_TILT_DEG = -5.0
+#: WGS 84 / EGM96 second zonal harmonic J2 = -sqrt(5) C20bar [-] (NIMA TR8350.2 table 5.1,
+#: C20bar = -0.484166774985e-3); used for the analytic acceleration of Keplerian ephemerides
+J2_WGS84 = 1.08262982131e-3
+
+# --- Thermal noise and Earth sphere (link budgets) ---------------------------------
+#: Boltzmann constant [J/K] (exact; SI Brochure, 9th ed., BIPM 2019)
+K_BOLTZMANN_JPK = 1.380649e-23
+#: standard noise reference temperature [K] (IEEE Std 100 / ITU-R P.372): kT0 = -204.0 dBW/Hz
+T0_NOISE_K = 290.0
+#: mean Earth radius R1 [m] (Moritz, Geodetic Reference System 1980, J. Geodesy 74:128, 2000)
+R_EARTH_MEAN_M = 6371008.8

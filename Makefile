@@ -1,0 +1,31 @@
+# The two commands of the README:
+#   make demo   set up (first time) and run the main job on built-in defaults
+#   make test   set up (first time) and run lint + the test suite
+# Both are idempotent: a second run skips finished setup steps.
+SHELL := /bin/bash
+VENV ?= $(CURDIR)/.venv
+OUT ?= $(CURDIR)/out
+PYTEST_ARGS ?=
+# DDS discovery on this machine only; a domain of our own for tests.
+export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
+
+.PHONY: setup demo test lint bench clean
+
+setup:
+	@scripts/setup_env.sh
+
+demo: setup
+	@scripts/run_demo.sh "$(OUT)"
+
+lint: setup
+	$(VENV)/bin/ruff check gnss_sim_ros2 test bench launch scripts
+
+test: setup
+	$(VENV)/bin/ruff check gnss_sim_ros2 test bench launch scripts
+	$(VENV)/bin/python -m pytest -q -p no:cacheprovider $(PYTEST_ARGS) test
+
+bench: setup
+	@for b in bench/bench_*.py; do echo "== $$b"; $(VENV)/bin/python $$b --quick || exit 1; done
+
+clean:
+	rm -rf build install log

@@ -1,0 +1,475 @@
+"""Streaming RINEX 3.04 observation writer (RINEX 3.04, IGS/RTCM-SC104, 2020).
+
+The writer is opened once and fed one epoch at a time::
+
+    hdr = RinexObsHeader(obs_types={"G": ["C1C", "L1C", "D1C", "S1C"],
+                                    "E": ["C1C", "L1C", "D1C", "S1C"]},
+                         marker_name="ROBOT", interval_s=1.0)
+    with RinexObsWriter("robot.rnx", hdr) as w:
+        w.write_epoch(t, {"G05": {"C1C": (21e6, None, 7), "L1C": (1.1e8, 0, 7)}})
+
+Crash safety
+------------
+Each epoch is formatted completely in memory and handed to the kernel with one
+``write()`` on an unbuffered file (``fsync=True`` also forces it to disk), so a
+process killed at any time leaves the header and every epoch whose write
+returned: a valid file up to the last complete epoch.  (Linux can in theory
+cut a multi-page ``write()`` short when SIGKILL lands inside it; the window is
+microseconds per epoch.  :func:`truncate_incomplete_epoch` removes such a
+torn last epoch.)
+
+TIME OF LAST OBS is optional in RINEX 3.04 and is not known while writing.
+The header is written before the first epoch, with an 80-column *COMMENT*
+line reserved where TIME OF LAST OBS belongs; :meth:`RinexObsWriter.close`
+overwrites that line in place (same length, ``pwrite`` at its byte offset)
+with the real TIME OF LAST OBS record.  A killed process therefore leaves a
+header with a harmless COMMENT instead, which every reader accepts, and a
+closed file has the full header.  Reserving (instead of rewriting the whole
+file at close) keeps close O(1) and never exposes a half-rewritten file.
+
+Observation lines: satellite id (A3) then per observation type of the header
+F14.3 value, LLI digit (I1) and signal strength digit (I1), blanks where
+missing (RINEX 3.04 table A13); trailing blanks are dropped.
+"""
+from __future__ import annotations
+
+import datetime as _dt
+import math
+import os
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .time import GPS_EPOCH, GnssTime, gps_minus_utc_at_gps
+
+RINEX_VERSION = 3.04
+#: systems RINEX 3.04 knows (section 3.5): GPS, GLONASS, Galileo, BeiDou, QZSS, NavIC, SBAS
+SYSTEMS = "GRECJIS"
+_OBS_CODE_RE = re.compile(r"^[CLDSX][0-9][A-Z]$")
+_BLANK_FIELD = " " * 16
+#: largest magnitude an F14.3 field holds
+_F14_MAX = 9999999999.999
+_LAST_OBS_PLACEHOLDER = "TIME OF LAST OBS: written when the file is closed"
+_DEFAULT_GLO_COD_PHS_BIS = {"C1C": 0.0, "C1P": 0.0, "C2C": 0.0, "C2P": 0.0}
+
+
+def ssi_from_cn0(cn0_dbhz):
+    """RINEX signal strength indicator 1-9 from C/N0 [dB-Hz] (RINEX 3.04 section 5.7).
+
+    ``min(max(int(cn0/6), 1), 9)``; non-finite C/N0 gives 0 ("not known").
+    Scalar in -> int out; array in -> int array out.
+    """
+    c = np.asarray(cn0_dbhz, dtype=np.float64)
+    ok = np.isfinite(c)
+    ssi = np.where(ok, np.clip(np.floor(np.where(ok, c, 0.0) / 6.0), 1, 9), 0).astype(np.int64)
+    return int(ssi) if ssi.ndim == 0 else ssi
+
+
+@dataclass
+class RinexObsHeader:
+    """Header content of an observation file (RINEX 3.04 table A2).
+
+    ``obs_types``: {system letter: [observation codes]} in the column order of
+    the file, e.g. ``{"G": ["C1C", "L1C", "D1C", "S1C"]}``.
+    ``glonass_slots``: {"R01": frequency channel k}; ``phase_shifts_cycles``:
+    {system: {code: shift}} (default: 0.0 for every phase observation type).
+    """
+
+    obs_types: Mapping[str, Sequence[str]]
+    marker_name: str = "GNSS_SIM"
+    marker_number: str = ""
+    marker_type: str = "GROUND_CRAFT"
+    observer: str = ""
+    agency: str = ""
+    receiver_number: str = ""
+    receiver_type: str = "GNSS_SIM"
+    receiver_version: str = ""
+    antenna_number: str = ""
+    antenna_type: str = ""
+    approx_pos_ecef_m: Sequence[float] = (0.0, 0.0, 0.0)
+    antenna_delta_hen_m: Sequence[float] = (0.0, 0.0, 0.0)
+    interval_s: float | None = None
+    glonass_slots: Mapping[str, int] = field(default_factory=dict)
+    glonass_cod_phs_bis_m: Mapping[str, float] | None = None
+    phase_shifts_cycles: Mapping[str, Mapping[str, float]] | None = None
+    rcv_clock_offset_applied: bool | None = None
+    program: str = "gnss_sim"
+    run_by: str = ""
+    comments: Sequence[str] = ()
+    #: write LEAP SECONDS (GPS-UTC at the first epoch)
+    leap_seconds: bool = True
+    #: reserve TIME OF LAST OBS and fill it in on close()
+    time_of_last_obs: bool = True
+
+    @classmethod
+    def from_any(cls, info) -> RinexObsHeader:
+        if isinstance(info, cls):
+            return info
+        if isinstance(info, Mapping):
+            try:
+                return cls(**info)
+            except TypeError as exc:
+                raise ValueError(f"header_info: {exc}") from exc
+        raise ValueError(f"header_info must be a RinexObsHeader or a dict, not {type(info).__name__}")
+
+    def validate(self) -> None:
+        if not self.obs_types:
+            raise ValueError("header_info.obs_types is empty: give {system: [codes]}")
+        for sys_, codes in self.obs_types.items():
+            if sys_ not in SYSTEMS or len(sys_) != 1:
+                raise ValueError(f"header_info.obs_types: unknown system {sys_!r} (expected one of {SYSTEMS})")
+            if not codes:
+                raise ValueError(f"header_info.obs_types[{sys_!r}] is empty")
+            if len(set(codes)) != len(codes):
+                raise ValueError(f"header_info.obs_types[{sys_!r}] has duplicate codes: {list(codes)}")
+            for c in codes:
+                if not isinstance(c, str) or not _OBS_CODE_RE.match(c):
+                    raise ValueError(
+                        f"header_info.obs_types[{sys_!r}]: bad observation code {c!r} (expected e.g. 'C1C')"
+                    )
+        for name, width in (("marker_name", 60), ("marker_number", 20), ("marker_type", 20), ("observer", 20),
+                            ("agency", 40), ("receiver_number", 20), ("receiver_type", 20),
+                            ("receiver_version", 20), ("antenna_number", 20), ("antenna_type", 20),
+                            ("program", 20), ("run_by", 20)):
+            v = getattr(self, name)
+            if not isinstance(v, str) or len(v) > width or not v.isascii():
+                raise ValueError(f"header_info.{name}={v!r}: must be ASCII text of at most {width} characters")
+        for c in self.comments:
+            if len(c) > 60 or not c.isascii():
+                raise ValueError(f"header_info.comments: {c!r} is longer than 60 characters or not ASCII")
+        for name in ("approx_pos_ecef_m", "antenna_delta_hen_m"):
+            v = np.asarray(getattr(self, name), dtype=np.float64)
+            if v.shape != (3,) or not np.all(np.isfinite(v)) or np.any(np.abs(v) >= 1e9):
+                raise ValueError(f"header_info.{name}: need 3 finite values below 1e9 m, got {v!r}")
+        if self.interval_s is not None and not (0 < self.interval_s < 1e6):
+            raise ValueError(f"header_info.interval_s={self.interval_s}: must be in (0, 1e6) s")
+        for sv, k in self.glonass_slots.items():
+            if not re.fullmatch(r"R\d\d", sv) or not -7 <= int(k) <= 13:
+                raise ValueError(f"header_info.glonass_slots: bad entry {sv!r}: {k!r} (expected 'R01': -7..13)")
+
+
+def _hline(content: str, label: str) -> str:
+    """One header line: 60 columns of content + 20 columns of label, newline."""
+    return f"{content:<60.60s}{label:<20s}\n"
+
+
+def _time_fields(t: GnssTime) -> tuple[int, int, int, int, int, int, int]:
+    """(y, mo, d, h, mi, s, fraction in 1e-7 s) of a scalar GnssTime in GPS time."""
+    sec = int(t.sec)
+    q = round(float(t.frac) * 1e7)
+    if q >= 10_000_000:
+        sec, q = sec + 1, q - 10_000_000
+    dt = GPS_EPOCH + _dt.timedelta(seconds=sec)
+    return dt.year, dt.month, dt.day, dt.hour, dt.minute, dt.second, q
+
+
+def _time_of_obs_line(t: GnssTime, label: str) -> str:
+    # TIME OF FIRST/LAST OBS: 5I6,F13.7,5X,A3 (RINEX 3.04 table A2)
+    y, mo, d, h, mi, s, q = _time_fields(t)
+    return _hline(f"{y:6d}{mo:6d}{d:6d}{h:6d}{mi:6d}{s:5d}.{q:07d}     GPS", label)
+
+
+@dataclass
+class EpochArrays:
+    """Array form of one epoch: rows = satellites, columns = ``codes``.
+
+    ``value``: (N, M) float, NaN where missing; ``lli``/``ssi``: (N, M) int or
+    None (negative = blank).
+    """
+
+    sv: Sequence[str]
+    codes: Sequence[str]
+    value: np.ndarray
+    lli: np.ndarray | None = None
+    ssi: np.ndarray | None = None
+
+
+class RinexObsWriter:
+    """Write a RINEX 3.04 observation file epoch by epoch (see the module docstring).
+
+    ``path``: output file (overwritten); ``header_info``: a
+    :class:`RinexObsHeader` or a dict of its fields; ``fsync``: call
+    ``os.fsync`` after each epoch (slower, survives power loss too).
+    """
+
+    def __init__(self, path, header_info, fsync: bool = False):
+        self.header = RinexObsHeader.from_any(header_info)
+        self.header.validate()
+        self.path = os.fspath(path)
+        self.fsync = bool(fsync)
+        self._code_index = {s: {c: i for i, c in enumerate(codes)} for s, codes in self.header.obs_types.items()}
+        self._n_codes = {s: len(codes) for s, codes in self.header.obs_types.items()}
+        self._array_maps: dict[tuple, list] = {}
+        self._fd: int | None = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+        self._header_written = False
+        self._last_obs_offset: int | None = None
+        self.t_first: GnssTime | None = None
+        self.t_last: GnssTime | None = None
+        self.epochs_written = 0
+
+    # ----- context manager ----------------------------------------------
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+        return False
+
+    # ----- low level -------------------------------------------------------
+    def _write_all(self, data: bytes) -> None:
+        view = memoryview(data)
+        while view:
+            n = os.write(self._fd, view)
+            view = view[n:]
+        if self.fsync:
+            os.fsync(self._fd)
+
+    def _header_text(self, t_first: GnssTime) -> tuple[str, int | None]:
+        h = self.header
+        systems = list(h.obs_types)
+        sys_char = systems[0] if len(systems) == 1 else "M"
+        sys_name = {"G": "GPS", "R": "GLONASS", "E": "Galileo", "C": "BeiDou", "J": "QZSS", "I": "NavIC",
+                    "S": "SBAS", "M": "Mixed"}[sys_char]
+        now = _dt.datetime.now(_dt.timezone.utc).strftime("%Y%m%d %H%M%S UTC")
+        lines = [
+            _hline(f"{RINEX_VERSION:9.2f}{'':11s}{'OBSERVATION DATA':<20s}{sys_char}: {sys_name}",
+                   "RINEX VERSION / TYPE"),
+            _hline(f"{h.program:<20s}{h.run_by:<20s}{now:<20s}", "PGM / RUN BY / DATE"),
+        ]
+        lines += [_hline(c, "COMMENT") for c in h.comments]
+        lines.append(_hline(h.marker_name, "MARKER NAME"))
+        if h.marker_number:
+            lines.append(_hline(h.marker_number, "MARKER NUMBER"))
+        lines.append(_hline(h.marker_type, "MARKER TYPE"))
+        lines.append(_hline(f"{h.observer:<20s}{h.agency:<40s}", "OBSERVER / AGENCY"))
+        lines.append(_hline(f"{h.receiver_number:<20s}{h.receiver_type:<20s}{h.receiver_version:<20s}",
+                            "REC # / TYPE / VERS"))
+        lines.append(_hline(f"{h.antenna_number:<20s}{h.antenna_type:<20s}", "ANT # / TYPE"))
+        x, y, z = (float(v) for v in h.approx_pos_ecef_m)
+        lines.append(_hline(f"{x:14.4f}{y:14.4f}{z:14.4f}", "APPROX POSITION XYZ"))
+        dh, de, dn = (float(v) for v in h.antenna_delta_hen_m)
+        lines.append(_hline(f"{dh:14.4f}{de:14.4f}{dn:14.4f}", "ANTENNA: DELTA H/E/N"))
+        # SYS / # / OBS TYPES: A1,2X,I3,13(1X,A3); continuation 6X,13(1X,A3)
+        for s, codes in h.obs_types.items():
+            for k in range(0, len(codes), 13):
+                chunk = "".join(f" {c}" for c in codes[k:k + 13])
+                head = f"{s}  {len(codes):3d}" if k == 0 else " " * 6
+                lines.append(_hline(head + chunk, "SYS / # / OBS TYPES"))
+        if any(c[0] == "S" for codes in h.obs_types.values() for c in codes):
+            lines.append(_hline("DBHZ", "SIGNAL STRENGTH UNIT"))
+        if h.interval_s is not None:
+            lines.append(_hline(f"{h.interval_s:10.3f}", "INTERVAL"))
+        lines.append(_time_of_obs_line(t_first, "TIME OF FIRST OBS"))
+        last_obs_index = None
+        if h.time_of_last_obs:
+            last_obs_index = len(lines)
+            lines.append(_hline(_LAST_OBS_PLACEHOLDER, "COMMENT"))
+        if h.rcv_clock_offset_applied is not None:
+            lines.append(_hline(f"{int(bool(h.rcv_clock_offset_applied)):6d}", "RCV CLOCK OFFS APPL"))
+        # SYS / PHASE SHIFT: A1,1X,A3,1X,F8.5 (no satellite list: all satellites)
+        shifts = h.phase_shifts_cycles
+        for s, codes in h.obs_types.items():
+            for c in codes:
+                if c[0] != "L":
+                    continue
+                val = 0.0 if shifts is None else shifts.get(s, {}).get(c)
+                lines.append(_hline(f"{s} {c}" + ("" if val is None else f" {val:8.5f}"), "SYS / PHASE SHIFT"))
+        if "R" in h.obs_types:
+            # GLONASS SLOT / FRQ #: I3,1X,8(A3,1X,I2,1X); continuation 4X,8(A3,1X,I2,1X)
+            slots = sorted(h.glonass_slots.items())
+            if not slots:
+                lines.append(_hline(f"{0:3d}", "GLONASS SLOT / FRQ #"))
+            for k in range(0, len(slots), 8):
+                head = f"{len(slots):3d} " if k == 0 else " " * 4
+                body = "".join(f"{sv} {int(ch):2d} " for sv, ch in slots[k:k + 8])
+                lines.append(_hline(head + body, "GLONASS SLOT / FRQ #"))
+            # GLONASS COD/PHS/BIS: 4(1X,A3,1X,F8.3)
+            bis = h.glonass_cod_phs_bis_m or _DEFAULT_GLO_COD_PHS_BIS
+            lines.append(_hline("".join(f" {c} {float(v):8.3f}" for c, v in bis.items()), "GLONASS COD/PHS/BIS"))
+        if h.leap_seconds:
+            lines.append(_hline(f"{gps_minus_utc_at_gps(int(t_first.sec)):6d}", "LEAP SECONDS"))
+        lines.append(_hline("", "END OF HEADER"))
+        offset = None
+        if last_obs_index is not None:
+            offset = sum(len(ln) for ln in lines[:last_obs_index])  # ASCII: chars == bytes
+        return "".join(lines), offset
+
+    # ----- epoch formatting ----------------------------------------------
+    def _sv_line(self, sv: str, obs: Mapping) -> str:
+        idx = self._code_index.get(sv[:1])
+        if idx is None or len(sv) != 3:
+            raise ValueError(f"observations: satellite {sv!r} has no system in the header obs_types "
+                             f"({list(self.header.obs_types)})")
+        fields = [_BLANK_FIELD] * self._n_codes[sv[0]]
+        for code, item in obs.items():
+            i = idx.get(code)
+            if i is None:
+                raise ValueError(f"observations[{sv!r}]: code {code!r} is not in the header obs_types for "
+                                 f"{sv[0]}: {list(idx)}")
+            if isinstance(item, tuple):
+                value, lli, ssi = (item + (None, None))[:3]
+            else:
+                value, lli, ssi = item, None, None
+            fields[i] = _format_field(value, lli, ssi, sv, code)
+        return (sv + "".join(fields)).rstrip()
+
+    def _array_lines(self, ep: EpochArrays) -> list[str]:
+        value = np.asarray(ep.value, dtype=np.float64)
+        n, m = len(ep.sv), len(ep.codes)
+        if value.shape != (n, m):
+            raise ValueError(f"observations.value: shape {value.shape}, expected ({n}, {m}) = (sv, codes)")
+        lli = None if ep.lli is None else _int_or_blank(ep.lli)
+        ssi = None if ep.ssi is None else _int_or_blank(ep.ssi)
+        for name, arr in (("lli", lli), ("ssi", ssi)):
+            if arr is not None and arr.shape != (n, m):
+                raise ValueError(f"observations.{name}: shape {arr.shape}, expected ({n}, {m})")
+        codes = tuple(ep.codes)
+        vals = value.tolist()
+        llis = lli.tolist() if lli is not None else None
+        ssis = ssi.tolist() if ssi is not None else None
+        out = []
+        for r, sv in enumerate(ep.sv):
+            s = sv[:1]
+            key = (s, codes)
+            cmap = self._array_maps.get(key)
+            if cmap is None:
+                idx = self._code_index.get(s)
+                if idx is None or len(sv) != 3:
+                    raise ValueError(f"observations.sv[{r}]={sv!r}: system not in the header obs_types")
+                cmap = [idx.get(c) for c in codes]
+                self._array_maps[key] = cmap
+            fields = [_BLANK_FIELD] * self._n_codes[s]
+            row = vals[r]
+            for j, i in enumerate(cmap):
+                v = row[j]
+                if v != v:  # NaN: missing
+                    continue
+                if i is None:
+                    raise ValueError(f"observations: {sv} has a value for {codes[j]!r}, not in the header "
+                                     f"obs_types for {s}")
+                fields[i] = _format_field(v, llis[r][j] if llis is not None else None,
+                                          ssis[r][j] if ssis is not None else None, sv, codes[j])
+            out.append((sv + "".join(fields)).rstrip())
+        return out
+
+    def write_epoch(self, t: GnssTime, observations, clock_offset_s: float | None = None, flag: int = 0) -> None:
+        """Append one epoch (time ``t`` in GPS time) and hand it to the OS at once.
+
+        ``observations``: ``{sv: {code: value | (value, lli, ssi)}}`` (lli, ssi
+        ints 0-9 or None for blank; value None/NaN for blank), or an
+        :class:`EpochArrays`.  Satellites are written in the given order.
+        ``clock_offset_s``: receiver clock offset (F15.12) or None; ``flag``:
+        epoch flag 0 (OK) or 1 (power failure since the previous epoch).
+        """
+        if self._fd is None:
+            raise ValueError(f"{self.path}: write_epoch() after close()")
+        if np.ndim(t.sec) != 0:
+            raise ValueError("write_epoch: t must be a scalar GnssTime")
+        if flag not in (0, 1):
+            raise ValueError(f"write_epoch: flag={flag!r}; only 0 (OK) and 1 (power failure) carry observations")
+        if self.t_last is not None and not (t - self.t_last) > 0:
+            raise ValueError(f"write_epoch: t={t!r} is not after the previous epoch {self.t_last!r}")
+        if isinstance(observations, EpochArrays):
+            sv_lines = self._array_lines(observations)
+        elif isinstance(observations, Mapping):
+            sv_lines = [self._sv_line(sv, obs) for sv, obs in observations.items()]
+        else:
+            raise ValueError(f"write_epoch: observations must be a dict or EpochArrays, not "
+                             f"{type(observations).__name__}")
+        if len(sv_lines) > 999:
+            raise ValueError(f"write_epoch: {len(sv_lines)} satellites; the epoch record holds at most 999")
+        # Epoch record: A1,1X,I4,4(1X,I2.2),F11.7,2X,I1,I3,6X,F15.12 (RINEX 3.04 table A13)
+        y, mo, d, h, mi, s, q = _time_fields(t)
+        head = f"> {y:04d} {mo:02d} {d:02d} {h:02d} {mi:02d} {s:02d}.{q:07d}  {flag:1d}{len(sv_lines):3d}"
+        if clock_offset_s is not None:
+            c = float(clock_offset_s)
+            if not (math.isfinite(c) and abs(c) < 1000.0):
+                raise ValueError(f"write_epoch: clock_offset_s={clock_offset_s!r} does not fit F15.12")
+            head += f"      {c:15.12f}"
+        block = head + "\n" + "".join(ln + "\n" for ln in sv_lines)
+        if not self._header_written:
+            text, self._last_obs_offset = self._header_text(t)
+            self._write_all(text.encode("ascii"))
+            self._header_written = True
+            self.t_first = t
+        self._write_all(block.encode("ascii"))
+        self.t_last = t
+        self.epochs_written += 1
+
+    def close(self) -> None:
+        """Fill in TIME OF LAST OBS (over the reserved COMMENT line) and close the file.
+
+        A file closed before any epoch holds no header (TIME OF FIRST OBS is
+        mandatory and unknown): it stays empty.
+        """
+        if self._fd is None:
+            return
+        try:
+            if self._last_obs_offset is not None and self.t_last is not None:
+                line = _time_of_obs_line(self.t_last, "TIME OF LAST OBS").encode("ascii")
+                os.pwrite(self._fd, line, self._last_obs_offset)
+                if self.fsync:
+                    os.fsync(self._fd)
+        finally:
+            os.close(self._fd)
+            self._fd = None
+
+
+def _format_field(value, lli, ssi, sv, code) -> str:
+    """F14.3 + LLI (I1) + SSI (I1); blanks for None/NaN."""
+    if value is None or value != value:
+        vs = " " * 14
+    else:
+        v = float(value)
+        if not abs(v) <= _F14_MAX:
+            raise ValueError(f"observations[{sv!r}][{code!r}]={value!r} does not fit F14.3 (|v| < 1e10)")
+        vs = f"{v:14.3f}"
+    return vs + _digit(lli, sv, code, "LLI") + _digit(ssi, sv, code, "SSI")
+
+
+def _int_or_blank(a) -> np.ndarray:
+    """Integer array with -1 (blank) where the input is NaN."""
+    a = np.asarray(a)
+    if a.dtype.kind == "f":
+        a = np.where(np.isfinite(a), a, -1)
+    return a.astype(np.int64)
+
+
+def _digit(x, sv, code, what) -> str:
+    if x is None or x != x or x < 0:
+        return " "
+    i = int(x)
+    if i > 9 or (what == "LLI" and i > 7):
+        raise ValueError(f"observations[{sv!r}][{code!r}]: {what}={x!r} out of range")
+    return chr(48 + i)
+
+
+def truncate_incomplete_epoch(path) -> int:
+    """Cut a torn last epoch (fewer satellite lines than its record announces, or
+    no final newline) from an observation file; returns the bytes removed."""
+    with open(path, "rb") as f:
+        data = f.read()
+    end = data.find(b"END OF HEADER")
+    if end < 0:
+        return 0
+    body_start = data.find(b"\n", end) + 1
+    keep = len(data)
+    if not data.endswith(b"\n"):
+        keep = data.rfind(b"\n") + 1
+    last = data.rfind(b"\n>", body_start - 1, keep)
+    start = last + 1 if last >= 0 else (body_start if data[body_start:body_start + 1] == b">" else -1)
+    if start >= body_start:
+        rec = data[start:keep]
+        lines = rec.split(b"\n")[:-1]
+        try:
+            n = int(lines[0][32:35])
+        except (ValueError, IndexError):
+            n = -1
+        if len(lines) - 1 != n:
+            keep = start
+    if keep < len(data):
+        with open(path, "r+b") as f:
+            f.truncate(keep)
+    return len(data) - keep
