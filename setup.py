@@ -28,7 +28,6 @@ setup(
     maintainer_email="maintainers@gnss-sim.example.org",
     description="GNSS receiver simulator for ROS 2 robots",
     license="Apache-2.0",
-    tests_require=["pytest"],
     entry_points={
         "console_scripts": [
             "gnss-sim = gnss_sim_ros2.cli:main",

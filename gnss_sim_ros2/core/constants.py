@@ -93,3 +93,10 @@ K_BOLTZMANN_JPK = 1.380649e-23
 T0_NOISE_K = 290.0
 #: mean Earth radius R1 [m] (Moritz, Geodetic Reference System 1980, J. Geodesy 74:128, 2000)
 R_EARTH_MEAN_M = 6371008.8
+
+# --- Scene / visibility --------------------------------------------------------------
+#: default specific attenuation of foliage (tree crowns) [dB/m]: chosen so that a typical
+#: crown path of 5-8 m gives about 12 dB, the median single-tree fade measured by
+#: Vogel & Goldhirsh (IEEE Trans. Antennas Propag. 34(12), 1986, 869 MHz; fades 10-20 dB;
+#: see docs notes physics-anchors.md): 1.85 dB/m x 6.5 m = 12.0 dB.
+FOLIAGE_ATTENUATION_DB_PER_M = 1.85

@@ -175,12 +175,14 @@ def _time_of_obs_line(t: GnssTime, label: str) -> str:
 class EpochArrays:
     """Array form of one epoch: rows = satellites, columns = ``codes``.
 
+    ``codes``: one list for every row, or {system: list} (all of length M) when
+    the systems track different signals (column j = ``codes[sv[0]][j]``).
     ``value``: (N, M) float, NaN where missing; ``lli``/``ssi``: (N, M) int or
-    None (negative = blank).
+    float with NaN, or None (negative or NaN = blank).
     """
 
     sv: Sequence[str]
-    codes: Sequence[str]
+    codes: Sequence[str] | Mapping[str, Sequence[str]]
     value: np.ndarray
     lli: np.ndarray | None = None
     ssi: np.ndarray | None = None
@@ -317,7 +319,12 @@ class RinexObsWriter:
 
     def _array_lines(self, ep: EpochArrays) -> list[str]:
         value = np.asarray(ep.value, dtype=np.float64)
-        n, m = len(ep.sv), len(ep.codes)
+        per_sys = isinstance(ep.codes, Mapping)
+        codes_by_sys = {k: tuple(v) for k, v in ep.codes.items()} if per_sys else None
+        n = len(ep.sv)
+        m = len(next(iter(codes_by_sys.values()))) if per_sys else len(ep.codes)
+        if per_sys and any(len(v) != m for v in codes_by_sys.values()):
+            raise ValueError(f"observations.codes: every system needs {m} codes, got {ep.codes!r}")
         if value.shape != (n, m):
             raise ValueError(f"observations.value: shape {value.shape}, expected ({n}, {m}) = (sv, codes)")
         lli = None if ep.lli is None else _int_or_blank(ep.lli)
@@ -325,13 +332,17 @@ class RinexObsWriter:
         for name, arr in (("lli", lli), ("ssi", ssi)):
             if arr is not None and arr.shape != (n, m):
                 raise ValueError(f"observations.{name}: shape {arr.shape}, expected ({n}, {m})")
-        codes = tuple(ep.codes)
+        codes = None if per_sys else tuple(ep.codes)
         vals = value.tolist()
         llis = lli.tolist() if lli is not None else None
         ssis = ssi.tolist() if ssi is not None else None
         out = []
         for r, sv in enumerate(ep.sv):
             s = sv[:1]
+            if per_sys:
+                codes = codes_by_sys.get(s)
+                if codes is None:
+                    raise ValueError(f"observations.codes has no entry for system {s!r} (row {r}, {sv!r})")
             key = (s, codes)
             cmap = self._array_maps.get(key)
             if cmap is None:

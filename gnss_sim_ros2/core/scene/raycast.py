@@ -1,0 +1,129 @@
+"""Open3D ray queries against a scene split into opaque and penetrable (foliage) triangles.
+
+Open3D's ``RaycastingScene`` (Embree) works in float32: a 6.4e6 m ECEF
+coordinate keeps about 0.5 m, a 100 km world coordinate about 8 mm.  So the
+vertices are shifted by the scene's bounding-box centre (in float64) before the
+float32 conversion, and every ray origin is shifted by the same centre; rays
+are (origin, unit direction) with ``t`` in metres, never far end points.
+
+* opaque triangles: one scene, ``test_occlusions`` (any hit) or ``cast_rays``
+  (first hit distance);
+* penetrable triangles (closed volumes such as tree crowns): a second scene;
+  ``test_occlusions`` first finds the few rays that touch foliage at all, and
+  only those go through ``list_intersections``.  The path length inside the
+  volumes is  sum(t at exits) - sum(t at entries)  with entry/exit told by the
+  sign of (ray direction . outward face normal); a ray starting inside a
+  volume has one exit more than entries, which the sum handles.  Each hit is
+  weighted by its triangle's attenuation [dB/m], so overlapping volumes of
+  different classes add up.
+"""
+from __future__ import annotations
+
+import numpy as np
+import open3d as o3d
+
+
+def _tensor(a, dtype):
+    return o3d.core.Tensor(np.ascontiguousarray(a, dtype=dtype))
+
+
+class RayScene:
+    """Ray queries in the world frame.  ``attenuation_db_per_m[t]`` per triangle: inf/NaN = opaque."""
+
+    def __init__(self, vertices_m, triangles, attenuation_db_per_m, nthreads: int = 0):
+        v = np.asarray(vertices_m, dtype=np.float64)
+        f = np.asarray(triangles, dtype=np.int64)
+        att = np.asarray(attenuation_db_per_m, dtype=np.float64)
+        if v.ndim != 2 or v.shape[1] != 3 or f.ndim != 2 or f.shape[1] != 3 or att.shape != (len(f),):
+            raise ValueError("RayScene: vertices_m (V, 3), triangles (T, 3), attenuation_db_per_m (T,) expected")
+        self.nthreads = int(nthreads)
+        self.center_m = 0.5 * (v.min(axis=0) + v.max(axis=0)) if len(v) else np.zeros(3)
+        vc = v - self.center_m
+        opaque = ~np.isfinite(att)
+        self.n_opaque = int(opaque.sum())
+        self.n_penetrable = int((~opaque).sum())
+        self._opaque = None
+        self._pen = None
+        if self.n_opaque:
+            self._opaque = o3d.t.geometry.RaycastingScene()
+            self._opaque.add_triangles(_tensor(vc, np.float32), _tensor(f[opaque], np.uint32))
+        if self.n_penetrable:
+            fp = f[~opaque]
+            self._pen = o3d.t.geometry.RaycastingScene()
+            self._pen.add_triangles(_tensor(vc, np.float32), _tensor(fp, np.uint32))
+            a, b, c = vc[fp[:, 0]], vc[fp[:, 1]], vc[fp[:, 2]]
+            n = np.cross(b - a, c - a)
+            self._pen_normals = n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+            self._pen_att = att[~opaque]
+
+    @property
+    def has_penetrable(self) -> bool:
+        return self._pen is not None
+
+    def _rays(self, origins_m, dirs) -> o3d.core.Tensor:
+        o = np.asarray(origins_m, dtype=np.float64).reshape(-1, 3) - self.center_m
+        d = np.asarray(dirs, dtype=np.float64).reshape(-1, 3)
+        o, d = np.broadcast_arrays(o, d)
+        r = np.empty((len(d), 6), dtype=np.float32)
+        r[:, :3] = o
+        r[:, 3:] = d
+        return o3d.core.Tensor(r)
+
+    def occluded(self, origins_m, dirs, tnear_m: float = 0.0, tfar_m: float = np.inf) -> np.ndarray:
+        """(K,) bool: does the ray hit an opaque triangle within [tnear, tfar]?"""
+        n = max(len(np.asarray(dirs).reshape(-1, 3)), len(np.asarray(origins_m).reshape(-1, 3)))
+        if self._opaque is None or n == 0:
+            return np.zeros(n, dtype=bool)
+        return self._opaque.test_occlusions(self._rays(origins_m, dirs), tnear=tnear_m, tfar=tfar_m,
+                                            nthreads=self.nthreads).numpy()
+
+    def touches_penetrable(self, origins_m, dirs, tnear_m: float = 0.0) -> np.ndarray:
+        """(K,) bool: does the ray touch a penetrable (foliage) triangle?"""
+        n = max(len(np.asarray(dirs).reshape(-1, 3)), len(np.asarray(origins_m).reshape(-1, 3)))
+        if self._pen is None or n == 0:
+            return np.zeros(n, dtype=bool)
+        return self._pen.test_occlusions(self._rays(origins_m, dirs), tnear=tnear_m, nthreads=self.nthreads).numpy()
+
+    def hit_distance(self, origins_m, dirs, tnear_m: float = 0.0) -> np.ndarray:
+        """(K,) distance [m] to the first opaque triangle (inf if none); ``dirs`` must be unit vectors."""
+        n = max(len(np.asarray(dirs).reshape(-1, 3)), len(np.asarray(origins_m).reshape(-1, 3)))
+        if self._opaque is None or n == 0:
+            return np.full(n, np.inf)
+        t = self._opaque.cast_rays(self._rays(origins_m, dirs), nthreads=self.nthreads)["t_hit"].numpy()
+        t = t.astype(np.float64)
+        if tnear_m > 0:
+            # Open3D cast_rays has no tnear: rays starting on a surface would hit it at t ~ 0
+            close = t < tnear_m
+            if np.any(close):
+                o = np.broadcast_to(np.asarray(origins_m, np.float64).reshape(-1, 3), (n, 3))[close]
+                d = np.broadcast_to(np.asarray(dirs, np.float64).reshape(-1, 3), (n, 3))[close]
+                t2 = self._opaque.cast_rays(self._rays(o + d * tnear_m, d), nthreads=self.nthreads)["t_hit"]
+                t[close] = t2.numpy() + tnear_m
+        return t
+
+    def penetration(self, origins_m, dirs) -> tuple[np.ndarray, np.ndarray]:
+        """(attenuation_db (K,), path_length_m (K,)) through penetrable volumes along unit rays."""
+        o = np.asarray(origins_m, dtype=np.float64).reshape(-1, 3)
+        d = np.asarray(dirs, dtype=np.float64).reshape(-1, 3)
+        n = max(len(o), len(d))
+        db = np.zeros(n)
+        length = np.zeros(n)
+        if self._pen is None or n == 0:
+            return db, length
+        o, d = np.broadcast_arrays(o, d)
+        touched = self._pen.test_occlusions(self._rays(o, d), nthreads=self.nthreads).numpy()
+        if not np.any(touched):
+            return db, length
+        sel = np.flatnonzero(touched)
+        lx = self._pen.list_intersections(self._rays(o[sel], d[sel]), nthreads=self.nthreads)
+        ray_ids = lx["ray_ids"].numpy().astype(np.int64)
+        prim = lx["primitive_ids"].numpy().astype(np.int64)
+        t_hit = lx["t_hit"].numpy().astype(np.float64)
+        # exit (+t) when the ray leaves through the face (d . n > 0), entry (-t) otherwise
+        sign = np.sign(np.einsum("ij,ij->i", d[sel][ray_ids], self._pen_normals[prim]))
+        w = sign * t_hit
+        length_sel = np.bincount(ray_ids, weights=w, minlength=len(sel))
+        db_sel = np.bincount(ray_ids, weights=w * self._pen_att[prim], minlength=len(sel))
+        length[sel] = np.maximum(length_sel, 0.0)
+        db[sel] = np.maximum(db_sel, 0.0)
+        return db, length

@@ -1,0 +1,199 @@
+"""Table of GNSS signals: RINEX 3 observation code, carrier, chip rate, minimum received power.
+
+Keys are ``(system, code)`` with the RINEX system letter (G R E C J I) and the
+two-character band+attribute of RINEX 3.04 (section 5.1, tables 4-10), e.g.
+``("G", "1C")`` for GPS L1 C/A.  Codes sharing a band and chipping share the
+same entry (``"5I"``, ``"5Q"``, ``"5X"`` are data, pilot and combined tracking
+of L5).
+
+Minimum received power: the ICD figure for the signal (data + pilot together
+where the signal has two components, since receivers combine them), at the
+output of a 0 dBic RHCP antenna (= the "3 dBi linearly polarised" antenna of
+the GPS/GLONASS ICDs), for a satellite at ``min_power_el_deg`` or higher.
+Sources per row; where the ICD gives several values per satellite type the
+MEO / current-block value is used.  receiver/cn0.py anchors its link budget on
+these numbers.
+
+Chip rate: of the ranging code that determines the code tracking noise (BPSK
+formula in receiver/noise.py; BOC signals are treated as BPSK of the same chip
+rate, a conservative choice).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from gnss_sim_ros2.core import constants as k
+
+SYSTEMS = ("G", "R", "E", "C", "J", "I")
+
+
+@dataclass(frozen=True)
+class Signal:
+    system: str            #: RINEX system letter
+    code: str              #: RINEX 3 band + attribute, e.g. "1C"
+    band: str              #: band name in the system's ICD, e.g. "L1", "E5a", "B1I"
+    name: str              #: human-readable signal name
+    f0_hz: float           #: carrier [Hz] (GLONASS FDMA: channel k = 0)
+    df_hz: float           #: GLONASS FDMA channel spacing [Hz]; 0 for CDMA
+    chip_rate_cps: float   #: ranging-code chip rate [chip/s]
+    min_power_dbw: float   #: ICD minimum received power [dBW] at a 0 dBic antenna
+    min_power_el_deg: float  #: elevation at and above which min_power_dbw holds [deg]
+    source: str            #: document for min_power / chip rate
+
+    @property
+    def chip_length_m(self) -> float:
+        """Length of one chip [m] = c / chip rate."""
+        return k.C_MPS / self.chip_rate_cps
+
+    @property
+    def wavelength_m(self) -> float:
+        """Carrier wavelength at channel 0 [m]."""
+        return k.C_MPS / self.f0_hz
+
+
+# (system, codes, band, name, f0, df, chip rate, min power dBW, elevation deg, source)
+_ROWS = (
+    # --- GPS -------------------------------------------------------------------------------
+    ("G", ("1C",), "L1", "L1 C/A", k.F_L1_HZ, 0.0, 1.023e6, -158.5, 5.0,
+     "IS-GPS-200N 3.3.1.6 table 3-Va (IIR/IIR-M/IIF/III L1 C/A); chip rate 3.3.2.1"),
+    ("G", ("1P", "1W", "1Y"), "L1", "L1 P(Y)", k.F_L1_HZ, 0.0, 10.23e6, -161.5, 5.0,
+     "IS-GPS-200N 3.3.1.6 table 3-Va (L1 P(Y)); chip rate 3.3.2.1"),
+    ("G", ("1S", "1L", "1X"), "L1", "L1C", k.F_L1_HZ, 0.0, 1.023e6, -157.0, 5.0,
+     "IS-GPS-800J 3.2.1.6 (L1C total: L1CP -158.25 + L1CD -163 dBW)"),
+    ("G", ("2S", "2L", "2X"), "L2", "L2C", k.F_L2_HZ, 0.0, 1.023e6, -160.0, 5.0,
+     "IS-GPS-200N 3.3.1.6 table 3-Va (L2C, IIR-M/IIF); CM+CL time-multiplexed at 1.023 Mchip/s"),
+    ("G", ("2P", "2W", "2Y", "2D"), "L2", "L2 P(Y)", k.F_L2_HZ, 0.0, 10.23e6, -161.5, 5.0,
+     "IS-GPS-200N 3.3.1.6 table 3-Va (L2 P(Y), IIR-M/IIF/III)"),
+    ("G", ("5I", "5Q", "5X"), "L5", "L5", k.F_L5_HZ, 0.0, 10.23e6, -154.9, 5.0,
+     "IS-GPS-705J 3.3.1.6 (I5 and Q5 each -157.9 dBW, IIF); chip rate 3.3.2.1"),
+    # --- GLONASS (FDMA) ---------------------------------------------------------------------
+    ("R", ("1C",), "G1", "G1 C/A", k.F_G1_HZ, k.DF_G1_HZ, 0.511e6, -161.0, 5.0,
+     "GLONASS ICD 5.1 (2008) 3.3.1.6 (L1 >= -161 dBW); C/A chip rate 3.3.2.2"),
+    ("R", ("1P",), "G1", "G1 P", k.F_G1_HZ, k.DF_G1_HZ, 5.11e6, -161.0, 5.0,
+     "GLONASS ICD 5.1 3.3.1.6; P code 5.11 Mchip/s"),
+    ("R", ("2C",), "G2", "G2 C/A", k.F_G2_HZ, k.DF_G2_HZ, 0.511e6, -167.0, 5.0,
+     "GLONASS ICD 5.1 3.3.1.6 (L2 >= -167 dBW)"),
+    ("R", ("2P",), "G2", "G2 P", k.F_G2_HZ, k.DF_G2_HZ, 5.11e6, -167.0, 5.0,
+     "GLONASS ICD 5.1 3.3.1.6 (L2 >= -167 dBW)"),
+    # --- Galileo ----------------------------------------------------------------------------
+    ("E", ("1B", "1C", "1X", "1Z"), "E1", "E1 OS", k.F_L1_HZ, 0.0, 1.023e6, -157.0, 10.0,
+     "Galileo OS SIS ICD 2.1 2.3.2 table 4 (E1-B + E1-C); chip rate table 3"),
+    ("E", ("5I", "5Q", "5X"), "E5a", "E5a", k.F_L5_HZ, 0.0, 10.23e6, -155.0, 10.0,
+     "Galileo OS SIS ICD 2.1 2.3.2 table 4 (E5a-I + E5a-Q)"),
+    ("E", ("7I", "7Q", "7X"), "E5b", "E5b", k.F_E5B_HZ, 0.0, 10.23e6, -155.0, 10.0,
+     "Galileo OS SIS ICD 2.1 2.3.2 table 4 (E5b-I + E5b-Q)"),
+    ("E", ("8I", "8Q", "8X"), "E5", "E5 AltBOC", k.F_E5_HZ, 0.0, 10.23e6, -152.0, 10.0,
+     "Galileo OS SIS ICD 2.1 2.3.2 table 4 (E5a + E5b power)"),
+    ("E", ("6B", "6C", "6X", "6Z"), "E6", "E6", k.F_E6_HZ, 0.0, 5.115e6, -155.0, 10.0,
+     "Galileo E6-B/C SIS ICD 1.0 (2023) (E6-B + E6-C); chip rate 5.115 Mchip/s"),
+    # --- BeiDou -----------------------------------------------------------------------------
+    ("C", ("2I", "2Q", "2X"), "B1I", "B1I", k.F_B1I_HZ, 0.0, 2.046e6, -163.0, 5.0,
+     "BDS-SIS-ICD-B1I 3.0 (2019) 3.2 / 4.2 (B1I >= -163 dBW); chip rate 2.046 Mchip/s"),
+    ("C", ("7I", "7Q", "7X"), "B2I", "B2I", k.F_E5B_HZ, 0.0, 2.046e6, -163.0, 5.0,
+     "BDS-SIS-ICD 2.1 (2016) (B2I >= -163 dBW); BDS-2 satellites only"),
+    ("C", ("6I", "6Q", "6X"), "B3I", "B3I", k.F_B3I_HZ, 0.0, 10.23e6, -163.0, 5.0,
+     "BDS-SIS-ICD-B3I 1.0 (2018) (B3I >= -163 dBW); chip rate 10.23 Mchip/s"),
+    ("C", ("1D", "1P", "1X"), "B1C", "B1C", k.F_L1_HZ, 0.0, 1.023e6, -159.0, 5.0,
+     "BDS-SIS-ICD-B1C 1.0 (2017) 4.2 (MEO, data + pilot); chip rate 1.023 Mchip/s"),
+    ("C", ("5D", "5P", "5X"), "B2a", "B2a", k.F_L5_HZ, 0.0, 10.23e6, -156.0, 5.0,
+     "BDS-SIS-ICD-B2a 1.0 (2017) 4.2 (MEO, data + pilot)"),
+    ("C", ("7D", "7P", "7Z"), "B2b", "B2b", k.F_E5B_HZ, 0.0, 10.23e6, -160.0, 5.0,
+     "BDS-SIS-ICD-B2b 1.0 (2020) 4.2 (MEO, B2b-I); RINEX 3.04 codes 7D/7P/7Z"),
+    # --- QZSS -------------------------------------------------------------------------------
+    ("J", ("1C",), "L1", "L1 C/A", k.F_L1_HZ, 0.0, 1.023e6, -158.5, 10.0,
+     "IS-QZSS-PNT-005 3.1.2.1 table 3.1.2-1 (L1C/A)"),
+    ("J", ("1S", "1L", "1X"), "L1", "L1C", k.F_L1_HZ, 0.0, 1.023e6, -157.0, 10.0,
+     "IS-QZSS-PNT-005 table 3.1.2-1 (L1C total)"),
+    ("J", ("2S", "2L", "2X"), "L2", "L2C", k.F_L2_HZ, 0.0, 1.023e6, -160.0, 10.0,
+     "IS-QZSS-PNT-005 table 3.1.2-1 (L2C)"),
+    ("J", ("5I", "5Q", "5X"), "L5", "L5", k.F_L5_HZ, 0.0, 10.23e6, -154.9, 10.0,
+     "IS-QZSS-PNT-005 table 3.1.2-1 (I5 and Q5 each -157.9 dBW)"),
+    ("J", ("6S", "6L", "6X", "6E", "6Z"), "L6", "L6", k.F_E6_HZ, 0.0, 5.115e6, -155.7, 10.0,
+     "IS-QZSS-L6-005 3.1.2 (L6 -155.7 dBW); chip rate 5.115 Mchip/s"),
+    # --- NavIC ------------------------------------------------------------------------------
+    ("I", ("5A",), "L5", "L5 SPS", k.F_L5_HZ, 0.0, 1.023e6, -159.0, 5.0,
+     "IRNSS SIS ICD for SPS 1.1 (2017) 2.4 (L5 SPS >= -159 dBW); chip rate 1.023 Mchip/s"),
+    ("I", ("9A",), "S", "S SPS", k.F_S_HZ, 0.0, 1.023e6, -162.3, 5.0,
+     "IRNSS SIS ICD for SPS 1.1 2.4 (S SPS >= -162.3 dBW)"),
+)
+
+#: (system, code) -> Signal
+SIGNALS: dict[tuple[str, str], Signal] = {}
+for _sys, _codes, _band, _name, _f0, _df, _chip, _pmin, _el, _src in _ROWS:
+    for _code in _codes:
+        SIGNALS[(_sys, _code)] = Signal(_sys, _code, _band, _name, _f0, _df, _chip, _pmin, _el, _src)
+
+#: receiver profiles: system -> RINEX codes tracked, in output order
+PROFILES: dict[str, dict[str, list[str]]] = {
+    # a mass-market single-frequency receiver (u-blox M8-class: L1/E1/B1I/G1)
+    "single_frequency": {
+        "G": ["1C"], "R": ["1C"], "E": ["1C"], "C": ["2I"], "J": ["1C"], "I": ["5A"],
+    },
+    # a multi-frequency geodetic receiver
+    "geodetic": {
+        "G": ["1C", "2W", "2L", "5Q"],
+        "R": ["1C", "2C"],
+        "E": ["1C", "5Q", "7Q", "8Q", "6C"],
+        "C": ["2I", "7I", "6I", "1P", "5P"],
+        "J": ["1C", "2L", "5Q"],
+        "I": ["5A"],
+    },
+}
+
+
+def signal(system: str, code: str) -> Signal:
+    """The :class:`Signal` of ``(system, code)``; ``code`` may be "1C" or an obs type "C1C"/"L1C"."""
+    if system not in SYSTEMS:
+        raise ValueError(f"signals.signal: parameter 'system' = {system!r} is not one of {SYSTEMS}")
+    c = str(code)
+    if len(c) == 3 and c[0] in "CLDS":
+        c = c[1:]
+    try:
+        return SIGNALS[(system, c)]
+    except KeyError:
+        known = sorted(cd for (s, cd) in SIGNALS if s == system)
+        raise ValueError(
+            f"signals.signal: parameter 'code' = {code!r} is not a known RINEX 3 code for system "
+            f"{system!r} (known: {', '.join(known)})"
+        ) from None
+
+
+def frequency_hz(system: str, code: str, glo_channel=0):
+    """Carrier frequency [Hz]; for GLONASS FDMA f = f0 + k * df (GLONASS ICD 5.1 3.3.1.4).
+
+    ``glo_channel`` (k, -7..+6 in use, -7..+13 accepted) may be an array: the result broadcasts.
+    Ignored (must be 0 or anything) for CDMA signals.
+    """
+    s = signal(system, code)
+    if s.df_hz == 0.0:
+        kk = np.asarray(glo_channel)
+        return s.f0_hz if kk.ndim == 0 else np.full(kk.shape, s.f0_hz)
+    kk = np.asarray(glo_channel)
+    if not np.issubdtype(kk.dtype, np.integer):
+        if not np.all(np.equal(np.mod(kk, 1), 0)):
+            raise ValueError(f"signals.frequency_hz: parameter 'glo_channel' = {glo_channel!r} is not an integer")
+    if np.any(kk < -7) or np.any(kk > 13):
+        raise ValueError(f"signals.frequency_hz: parameter 'glo_channel' = {glo_channel!r} is outside -7..13")
+    f = s.f0_hz + kk * s.df_hz
+    return float(f) if np.ndim(f) == 0 else f
+
+
+def wavelength_m(system: str, code: str, glo_channel=0):
+    """Carrier wavelength [m] = c / f (broadcasts over ``glo_channel`` like :func:`frequency_hz`)."""
+    return k.C_MPS / frequency_hz(system, code, glo_channel)
+
+
+def profile(name: str) -> dict[str, list[str]]:
+    """The receiver profile ``name`` (a copy), validated against the signal table."""
+    if name not in PROFILES:
+        raise ValueError(f"signals.profile: parameter 'name' = {name!r} is not one of {sorted(PROFILES)}")
+    return {s: list(codes) for s, codes in PROFILES[name].items()}
+
+
+def validate_profile(prof: dict[str, list[str]]) -> None:
+    """Raise ValueError naming the system/code of a profile mapping that the table does not know."""
+    for sys_, codes in prof.items():
+        for c in codes:
+            signal(sys_, c)
