@@ -16,6 +16,7 @@ from . import __version__
 #: subcommand -> (module under gnss_sim_ros2.commands, one-line help)
 COMMANDS = {
     "roundtrip": ("roundtrip", "publish every gnss_sim_msgs type and receive it in another process"),
+    "config": ("config", "print the default parameter file (config/gnss_sim.yaml) or check one"),
 }
 
 

@@ -105,20 +105,35 @@ if ! stamp_ok cmake_paths "$h"; then
   stamp_set cmake_paths "$h"
 fi
 
-# ---------------------------------------------------------------- gnss_sim_msgs
-h=$(hash_of "$REPO"/msg_pkg/CMakeLists.txt "$REPO"/msg_pkg/package.xml "$REPO"/msg_pkg/msg/*.msg)
-if ! stamp_ok msgs "$h"; then
-  log "building gnss_sim_msgs into $VENV"
-  bld="$REPO/build/gnss_sim_msgs"
+# ---------------------------------------------------------------- interface packages
+build_interfaces() {  # name source_dir
+  local name="$1" src="$2" bld="$REPO/build/$1"
+  log "building $name into $VENV"
   rm -rf "$bld"; mkdir -p "$REPO/build"
   (
     export PATH="$VENV/bin:$PATH" AMENT_PREFIX_PATH="$VENV" CMAKE_PREFIX_PATH="$VENV"
-    cmake -S "$REPO/msg_pkg" -B "$bld" -DCMAKE_INSTALL_PREFIX="$VENV" -DPython3_EXECUTABLE="$VPY" \
+    cmake -S "$src" -B "$bld" -DCMAKE_INSTALL_PREFIX="$VENV" -DPython3_EXECUTABLE="$VPY" \
       -DBUILD_TESTING=OFF -DCMAKE_BUILD_TYPE=Release > "$bld.configure.log" 2>&1 \
       || { tail -30 "$bld.configure.log" >&2; exit 1; }
     cmake --build "$bld" --target install -j "$(nproc)" > "$bld.build.log" 2>&1 \
       || { tail -30 "$bld.build.log" >&2; exit 1; }
-  ) || die "building gnss_sim_msgs failed (logs: $REPO/build/gnss_sim_msgs.*.log)"
+  ) || die "building $name failed (logs: $REPO/build/$name.*.log)"
+}
+
+# tf2_msgs is not on PyPI: its TFMessage from the public definition (compat/README.md)
+h=$(hash_of "$REPO"/compat/tf2_msgs/CMakeLists.txt "$REPO"/compat/tf2_msgs/package.xml "$REPO"/compat/tf2_msgs/msg/*.msg)
+if ! stamp_ok tf2_msgs "$h"; then
+  if "$VPY" -c "import tf2_msgs.msg" >/dev/null 2>&1 && [ ! -f "$STAMPS/tf2_msgs" ]; then
+    log "tf2_msgs already importable: not building the compat copy"
+  else
+    build_interfaces tf2_msgs "$REPO/compat/tf2_msgs"
+  fi
+  stamp_set tf2_msgs "$h"
+fi
+
+h=$(hash_of "$REPO"/msg_pkg/CMakeLists.txt "$REPO"/msg_pkg/package.xml "$REPO"/msg_pkg/msg/*.msg)
+if ! stamp_ok msgs "$h"; then
+  build_interfaces gnss_sim_msgs "$REPO/msg_pkg"
   stamp_set msgs "$h"
 fi
 

@@ -48,7 +48,39 @@ RINEX_VERSION = 3.04
 #: systems RINEX 3.04 knows (section 3.5): GPS, GLONASS, Galileo, BeiDou, QZSS, NavIC, SBAS
 SYSTEMS = "GRECJIS"
 _OBS_CODE_RE = re.compile(r"^[CLDSX][0-9][A-Z]$")
-_BLANK_FIELD = " " * 16
+#: LLI/SSI characters (ASCII codes) indexed by digit + 1 (index 0: blank)
+_DIGIT_BYTES = np.frombuffer(b" 0123456789", dtype=np.uint8)
+_POW10_13 = 10 ** np.arange(12, -1, -1, dtype=np.int64)
+
+
+def _f14_3_chars(v: np.ndarray) -> np.ndarray:
+    """Fortran F14.3 of finite values |v| <= 9999999999.999 as ASCII codes, shape v.shape + (14,).
+
+    Vectorised equivalent of ``f"{v:14.3f}"`` (same digits except, in theory,
+    within ~1e-13 of a rounding tie; negative values need |v| < 1e9).
+    """
+    neg = v < 0
+    a = np.abs(v)
+    whole = np.floor(a)  # split so that the scaling by 1000 rounds only the (exact) fraction
+    q = whole.astype(np.int64) * 1000 + np.rint((a - whole) * 1000.0).astype(np.int64)  # thousandths
+    digits = (q[..., None] // _POW10_13) % 10  # 10 integer digits + 3 decimals
+    chars = (digits + 48).astype(np.uint8)
+    int_part = q // 1000
+    lead = _POW10_13[:10] // 1000 > int_part[..., None]  # leading zeros of the integer part...
+    lead[..., 9] = False  # ...but the units digit stays
+    n_lead = lead.sum(axis=-1)
+    if np.any(neg & (n_lead == 0)):
+        raise ValueError("negative value below -999999999.999 does not fit F14.3")
+    ci = chars[..., :10]
+    ci[lead] = 32
+    sign_pos = np.where(neg, n_lead - 1, 0)
+    keep = np.take_along_axis(ci, sign_pos[..., None], -1)
+    np.put_along_axis(ci, sign_pos[..., None], np.where(neg[..., None], 45, keep), axis=-1)
+    out = np.empty(v.shape + (14,), dtype=np.uint8)
+    out[..., :10] = ci
+    out[..., 10] = 46
+    out[..., 11:] = chars[..., 10:]
+    return out
 #: largest magnitude an F14.3 field holds
 _F14_MAX = 9999999999.999
 _LAST_OBS_PLACEHOLDER = "TIME OF LAST OBS: written when the file is closed"
@@ -299,71 +331,132 @@ class RinexObsWriter:
         return "".join(lines), offset
 
     # ----- epoch formatting ----------------------------------------------
-    def _sv_line(self, sv: str, obs: Mapping) -> str:
-        idx = self._code_index.get(sv[:1])
-        if idx is None or len(sv) != 3:
-            raise ValueError(f"observations: satellite {sv!r} has no system in the header obs_types "
-                             f"({list(self.header.obs_types)})")
-        fields = [_BLANK_FIELD] * self._n_codes[sv[0]]
-        for code, item in obs.items():
-            i = idx.get(code)
-            if i is None:
-                raise ValueError(f"observations[{sv!r}]: code {code!r} is not in the header obs_types for "
-                                 f"{sv[0]}: {list(idx)}")
-            if isinstance(item, tuple):
-                value, lli, ssi = (item + (None, None))[:3]
-            else:
-                value, lli, ssi = item, None, None
-            fields[i] = _format_field(value, lli, ssi, sv, code)
-        return (sv + "".join(fields)).rstrip()
+    def _system_lines(self, s: str, svs: list[str], val: np.ndarray, lli: np.ndarray, ssi: np.ndarray) -> list[str]:
+        """Lines of satellites of system ``s``; val/lli/ssi are (n, codes of s in header order)."""
+        codes = self.header.obs_types[s]
+        nan = np.isnan(val)
+        bad = ~nan & ~(np.abs(val) <= _F14_MAX)
+        if bad.any():
+            r, j = np.argwhere(bad)[0]
+            raise ValueError(f"observations[{svs[r]!r}][{codes[j]!r}]={val[r, j]!r} does not fit F14.3 (|v| < 1e10)")
+        for name, arr, top in (("LLI", lli, 7), ("SSI", ssi, 9)):
+            badi = arr > top
+            if badi.any():
+                r, j = np.argwhere(badi)[0]
+                raise ValueError(f"observations[{svs[r]!r}][{codes[j]!r}]: {name}={arr[r, j]} out of range 0-{top}")
+        n, k = val.shape
+        fields = np.empty((n, k, 16), dtype=np.uint8)
+        fields[:, :, :14] = _f14_3_chars(np.where(nan, 0.0, val))
+        fields[:, :, :14][nan] = 32
+        fields[:, :, 14] = _DIGIT_BYTES[np.where(nan, -1, np.maximum(lli, -1)) + 1]
+        fields[:, :, 15] = _DIGIT_BYTES[np.where(nan, -1, np.maximum(ssi, -1)) + 1]
+        lines = np.empty((n, 3 + 16 * k), dtype=np.uint8)
+        lines[:, :3] = np.frombuffer("".join(svs).encode("ascii"), dtype=np.uint8).reshape(n, 3)
+        lines[:, 3:] = fields.reshape(n, 16 * k)
+        return [row.tobytes().rstrip() for row in lines]
+
+    def _dict_lines(self, observations: Mapping) -> list[str]:
+        groups: dict[str, list] = {}
+        order = []
+        for sv, obs in observations.items():
+            s = sv[:1]
+            idx = self._code_index.get(s)
+            if idx is None or len(sv) != 3:
+                raise ValueError(f"observations: satellite {sv!r} has no system in the header obs_types "
+                                 f"({list(self.header.obs_types)})")
+            n = self._n_codes[s]
+            v, li, si = [math.nan] * n, [-1] * n, [-1] * n
+            for code, item in obs.items():
+                i = idx.get(code)
+                if i is None:
+                    raise ValueError(f"observations[{sv!r}]: code {code!r} is not in the header obs_types for "
+                                     f"{s}: {list(idx)}")
+                if type(item) is tuple:
+                    if len(item) == 3:
+                        x, a, b = item
+                    else:
+                        x, a, b = (item + (None, None))[:3]
+                    if x is not None:
+                        v[i] = x
+                    if a is not None:
+                        li[i] = a
+                    if b is not None:
+                        si[i] = b
+                elif item is not None:
+                    v[i] = item
+            g = groups.setdefault(s, [[], [], [], []])
+            order.append((s, len(g[0])))
+            g[0].append(sv)
+            g[1].append(v)
+            g[2].append(li)
+            g[3].append(si)
+        return self._assemble(groups, order)
+
+    def _assemble(self, groups: dict, order: list) -> list[str]:
+        lines = {}
+        for s, (svs, v, li, si) in groups.items():
+            try:
+                va = np.asarray(v, dtype=np.float64)
+                la = _int_or_blank(np.asarray(li, dtype=np.float64))
+                sa = _int_or_blank(np.asarray(si, dtype=np.float64))
+            except (TypeError, ValueError) as exc:
+                raise ValueError(f"observations of system {s}: values must be numbers or None ({exc})") from exc
+            lines[s] = self._system_lines(s, svs, va, la, sa)
+        return [lines[s][i] for s, i in order]
 
     def _array_lines(self, ep: EpochArrays) -> list[str]:
         value = np.asarray(ep.value, dtype=np.float64)
         per_sys = isinstance(ep.codes, Mapping)
         codes_by_sys = {k: tuple(v) for k, v in ep.codes.items()} if per_sys else None
-        n = len(ep.sv)
+        svs = list(ep.sv)
+        n = len(svs)
         m = len(next(iter(codes_by_sys.values()))) if per_sys else len(ep.codes)
         if per_sys and any(len(v) != m for v in codes_by_sys.values()):
             raise ValueError(f"observations.codes: every system needs {m} codes, got {ep.codes!r}")
         if value.shape != (n, m):
             raise ValueError(f"observations.value: shape {value.shape}, expected ({n}, {m}) = (sv, codes)")
-        lli = None if ep.lli is None else _int_or_blank(ep.lli)
-        ssi = None if ep.ssi is None else _int_or_blank(ep.ssi)
+        lli = np.full((n, m), -1, np.int64) if ep.lli is None else _int_or_blank(ep.lli)
+        ssi = np.full((n, m), -1, np.int64) if ep.ssi is None else _int_or_blank(ep.ssi)
         for name, arr in (("lli", lli), ("ssi", ssi)):
-            if arr is not None and arr.shape != (n, m):
+            if arr.shape != (n, m):
                 raise ValueError(f"observations.{name}: shape {arr.shape}, expected ({n}, {m})")
-        codes = None if per_sys else tuple(ep.codes)
-        vals = value.tolist()
-        llis = lli.tolist() if lli is not None else None
-        ssis = ssi.tolist() if ssi is not None else None
-        out = []
-        for r, sv in enumerate(ep.sv):
-            s = sv[:1]
-            if per_sys:
-                codes = codes_by_sys.get(s)
-                if codes is None:
-                    raise ValueError(f"observations.codes has no entry for system {s!r} (row {r}, {sv!r})")
+        sys_of = np.array([sv[:1] for sv in svs])
+        groups, order = {}, [None] * n
+        for s in dict.fromkeys(sys_of.tolist()):
+            rows = np.flatnonzero(sys_of == s)
+            idx = self._code_index.get(s)
+            if idx is None:
+                raise ValueError(f"observations.sv[{rows[0]}]={svs[rows[0]]!r}: system not in the header obs_types")
+            codes = codes_by_sys.get(s) if per_sys else tuple(ep.codes)
+            if codes is None:
+                raise ValueError(f"observations.codes has no entry for system {s!r} ({svs[rows[0]]!r})")
             key = (s, codes)
             cmap = self._array_maps.get(key)
             if cmap is None:
-                idx = self._code_index.get(s)
-                if idx is None or len(sv) != 3:
-                    raise ValueError(f"observations.sv[{r}]={sv!r}: system not in the header obs_types")
-                cmap = [idx.get(c) for c in codes]
+                cmap = np.array([idx.get(c, -1) for c in codes], dtype=np.int64)
                 self._array_maps[key] = cmap
-            fields = [_BLANK_FIELD] * self._n_codes[s]
-            row = vals[r]
-            for j, i in enumerate(cmap):
-                v = row[j]
-                if v != v:  # NaN: missing
-                    continue
-                if i is None:
-                    raise ValueError(f"observations: {sv} has a value for {codes[j]!r}, not in the header "
-                                     f"obs_types for {s}")
-                fields[i] = _format_field(v, llis[r][j] if llis is not None else None,
-                                          ssis[r][j] if ssis is not None else None, sv, codes[j])
-            out.append((sv + "".join(fields)).rstrip())
-        return out
+            sub = value[rows]
+            unknown = (cmap < 0) & ~np.all(np.isnan(sub), axis=0)
+            if unknown.any():
+                j = int(np.flatnonzero(unknown)[0])
+                raise ValueError(f"observations: system {s} has values for {codes[j]!r}, not in the header "
+                                 f"obs_types for {s}: {list(idx)}")
+            known = cmap >= 0
+            k = self._n_codes[s]
+            v = np.full((len(rows), k), np.nan)
+            li = np.full((len(rows), k), -1, np.int64)
+            si = np.full((len(rows), k), -1, np.int64)
+            v[:, cmap[known]] = sub[:, known]
+            li[:, cmap[known]] = lli[rows][:, known]
+            si[:, cmap[known]] = ssi[rows][:, known]
+            bad = [svs[r] for r in rows if len(svs[r]) != 3]
+            if bad:
+                raise ValueError(f"observations.sv: bad satellite id {bad[0]!r} (expected e.g. 'G05')")
+            groups[s] = ([svs[r] for r in rows], v, li, si)
+            for i, r in enumerate(rows.tolist()):
+                order[r] = (s, i)
+        lines = {s: self._system_lines(s, g[0], g[1], g[2], g[3]) for s, g in groups.items()}
+        return [lines[s][i] for s, i in order]
 
     def write_epoch(self, t: GnssTime, observations, clock_offset_s: float | None = None, flag: int = 0) -> None:
         """Append one epoch (time ``t`` in GPS time) and hand it to the OS at once.
@@ -385,7 +478,7 @@ class RinexObsWriter:
         if isinstance(observations, EpochArrays):
             sv_lines = self._array_lines(observations)
         elif isinstance(observations, Mapping):
-            sv_lines = [self._sv_line(sv, obs) for sv, obs in observations.items()]
+            sv_lines = self._dict_lines(observations)
         else:
             raise ValueError(f"write_epoch: observations must be a dict or EpochArrays, not "
                              f"{type(observations).__name__}")
@@ -399,13 +492,13 @@ class RinexObsWriter:
             if not (math.isfinite(c) and abs(c) < 1000.0):
                 raise ValueError(f"write_epoch: clock_offset_s={clock_offset_s!r} does not fit F15.12")
             head += f"      {c:15.12f}"
-        block = head + "\n" + "".join(ln + "\n" for ln in sv_lines)
+        block = (head + "\n").encode("ascii") + b"".join(ln + b"\n" for ln in sv_lines)
         if not self._header_written:
             text, self._last_obs_offset = self._header_text(t)
             self._write_all(text.encode("ascii"))
             self._header_written = True
             self.t_first = t
-        self._write_all(block.encode("ascii"))
+        self._write_all(block)
         self.t_last = t
         self.epochs_written += 1
 
@@ -428,33 +521,12 @@ class RinexObsWriter:
             self._fd = None
 
 
-def _format_field(value, lli, ssi, sv, code) -> str:
-    """F14.3 + LLI (I1) + SSI (I1); blanks for None/NaN."""
-    if value is None or value != value:
-        vs = " " * 14
-    else:
-        v = float(value)
-        if not abs(v) <= _F14_MAX:
-            raise ValueError(f"observations[{sv!r}][{code!r}]={value!r} does not fit F14.3 (|v| < 1e10)")
-        vs = f"{v:14.3f}"
-    return vs + _digit(lli, sv, code, "LLI") + _digit(ssi, sv, code, "SSI")
-
-
 def _int_or_blank(a) -> np.ndarray:
     """Integer array with -1 (blank) where the input is NaN."""
     a = np.asarray(a)
     if a.dtype.kind == "f":
         a = np.where(np.isfinite(a), a, -1)
     return a.astype(np.int64)
-
-
-def _digit(x, sv, code, what) -> str:
-    if x is None or x != x or x < 0:
-        return " "
-    i = int(x)
-    if i > 9 or (what == "LLI" and i > 7):
-        raise ValueError(f"observations[{sv!r}][{code!r}]: {what}={x!r} out of range")
-    return chr(48 + i)
 
 
 def truncate_incomplete_epoch(path) -> int:

@@ -1,0 +1,168 @@
+"""GLONASS FDMA broadcast ephemerides: numerical integration of the PZ-90 state.
+
+GLONASS ICD 5.1 (2008), A.3.1.2 ("simplified algorithm"): the broadcast
+position, velocity and luni-solar acceleration at tb are integrated in the
+rotating PZ-90 frame with the central field, the J2 (C20) zonal term and the
+broadcast luni-solar acceleration held constant:
+
+    dv/dt = -GM r/r^3 - 3/2 J2 GM a_e^2 / r^5 (x (1-5z^2/r^2), y (1-5z^2/r^2), z (3-5z^2/r^2))
+            + w^2 (x, y, 0) + 2 w (vy, -vx, 0) + a_ls
+
+with 4th-order Runge-Kutta steps of ``STEP_S`` (<= 60 s, ICD A.3.1.2).
+Each record is integrated once over its whole validity window (backwards and
+forwards from tb) and the nodes are kept; states between nodes come from the
+quintic Hermite interpolant of position, velocity and acceleration at the two
+nodes around t (interpolation error below 1e-6 m for 30 s nodes, far below the
+RK4 error), so a call never re-integrates from tb.
+
+Time: the records' tb is converted from UTC (RINEX) to GPS time by core/time.py;
+t - tb is then elapsed GPS seconds, which across a leap second equals elapsed
+GLONASST (UTC(SU) + 3 h) seconds: the leap second is accounted for.
+Clock (ICD 5.1, 3.3.3): t_sv - t_GLONASS = -tau_n + gamma_n (t - tb); as in SP3
+it refers to GLONASST (the GLONASS - GPS time offset, a few tens of ns, is
+common to all GLONASS satellites).  No relativistic term is returned (the
+GLONASS broadcast clock contains it).
+PZ-90.11 vs ITRF: the transformation is a few millimetres (IERS / GLONASS ICD
+2016 edition) and is neglected: positions are PZ-90.11 taken as ITRF.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .. import constants as K
+
+#: RK4 step [s] (GLONASS ICD 5.1 A.3.1.2 asks for <= 60 s; RTKLIB uses 60 s)
+STEP_S = 30.0
+
+
+def glonass_acceleration(pos_m, vel_mps, acc_ls_mps2):
+    """Right-hand side of GLONASS ICD 5.1 A.3.1.2 in PZ-90 ECEF [m/s^2] (arrays (..., 3))."""
+    gm, ae, j2, w = K.GM_GLO_M3PS2, K.A_E_GLO_M, K.J2_GLO, K.OMEGA_E_GLO_RADPS
+    x, y, z = pos_m[..., 0], pos_m[..., 1], pos_m[..., 2]
+    r2 = x * x + y * y + z * z
+    r = np.sqrt(r2)
+    mu_r3 = gm / (r2 * r)
+    k = 1.5 * j2 * ae * ae / r2
+    zz = 5.0 * z * z / r2
+    ax = -mu_r3 * x * (1.0 + k * (1.0 - zz)) + w * w * x + 2.0 * w * vel_mps[..., 1] + acc_ls_mps2[..., 0]
+    ay = -mu_r3 * y * (1.0 + k * (1.0 - zz)) + w * w * y - 2.0 * w * vel_mps[..., 0] + acc_ls_mps2[..., 1]
+    az = -mu_r3 * z * (1.0 + k * (3.0 - zz)) + acc_ls_mps2[..., 2]
+    return np.stack([ax, ay, az], axis=-1)
+
+
+def rk4_step(pos, vel, acc_ls, h):
+    """One RK4 step of length h [s] (negative to go backwards)."""
+    def f(p, v):
+        return v, glonass_acceleration(p, v, acc_ls)
+
+    k1p, k1v = f(pos, vel)
+    k2p, k2v = f(pos + 0.5 * h * k1p, vel + 0.5 * h * k1v)
+    k3p, k3v = f(pos + 0.5 * h * k2p, vel + 0.5 * h * k2v)
+    k4p, k4v = f(pos + h * k3p, vel + h * k3v)
+    return (pos + h / 6.0 * (k1p + 2 * k2p + 2 * k3p + k4p),
+            vel + h / 6.0 * (k1v + 2 * k2v + 2 * k3v + k4v))
+
+
+def integrate(pos0_m, vel0_mps, acc_ls_mps2, dt_s, step_s: float = STEP_S):
+    """Integrate states (N, 3) from tb to tb + dt_s (scalar or (N,)) with RK4 steps <= step_s.
+
+    Direct integration (used by tests and for one-off states); the provider
+    uses :class:`GlonassOrbits` instead.
+    """
+    pos = np.array(pos0_m, dtype=np.float64, ndmin=2)
+    vel = np.array(vel0_mps, dtype=np.float64, ndmin=2)
+    acc = np.array(acc_ls_mps2, dtype=np.float64, ndmin=2)
+    dt = np.broadcast_to(np.asarray(dt_s, dtype=np.float64), pos.shape[:1]).copy()
+    nsteps = np.ceil(np.abs(dt) / step_s).astype(np.int64)
+    h_all = np.where(nsteps > 0, dt / np.maximum(nsteps, 1), 0.0)
+    for k in range(int(nsteps.max(initial=0))):
+        active = k < nsteps
+        h = np.where(active, h_all, 0.0)[:, None]
+        p1, v1 = rk4_step(pos, vel, acc, h)
+        pos, vel = np.where(active[:, None], p1, pos), np.where(active[:, None], v1, vel)
+    return pos, vel, glonass_acceleration(pos, vel, acc)
+
+
+class GlonassOrbits:
+    """Dense orbits of GLONASS records: RK4 nodes every ``step_s`` over [tb - span, tb + span].
+
+    ``pos0``, ``vel0``, ``acc_ls`` are (N, 3) arrays of the records at tb;
+    ``span_s`` (scalar or (N,)) is how far from tb states are wanted.
+    """
+
+    def __init__(self, pos0_m, vel0_mps, acc_ls_mps2, span_s, step_s: float = STEP_S):
+        if not 0 < step_s <= 60.0:
+            raise ValueError(f"GLONASS integration step_s={step_s} must be in (0, 60] s (ICD 5.1 A.3.1.2)")
+        pos0 = np.array(pos0_m, dtype=np.float64, ndmin=2)
+        vel0 = np.array(vel0_mps, dtype=np.float64, ndmin=2)
+        acc_ls = np.array(acc_ls_mps2, dtype=np.float64, ndmin=2)
+        n = pos0.shape[0]
+        span = float(np.max(span_s, initial=0.0))
+        self.step_s = float(step_s)
+        self.k_half = int(np.ceil(span / step_s)) + 1   # nodes on each side of tb
+        nn = 2 * self.k_half + 1
+        P = np.empty((n, nn, 3))
+        V = np.empty((n, nn, 3))
+        A = np.empty((n, nn, 3))
+        c = self.k_half
+        P[:, c], V[:, c] = pos0, vel0
+        A[:, c] = glonass_acceleration(pos0, vel0, acc_ls)
+        for direction in (1, -1):
+            p, v = pos0, vel0
+            for k in range(1, self.k_half + 1):
+                p, v = rk4_step(p, v, acc_ls, direction * step_s)
+                j = c + direction * k
+                P[:, j], V[:, j] = p, v
+                A[:, j] = glonass_acceleration(p, v, acc_ls)
+        self.P, self.V, self.A = P, V, A
+        self.n = n
+
+    def evaluate(self, idx, dt_s):
+        """(pos, vel, acc) of records ``idx`` at dt_s = t - tb [s] (arrays like idx)."""
+        idx = np.asarray(idx, dtype=np.int64)
+        h = self.step_s
+        x = np.asarray(dt_s, dtype=np.float64) / h + self.k_half
+        j = np.clip(np.floor(x).astype(np.int64), 0, 2 * self.k_half - 1)
+        s = (x - j)[..., None]
+        p0, p1 = self.P[idx, j], self.P[idx, j + 1]
+        v0, v1 = self.V[idx, j] * h, self.V[idx, j + 1] * h
+        a0, a1 = self.A[idx, j] * (h * h), self.A[idx, j + 1] * (h * h)
+        return hermite5(s, p0, v0, a0, p1, v1, a1, h)
+
+
+def hermite5(s, p0, v0, a0, p1, v1, a1, h):
+    """Quintic Hermite interpolation on s in [0, 1] with derivatives scaled by h (v*h, a*h^2).
+
+    Returns value, first and second derivative with respect to time.
+    """
+    s2 = s * s
+    s3 = s2 * s
+    s4 = s3 * s
+    s5 = s4 * s
+    h0 = 1 - 10 * s3 + 15 * s4 - 6 * s5
+    h1 = s - 6 * s3 + 8 * s4 - 3 * s5
+    h2 = 0.5 * (s2 - 3 * s3 + 3 * s4 - s5)
+    h3 = 10 * s3 - 15 * s4 + 6 * s5
+    h4 = -4 * s3 + 7 * s4 - 3 * s5
+    h5 = 0.5 * (s3 - 2 * s4 + s5)
+    d0 = -30 * s2 + 60 * s3 - 30 * s4
+    d1 = 1 - 18 * s2 + 32 * s3 - 15 * s4
+    d2 = 0.5 * (2 * s - 9 * s2 + 12 * s3 - 5 * s4)
+    d3 = -d0
+    d4 = -12 * s2 + 28 * s3 - 15 * s4
+    d5 = 0.5 * (3 * s2 - 8 * s3 + 5 * s4)
+    e0 = -60 * s + 180 * s2 - 120 * s3
+    e1 = -36 * s + 96 * s2 - 60 * s3
+    e2 = 0.5 * (2 - 18 * s + 36 * s2 - 20 * s3)
+    e3 = -e0
+    e4 = -24 * s + 84 * s2 - 60 * s3
+    e5 = 0.5 * (6 * s - 24 * s2 + 20 * s3)
+    pos = h0 * p0 + h1 * v0 + h2 * a0 + h3 * p1 + h4 * v1 + h5 * a1
+    vel = (d0 * p0 + d1 * v0 + d2 * a0 + d3 * p1 + d4 * v1 + d5 * a1) / h
+    acc = (e0 * p0 + e1 * v0 + e2 * a0 + e3 * p1 + e4 * v1 + e5 * a1) / (h * h)
+    return pos, vel, acc
+
+
+def glonass_clock(tau_n_s, gamma_n, dt_s):
+    """(bias, drift) of the satellite clock: -tau_n + gamma_n (t - tb) (GLONASS ICD 5.1, 3.3.3)."""
+    return -tau_n_s + gamma_n * dt_s, gamma_n + 0.0 * dt_s

@@ -1,0 +1,353 @@
+"""Signal propagation: light time with Earth rotation, ionosphere, troposphere.
+
+All functions are vectorised over satellites (rows).  Frames: ECEF (WGS 84) at
+the *reception* instant unless stated; geodetic latitude/longitude in degrees.
+
+- Light time: the signal leaves the satellite at t_tx = t_rx - tau with
+  c * tau = | R3(omega_e tau) r_sat(t_tx) - r_rx(t_rx) |: the satellite
+  position of the ECEF frame at t_tx is rotated into the ECEF frame at t_rx
+  (IS-GPS-200N 20.3.3.4.3.4, "Earth rotation correction"; the first-order
+  form of the same term is the Sagnac correction omega_e (x_s y_r - y_s x_r)/c
+  of RTKLIB geodist()).
+- Ionosphere: Klobuchar (IS-GPS-200N 20.3.3.5.2.5, figure 20-4) for every
+  system, scaled by (f_L1/f)^2 (first-order dispersive delay).  Galileo's
+  NeQuick-G and BeiDou's own Klobuchar variant are NOT implemented: the
+  simulator uses one ionosphere (the GPS Klobuchar shape) as "truth" for all
+  signals; only the receiver-side correction model would differ.
+- Troposphere: Saastamoinen zenith delays with a standard atmosphere (as
+  RTKLIB tropmodel(): 1013.25 hPa, 15 C at sea level, relative humidity 0.7)
+  mapped with the Niell (1996) mapping functions (as RTKLIB nmf()).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from gnss_sim_ros2.core import constants as k
+from gnss_sim_ros2.core.time import GnssTime
+
+# =====================================================================================
+# Light time and Earth rotation
+# =====================================================================================
+
+
+@dataclass
+class LightTimeSolution:
+    """Result of :func:`transmit_time_solution` (rows = satellites)."""
+
+    t_tx: object                 #: transmit instants (GnssTime, or float s if t_rx was float; None if no t_rx)
+    tau_s: np.ndarray            #: light time t_rx - t_tx [s]
+    sat_pos_ecef_m: np.ndarray   #: (N, 3) satellite at t_tx, in the ECEF frame of t_rx
+    sat_vel_ecef_mps: np.ndarray  #: (N, 3) satellite ECEF velocity at t_tx, rotated into the frame of t_rx
+    range_m: np.ndarray          #: (N,) geometric range = c * tau [m]
+    range_rate_mps: np.ndarray   #: (N,) d(range)/d(t_rx) [m/s] (light-time and rotation terms included)
+    los_unit_ecef: np.ndarray    #: (N, 3) unit vector receiver -> satellite (ECEF at t_rx)
+
+
+def _rot_z(theta):
+    """Rotation matrices R3(theta) (N, 3, 3) mapping ECEF(t_tx) -> ECEF(t_tx + theta/omega)."""
+    c, s = np.cos(theta), np.sin(theta)
+    z, o = np.zeros_like(theta), np.ones_like(theta)
+    return np.stack([np.stack([c, s, z], -1), np.stack([-s, c, z], -1), np.stack([z, z, o], -1)], -2)
+
+
+def _drot_z(theta):
+    """d R3(theta) / d theta, (N, 3, 3)."""
+    c, s = np.cos(theta), np.sin(theta)
+    z = np.zeros_like(theta)
+    return np.stack([np.stack([-s, c, z], -1), np.stack([-c, -s, z], -1), np.stack([z, z, z], -1)], -2)
+
+
+def _as_rows3(a, name):
+    a = np.asarray(a, dtype=np.float64)
+    if a.shape[-1:] != (3,):
+        raise ValueError(f"propagation: parameter {name!r} must have shape (3,) or (N, 3), got {a.shape}")
+    return a
+
+
+def _unpack_state(st, n_expected=None):
+    if hasattr(st, "pos_ecef_m"):
+        pos, vel = st.pos_ecef_m, st.vel_ecef_mps
+    else:
+        pos, vel = st[0], st[1]
+    pos = np.atleast_2d(np.asarray(pos, dtype=np.float64))
+    vel = np.atleast_2d(np.asarray(vel, dtype=np.float64))
+    if n_expected is not None and pos.shape[0] != n_expected:
+        raise ValueError(
+            f"propagation: the states callable returned {pos.shape[0]} rows, expected {n_expected}"
+        )
+    return pos, vel
+
+
+def _finish(rx, rx_vel, tau, pos, vel, omega):
+    theta = omega * tau
+    rot = _rot_z(theta)
+    p = np.einsum("nij,nj->ni", rot, pos)
+    v = np.einsum("nij,nj->ni", rot, vel)
+    d = p - rx
+    rng = np.linalg.norm(d, axis=-1)
+    u = d / rng[:, None]
+    # range rate: rho(t) = |R(w tau) s(t - tau) - r(t)|, tau = rho / c  =>
+    # rho_dot = u.(R s_dot - r_dot) / (1 - u.(w R' s - R s_dot) / c)
+    a = np.einsum("ni,ni->n", u, v - rx_vel)
+    b = np.einsum("ni,ni->n", u, omega * np.einsum("nij,nj->ni", _drot_z(theta), pos) - v)
+    rr = a / (1.0 - b / k.C_MPS)
+    return p, v, rng, rr, u
+
+
+def _solve(rx_ecef_m, rx_vel_ecef_mps, state_of_tau, n, iterations, omega_e_radps):
+    rx = np.broadcast_to(_as_rows3(rx_ecef_m, "rx_ecef_m"), (n, 3))
+    rx_vel = np.broadcast_to(
+        _as_rows3(np.zeros(3) if rx_vel_ecef_mps is None else rx_vel_ecef_mps, "rx_vel_ecef_mps"), (n, 3))
+    if int(iterations) < 1:
+        raise ValueError(f"propagation: parameter 'iterations' = {iterations!r} must be >= 1")
+    omega = np.broadcast_to(np.asarray(omega_e_radps, dtype=np.float64), (n,))
+    # initial guess: the satellite at the reception instant
+    pos, vel = state_of_tau(np.zeros(n))
+    tau = np.linalg.norm(pos - rx, axis=-1) / k.C_MPS
+    for _ in range(int(iterations)):
+        pos, vel = state_of_tau(tau)
+        p = np.einsum("nij,nj->ni", _rot_z(omega * tau), pos)
+        tau = np.linalg.norm(p - rx, axis=-1) / k.C_MPS
+    # final evaluation at the converged tau: the returned range is that of the returned t_tx
+    pos, vel = state_of_tau(tau)
+    p, v, rng, rr, u = _finish(rx, rx_vel, tau, pos, vel, omega)
+    return tau, p, v, rng, rr, u
+
+
+def transmit_time_solution(rx_ecef_m, t_rx, states_at_callable, iterations=2, rx_vel_ecef_mps=None,
+                           omega_e_radps=k.OMEGA_E_GPS_RADPS, n_sats=None) -> LightTimeSolution:
+    """Light-time solution by re-evaluating the satellite at the transmit time.
+
+    ``states_at_callable(t_tx)`` gets the transmit instants, always an (N,) array
+    (GnssTime, or float seconds when ``t_rx`` is float), and returns a
+    SatelliteStates-like object (``pos_ecef_m``, ``vel_ecef_mps``) or a tuple
+    ``(pos_ecef_m, vel_ecef_mps)`` of shape (N, 3): positions in the ECEF frame
+    of the *transmit* instant (as an ephemeris gives them).
+    ``rx_ecef_m``: (3,) or (N, 3) receiver position at t_rx; ``rx_vel_ecef_mps``
+    optional receiver ECEF velocity (for the range rate).
+    ``omega_e_radps``: scalar or (N,) Earth rotation rate of each satellite's system.
+    ``n_sats``: N; needed only when ``t_rx`` is scalar and ``rx_ecef_m`` is (3,).
+    ``iterations``: light-time updates after the initial guess tau = |r_sat(t_rx) - r_rx|/c
+    (error ~3e-7 s); each update multiplies the error by ~1e-5, so 1 -> ~3e-12 s (1 mm),
+    2 -> far below 1e-15 s.  The callable is evaluated iterations + 2 times.
+
+    Returns a :class:`LightTimeSolution`; satellite positions rotated into the
+    ECEF frame of t_rx (IS-GPS-200N 20.3.3.4.3.4).
+    """
+    if n_sats is None:
+        if isinstance(t_rx, GnssTime) and np.ndim(t_rx.sec) == 1:
+            n_sats = np.shape(t_rx.sec)[0]
+        elif not isinstance(t_rx, GnssTime) and np.ndim(t_rx) == 1:
+            n_sats = np.shape(t_rx)[0]
+        elif np.ndim(rx_ecef_m) == 2:
+            n_sats = np.shape(rx_ecef_m)[0]
+        else:
+            raise ValueError("propagation.transmit_time_solution: give 'n_sats' (number of satellites) "
+                             "when both t_rx and rx_ecef_m are single values")
+    n = int(n_sats)
+
+    def state_of_tau(tau):
+        return _unpack_state(states_at_callable(_shift(t_rx, -np.broadcast_to(tau, (n,)))), n)
+
+    tau, p, v, rng, rr, u = _solve(rx_ecef_m, rx_vel_ecef_mps, state_of_tau, n, iterations, omega_e_radps)
+    return LightTimeSolution(_shift(t_rx, -tau), tau, p, v, rng, rr, u)
+
+
+def _shift(t, dt_s):
+    """t + dt_s for a GnssTime or float t; dt_s an array (N,)."""
+    if isinstance(t, GnssTime):
+        base = t if np.ndim(t.sec) else GnssTime(np.full(np.shape(dt_s), t.sec, dtype=np.int64),
+                                                 np.full(np.shape(dt_s), t.frac))
+        return base + np.asarray(dt_s)
+    return np.asarray(t, dtype=np.float64) + np.asarray(dt_s)
+
+
+def transmit_time_from_states(rx_ecef_m, pos_ecef_m, vel_ecef_mps, acc_ecef_mps2, t_rx=None, iterations=2,
+                              rx_vel_ecef_mps=None, omega_e_radps=k.OMEGA_E_GPS_RADPS) -> LightTimeSolution:
+    """Cheap light-time solution from satellite states *at the reception instant*.
+
+    The satellite is moved back to t_rx - tau with a second-order expansion
+    r(t_rx - tau) = r - v tau + a tau^2 / 2 (ECEF, so ``acc_ecef_mps2`` must
+    be the ECEF acceleration including the frame terms, as SatelliteStates
+    carries it).  Over tau ~ 0.07 s the neglected jerk term is below 1e-8 m for
+    MEO orbits (see test_propagation).  ``t_rx`` (optional) only fills ``t_tx``.
+    """
+    pos = np.atleast_2d(_as_rows3(pos_ecef_m, "pos_ecef_m"))
+    vel = np.atleast_2d(_as_rows3(vel_ecef_mps, "vel_ecef_mps"))
+    acc = np.atleast_2d(_as_rows3(acc_ecef_mps2, "acc_ecef_mps2"))
+    n = pos.shape[0]
+    if vel.shape != pos.shape or acc.shape != pos.shape:
+        raise ValueError(
+            f"propagation.transmit_time_from_states: pos/vel/acc shapes differ: {pos.shape}, {vel.shape}, {acc.shape}")
+
+    def state_of_tau(tau):
+        t = tau[:, None]
+        return pos - vel * t + 0.5 * acc * t * t, vel - acc * t
+
+    tau, p, v, rng, rr, u = _solve(rx_ecef_m, rx_vel_ecef_mps, state_of_tau, n, iterations, omega_e_radps)
+    t_tx = None if t_rx is None else _shift(t_rx, -tau)
+    return LightTimeSolution(t_tx, tau, p, v, rng, rr, u)
+
+
+def sagnac_correction_m(sat_ecef_m, rx_ecef_m, omega_e_radps=k.OMEGA_E_GPS_RADPS):
+    """First-order Earth-rotation (Sagnac) range term omega_e (x_s y_r - y_s x_r) / c [m] (RTKLIB geodist())."""
+    s = np.asarray(sat_ecef_m, dtype=np.float64)
+    r = np.asarray(rx_ecef_m, dtype=np.float64)
+    return omega_e_radps * (s[..., 0] * r[..., 1] - s[..., 1] * r[..., 0]) / k.C_MPS
+
+
+# =====================================================================================
+# Ionosphere
+# =====================================================================================
+#: Klobuchar night-time constant delay [s] (IS-GPS-200N 20.3.3.5.2.5)
+KLOBUCHAR_NIGHT_S = 5.0e-9
+#: Klobuchar local time of the maximum [s] (14:00)
+KLOBUCHAR_PEAK_S = 50400.0
+
+
+def _seconds_of_day(t):
+    if isinstance(t, GnssTime):
+        return np.mod(np.asarray(t.sec, dtype=np.int64), 86400).astype(np.float64) + np.asarray(t.frac)
+    return np.mod(np.asarray(t, dtype=np.float64), 86400.0)
+
+
+def klobuchar_l1_delay_s(t, lat_deg, lon_deg, az_deg, el_deg, alpha, beta):
+    """Ionospheric group delay at L1 [s] from the GPS broadcast model (IS-GPS-200N 20.3.3.5.2.5).
+
+    ``t``: GPS time (GnssTime, or float seconds of GPS week/day: only the time
+    of day is used); user geodetic ``lat_deg``, ``lon_deg``; satellite
+    ``az_deg``, ``el_deg`` (arrays broadcast); ``alpha``, ``beta``: the four
+    broadcast coefficients each (s, s/semicircle^n; s, s/semicircle^n).
+    """
+    alpha = np.asarray(alpha, dtype=np.float64)
+    beta = np.asarray(beta, dtype=np.float64)
+    if alpha.shape != (4,) or beta.shape != (4,):
+        raise ValueError(f"propagation.klobuchar: parameters 'alpha'/'beta' need 4 values each, got "
+                         f"{alpha.shape} and {beta.shape}")
+    # all angles in semicircles, as in the ICD
+    phi_u = np.asarray(lat_deg, dtype=np.float64) / 180.0
+    lam_u = np.asarray(lon_deg, dtype=np.float64) / 180.0
+    a_rad = np.radians(az_deg)
+    e = np.asarray(el_deg, dtype=np.float64) / 180.0
+    psi = 0.0137 / (e + 0.11) - 0.022                      # Earth's central angle [semicircles]
+    phi_i = np.clip(phi_u + psi * np.cos(a_rad), -0.416, 0.416)  # sub-ionospheric latitude
+    lam_i = lam_u + psi * np.sin(a_rad) / np.cos(phi_i * np.pi)  # sub-ionospheric longitude
+    phi_m = phi_i + 0.064 * np.cos((lam_i - 1.617) * np.pi)     # geomagnetic latitude
+    tloc = np.mod(4.32e4 * lam_i + _seconds_of_day(t), 86400.0)  # local time [s]
+    f = 1.0 + 16.0 * (0.53 - e) ** 3                         # obliquity factor
+    pw = np.stack([np.ones_like(phi_m), phi_m, phi_m**2, phi_m**3], axis=-1)
+    amp = np.maximum(pw @ alpha, 0.0)
+    per = np.maximum(pw @ beta, 72000.0)
+    x = 2.0 * np.pi * (tloc - KLOBUCHAR_PEAK_S) / per
+    day = np.where(np.abs(x) < 1.57, amp * (1.0 - x**2 / 2.0 + x**4 / 24.0), 0.0)
+    return f * (KLOBUCHAR_NIGHT_S + day)
+
+
+def iono_scale(f_hz):
+    """First-order ionospheric scale factor (f_L1 / f)^2 from L1 to frequency ``f_hz``."""
+    return (k.F_L1_HZ / np.asarray(f_hz, dtype=np.float64)) ** 2
+
+
+def iono_code_delay_m(l1_delay_s, f_hz):
+    """Group delay on the code (pseudorange) at ``f_hz`` [m] (positive)."""
+    return k.C_MPS * np.asarray(l1_delay_s) * iono_scale(f_hz)
+
+
+def iono_phase_advance_m(l1_delay_s, f_hz):
+    """Effect on the carrier phase at ``f_hz`` [m]: the phase advance, -(code delay)."""
+    return -iono_code_delay_m(l1_delay_s, f_hz)
+
+
+# =====================================================================================
+# Troposphere
+# =====================================================================================
+#: RTKLIB tropmodel() default relative humidity [-]
+TROPO_HUMIDITY_DEFAULT = 0.7
+
+# Niell (1996, JGR 101(B2):3227) table 3: rows a, b, c at |lat| = 15, 30, 45, 60, 75 deg
+_NMF_LAT = np.array([15.0, 30.0, 45.0, 60.0, 75.0])
+_NMF_HYD_AVG = np.array([
+    [1.2769934e-3, 1.2683230e-3, 1.2465397e-3, 1.2196049e-3, 1.2045996e-3],
+    [2.9153695e-3, 2.9152299e-3, 2.9288445e-3, 2.9022565e-3, 2.9024912e-3],
+    [62.610505e-3, 62.837393e-3, 63.721774e-3, 63.824265e-3, 64.258455e-3],
+])
+_NMF_HYD_AMP = np.array([
+    [0.0, 1.2709626e-5, 2.6523662e-5, 3.4000452e-5, 4.1202191e-5],
+    [0.0, 2.1414979e-5, 3.0160779e-5, 7.2562722e-5, 11.723375e-5],
+    [0.0, 9.0128400e-5, 4.3497037e-5, 84.795348e-5, 170.37206e-5],
+])
+_NMF_WET = np.array([
+    [5.8021897e-4, 5.6794847e-4, 5.8118019e-4, 5.9727542e-4, 6.1641693e-4],
+    [1.4275268e-3, 1.5138625e-3, 1.4572752e-3, 1.5007428e-3, 1.7599082e-3],
+    [4.3472961e-2, 4.6729510e-2, 4.3908931e-2, 4.4626982e-2, 5.4736038e-2],
+])
+#: Niell hydrostatic height-correction coefficients a, b, c (per km)
+_NMF_HT = (2.53e-5, 5.49e-3, 1.14e-3)
+
+
+def _mapf(sin_el, a, b, c):
+    """Marini continued fraction normalised to 1 at zenith (Herring 1992 form used by Niell)."""
+    return (1.0 + a / (1.0 + b / (1.0 + c))) / (sin_el + a / (sin_el + b / (sin_el + c)))
+
+
+def saastamoinen_zenith_m(lat_deg, h_m, humidity=TROPO_HUMIDITY_DEFAULT, temp0_c=15.0, p0_hpa=1013.25):
+    """(zenith hydrostatic, zenith wet) delays [m], Saastamoinen with a standard atmosphere.
+
+    As RTKLIB tropmodel(): p = p0 (1 - 2.2557e-5 h)^5.2568 hPa, T = T0 - 6.5e-3 h,
+    water vapour e = 6.108 rh exp((17.15 T - 4684)/(T - 38.45)) hPa;
+    ZHD = 0.0022768 p / (1 - 0.00266 cos 2 lat - 0.00028 h_km) (Saastamoinen 1972,
+    Davis et al. 1985); ZWD = 0.002277 (1255/T + 0.05) e.  Heights below 0 are
+    clipped to 0 and above 10 km to 10 km (outside the model's range).
+    """
+    h = np.clip(np.asarray(h_m, dtype=np.float64), 0.0, 1.0e4)
+    if np.any((np.asarray(humidity) < 0) | (np.asarray(humidity) > 1)):
+        raise ValueError(f"propagation.saastamoinen: parameter 'humidity' = {humidity!r} must be within 0..1")
+    pres = p0_hpa * (1.0 - 2.2557e-5 * h) ** 5.2568
+    temp = temp0_c - 6.5e-3 * h + 273.16   # [K] (RTKLIB's 273.16)
+    e = 6.108 * humidity * np.exp((17.15 * temp - 4684.0) / (temp - 38.45))
+    lat = np.radians(lat_deg)
+    zhd = 0.0022768 * pres / (1.0 - 0.00266 * np.cos(2.0 * lat) - 0.00028 * h / 1e3)
+    zwd = 0.002277 * (1255.0 / temp + 0.05) * e
+    return zhd, zwd
+
+
+def niell_mapping(el_deg, lat_deg, h_m, doy):
+    """(hydrostatic, wet) Niell mapping functions (Niell 1996; as RTKLIB nmf()).
+
+    ``doy``: day of year (fractional allowed); southern latitudes shift by half a
+    year.  ``h_m``: ellipsoidal height (RTKLIB also uses it for the height
+    correction).  Elevations below 1 deg are evaluated at 1 deg.
+    """
+    el = np.radians(np.maximum(np.asarray(el_deg, dtype=np.float64), 1.0))
+    lat = np.asarray(lat_deg, dtype=np.float64)
+    y = (np.asarray(doy, dtype=np.float64) - 28.0) / 365.25 + np.where(lat < 0.0, 0.5, 0.0)
+    cosy = np.cos(2.0 * np.pi * y)
+    alat = np.abs(lat)
+
+    def interp(row):
+        return np.interp(alat, _NMF_LAT, row)   # clamps outside 15..75 like RTKLIB interpc()
+
+    ah = [interp(_NMF_HYD_AVG[i]) - interp(_NMF_HYD_AMP[i]) * cosy for i in range(3)]
+    aw = [interp(_NMF_WET[i]) for i in range(3)]
+    s = np.sin(el)
+    dm = (1.0 / s - _mapf(s, *_NMF_HT)) * np.asarray(h_m, dtype=np.float64) / 1e3
+    return _mapf(s, *ah) + dm, _mapf(s, *aw)
+
+
+def tropo_slant_delay_m(el_deg, lat_deg, h_m, doy, humidity=TROPO_HUMIDITY_DEFAULT):
+    """Slant tropospheric delay [m] (same on code and carrier): ZHD m_h + ZWD m_w."""
+    zhd, zwd = saastamoinen_zenith_m(lat_deg, h_m, humidity)
+    mh, mw = niell_mapping(el_deg, lat_deg, h_m, doy)
+    return zhd * mh + zwd * mw
+
+
+def day_of_year(t: GnssTime):
+    """Fractional day of year (1.0 = Jan 1 00:00) of a GnssTime in GPS time (scalar or array)."""
+    import datetime as _dt
+
+    if np.ndim(t.sec) == 0:
+        d = t.to_datetime("GPS")
+        return (d - _dt.datetime(d.year, 1, 1)).total_seconds() / 86400.0 + 1.0
+    return np.array([day_of_year(t[i]) for i in range(len(t))])

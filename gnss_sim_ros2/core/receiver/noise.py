@@ -1,0 +1,122 @@
+"""Thermal-noise standard deviations of code, carrier phase and Doppler from C/N0.
+
+Formulas (C/N0 as a ratio c = 10^(cn0_dbhz/10) Hz; all functions broadcast):
+
+- DLL, noncoherent early-minus-late power discriminator, BPSK code, wide
+  front end (Kaplan & Hegarty, Understanding GPS, 2nd ed., 5.6.2, eq. 5.23 in
+  the project notes' numbering):
+  sigma = sqrt( B_n D / (2 c) * (1 + 2 / (T c (2 - D))) ) chips.
+- PLL thermal jitter, Costas loop (Kaplan eq. 5.6):
+  sigma = sqrt( B_n / c * (1 + 1 / (2 T c)) ) rad.
+- FLL thermal frequency jitter (Kaplan eq. 5.12):
+  sigma = 1 / (2 pi T) sqrt( 4 F B_n / c * (1 + 1 / (T c)) ) Hz, F = 1 near
+  full strength, 2 near the tracking threshold.
+- Doppler from the PLL "as the receiver does": the carrier phase differenced
+  over ``interval_s`` longer than the loop's memory (1/B_n), so two independent
+  phase errors: sigma_f = sqrt(2) sigma_phi / (2 pi interval).
+- Mean time to cycle slip of a first-order loop (Viterbi, Principles of
+  Coherent Communication, 1966): T = pi^2 rho I0(rho)^2 / (2 B_n), loop SNR
+  rho = c / B_n; for a Costas (data-tolerant) loop rho -> rho S_L / 4 with the
+  squaring loss S_L = 1 / (1 + 1/(2 T c)) (Holmes, Coherent Spread Spectrum
+  Systems, 1982).  Used by tracking.py for random cycle slips.
+
+Defaults: DLL B_n = 1 Hz, D = 0.5 chip, T = 20 ms; PLL B_n = 15 Hz, T = 1 ms
+(the figures of /work/shared/notes/physics-anchors.md); FLL B_n = 2 Hz, T = 20 ms.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.special import i0e
+
+from gnss_sim_ros2.core import signals as _signals
+
+
+def _ratio(cn0_dbhz):
+    return 10.0 ** (np.asarray(cn0_dbhz, dtype=np.float64) / 10.0)
+
+
+def _positive(name, v):
+    if np.any(np.asarray(v) <= 0):
+        raise ValueError(f"receiver.noise: parameter {name!r} = {v!r} must be > 0")
+
+
+def dll_sigma_chips(cn0_dbhz, bn_hz=1.0, spacing_chips=0.5, t_int_s=0.02):
+    """DLL thermal code noise [chips], noncoherent early-minus-late power (Kaplan eq. 5.23)."""
+    _positive("bn_hz", bn_hz)
+    _positive("t_int_s", t_int_s)
+    d = np.asarray(spacing_chips, dtype=np.float64)
+    if np.any((d <= 0) | (d > 1)):
+        raise ValueError(f"receiver.noise: parameter 'spacing_chips' = {spacing_chips!r} must be in (0, 1]")
+    c = _ratio(cn0_dbhz)
+    return np.sqrt(bn_hz * d / (2.0 * c) * (1.0 + 2.0 / (t_int_s * c * (2.0 - d))))
+
+
+def dll_sigma_m(cn0_dbhz, chip_length_m, bn_hz=1.0, spacing_chips=0.5, t_int_s=0.02):
+    """DLL thermal code noise [m] for a code of chip length ``chip_length_m`` (293.05 m for C/A)."""
+    _positive("chip_length_m", chip_length_m)
+    return dll_sigma_chips(cn0_dbhz, bn_hz, spacing_chips, t_int_s) * np.asarray(chip_length_m)
+
+
+def pll_sigma_rad(cn0_dbhz, bn_hz=15.0, t_int_s=0.001):
+    """PLL (Costas) thermal phase jitter [rad] (Kaplan eq. 5.6)."""
+    _positive("bn_hz", bn_hz)
+    _positive("t_int_s", t_int_s)
+    c = _ratio(cn0_dbhz)
+    return np.sqrt(bn_hz / c * (1.0 + 1.0 / (2.0 * t_int_s * c)))
+
+
+def pll_sigma_m(cn0_dbhz, wavelength_m, bn_hz=15.0, t_int_s=0.001):
+    """PLL thermal carrier-phase noise [m] = lambda / (2 pi) * sigma_rad."""
+    _positive("wavelength_m", wavelength_m)
+    return pll_sigma_rad(cn0_dbhz, bn_hz, t_int_s) * np.asarray(wavelength_m) / (2.0 * np.pi)
+
+
+def fll_sigma_hz(cn0_dbhz, bn_hz=2.0, t_int_s=0.02, f_factor=1.0):
+    """FLL thermal frequency jitter [Hz] (Kaplan eq. 5.12); ``f_factor`` F = 1 (strong) or 2 (near threshold)."""
+    _positive("bn_hz", bn_hz)
+    _positive("t_int_s", t_int_s)
+    c = _ratio(cn0_dbhz)
+    return np.sqrt(4.0 * f_factor * bn_hz / c * (1.0 + 1.0 / (t_int_s * c))) / (2.0 * np.pi * t_int_s)
+
+
+def doppler_sigma_hz(cn0_dbhz, method="fll", bn_hz=None, t_int_s=None, interval_s=1.0):
+    """Doppler measurement noise [Hz].
+
+    ``method="fll"``: FLL jitter (defaults B_n = 2 Hz, T = 20 ms);
+    ``method="pll"``: carrier phase differenced over ``interval_s`` (defaults
+    B_n = 15 Hz, T = 1 ms), sqrt(2) sigma_phi / (2 pi interval).
+    """
+    if method == "fll":
+        return fll_sigma_hz(cn0_dbhz, 2.0 if bn_hz is None else bn_hz, 0.02 if t_int_s is None else t_int_s)
+    if method == "pll":
+        _positive("interval_s", interval_s)
+        bn = 15.0 if bn_hz is None else bn_hz
+        if interval_s * bn < 1.0:
+            raise ValueError(f"receiver.noise: parameter 'interval_s' = {interval_s} is shorter than the loop "
+                             f"memory 1/B_n = {1.0 / bn:.3g} s: the phase errors are correlated")
+        sig = pll_sigma_rad(cn0_dbhz, bn, 0.001 if t_int_s is None else t_int_s)
+        return np.sqrt(2.0) * sig / (2.0 * np.pi * interval_s)
+    raise ValueError(f"receiver.noise: parameter 'method' = {method!r} is not 'fll' or 'pll'")
+
+
+def mean_time_to_slip_s(cn0_dbhz, bn_hz=15.0, t_int_s=0.001, costas=True):
+    """Mean time between cycle slips [s] of a first-order loop (Viterbi 1966), Costas-adjusted."""
+    _positive("bn_hz", bn_hz)
+    c = _ratio(cn0_dbhz)
+    rho = c / bn_hz
+    if costas:
+        rho = rho / (1.0 + 1.0 / (2.0 * t_int_s * c)) / 4.0
+    # I0(rho)^2 = (i0e(rho) e^rho)^2; evaluated in logs to avoid overflow
+    log_t = np.log(np.pi**2 * rho / (2.0 * bn_hz)) + 2.0 * np.log(i0e(rho)) + 2.0 * rho
+    return np.exp(np.minimum(log_t, 700.0))
+
+
+# ---- helpers from the signal table -----------------------------------------------------
+def code_sigma_m(system: str, code: str, cn0_dbhz, bn_hz=1.0, spacing_chips=0.5, t_int_s=0.02):
+    """DLL code noise [m] of signal ``(system, code)`` (chip length from core/signals.py)."""
+    return dll_sigma_m(cn0_dbhz, _signals.signal(system, code).chip_length_m, bn_hz, spacing_chips, t_int_s)
+
+
+def phase_sigma_m(system: str, code: str, cn0_dbhz, glo_channel=0, bn_hz=15.0, t_int_s=0.001):
+    """PLL carrier-phase noise [m] of signal ``(system, code)``."""
+    return pll_sigma_m(cn0_dbhz, _signals.wavelength_m(system, code, glo_channel), bn_hz, t_int_s)

@@ -1,0 +1,314 @@
+"""Line-of-sight state of satellites seen from antennas in a scene.
+
+Frames
+------
+* Antenna positions are in the scene's world frame (the Gazebo world frame,
+  metres; ENU at the geodetic origin when ``heading_deg`` = 0).
+* Satellite directions / azimuth / elevation are in the *local* ENU frame of
+  each antenna (geodetic up at the antenna), as a receiver sees them.  The world
+  frame is flat, so away from the origin geodetic up tilts away from world z
+  (0.9 deg at 100 km); each direction is rotated
+  local ENU -> ECEF -> ENU at the origin -> world (heading) before casting.
+  Without a geodetic origin (a bare mesh) world = local ENU everywhere.
+
+States (int8): -1 below the mask (never cast), 0 visible, 1 blocked by an
+opaque surface, 2 attenuated by penetrable volumes (foliage), 3 reserved for
+"reflected only" (not produced yet).
+
+Queries: satellites below ``mask_deg`` are never cast; a scene without
+penetrable triangles uses only ``test_occlusions``; the penetrable path is
+measured only for rays that are not blocked (a blocked ray reports 0 dB).
+
+Soft edges (``fresnel_rays`` = K > 0): K extra rays per line of sight, spread
+over the first Fresnel zone at the obstacle (a sunflower pattern over the disc
+of radius r1 = sqrt(lambda d): angular radius sqrt(lambda / d), satellite at
+infinity).  d = the central ray's hit distance when blocked; for a clear ray a
+probe ring at ``fresnel_probe_m`` finds the nearest obstacle that reaches into
+the Fresnel paraboloid (none: the ray stays fully clear).  The fraction f of
+blocked sample rays is read as a straight knife edge cutting the disc (the
+circular segment of area fraction f, chord at x r1 from the centre), whence
+h = -x r1 and nu = h sqrt(2 / (lambda d)) = -sqrt(2) x, and the loss is
+ITU-R P.526-15 eq. (31):  J(nu) = 6.9 + 20 log10(sqrt((nu - 0.1)^2 + 1) + nu - 0.1)
+dB for nu > -0.78, else 0.  (f = 0.5 -> 6.0 dB, grazing incidence.)  The
+central ray still decides the state; ``diffraction_db`` is reported beside it.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .. import frames
+from ..constants import C_MPS, F_L1_HZ
+from .raycast import RayScene
+from .sdf_world import WorldMesh
+
+STATE_BELOW_MASK = -1
+STATE_VISIBLE = 0
+STATE_BLOCKED = 1
+STATE_ATTENUATED = 2
+STATE_REFLECTED_ONLY = 3
+STATE_NAMES = {STATE_BELOW_MASK: "below_mask", STATE_VISIBLE: "visible", STATE_BLOCKED: "blocked",
+               STATE_ATTENUATED: "attenuated", STATE_REFLECTED_ONLY: "reflected"}
+
+#: GPS L1 wavelength [m] (C_MPS / F_L1_HZ)
+L1_WAVELENGTH_M = C_MPS / F_L1_HZ
+
+
+@dataclass
+class VisibilityResult:
+    """Arrays (M, N) (or (N,) for a single antenna position)."""
+
+    state: np.ndarray             # int8, STATE_*
+    attenuation_db: np.ndarray    # penetrable (foliage) loss along the central ray [dB]
+    path_in_foliage_m: np.ndarray  # path length inside penetrable volumes [m]
+    extra_path_m: np.ndarray      # reserved for reflections: 0
+    fraction_blocked: np.ndarray  # fraction of the Fresnel disc blocked (0/1 without fresnel_rays)
+    diffraction_db: np.ndarray    # knife-edge loss from fraction_blocked (0 without fresnel_rays)
+    az_deg: np.ndarray            # local ENU of the antenna
+    el_deg: np.ndarray
+
+    def state_names(self) -> np.ndarray:
+        return np.vectorize(STATE_NAMES.get, otypes=[object])(self.state)
+
+
+def knife_edge_loss_db(fraction_blocked):
+    """Diffraction loss [dB] from the blocked fraction of the first Fresnel disc (see module docstring)."""
+    f = np.clip(np.asarray(fraction_blocked, dtype=np.float64), 0.0, 1.0)
+    x = np.linspace(-1.0, 1.0, 4001)
+    seg = (np.arccos(x) - x * np.sqrt(1.0 - x * x)) / np.pi    # area fraction beyond the chord, decreasing
+    xf = np.interp(f, seg[::-1], x[::-1])
+    nu = -math.sqrt(2.0) * xf
+    # ITU-R P.526-15 eq. (31)
+    j = 6.9 + 20.0 * np.log10(np.sqrt((nu - 0.1) ** 2 + 1.0) + nu - 0.1)
+    return np.where(nu > -0.78, j, 0.0)
+
+
+def _sunflower(k: int):
+    """K points spread evenly over the unit disc (Vogel spiral): (rho, phi)."""
+    i = np.arange(k)
+    rho = np.sqrt((i + 0.5) / k)
+    phi = i * math.pi * (3.0 - math.sqrt(5.0))
+    return rho, phi
+
+
+def _perp_basis(d):
+    helper = np.where(np.abs(d[:, 2:3]) < 0.9, np.array([[0.0, 0.0, 1.0]]), np.array([[1.0, 0.0, 0.0]]))
+    u = np.cross(d, helper)
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    v = np.cross(d, u)
+    return u, v
+
+
+def _local_enu_rows(lat_deg, lon_deg):
+    """(M, 3, 3): rows east, north, up in ECEF at each geodetic position."""
+    lat, lon = np.radians(lat_deg), np.radians(lon_deg)
+    sl, cl, so, co = np.sin(lat), np.cos(lat), np.sin(lon), np.cos(lon)
+    z = np.zeros_like(lat)
+    return np.stack([np.stack([-so, co, z], -1), np.stack([-sl * co, -sl * so, cl], -1),
+                     np.stack([cl * co, cl * so, sl], -1)], axis=-2)
+
+
+class Scene:
+    """A raycastable scene in the world frame with its geodetic origin and material table."""
+
+    def __init__(self, world: WorldMesh, nthreads: int = 0):
+        self.world = world
+        self.spherical = world.spherical_coordinates
+        att = np.array([np.inf if c.opaque else float(c.attenuation_db_per_m) for c in world.materials.classes])
+        per_tri = att[world.material.astype(np.int64)] if len(world.material) else np.zeros(0)
+        self.rays = RayScene(world.vertices_m, world.triangles, per_tri, nthreads=nthreads)
+
+    @classmethod
+    def load(cls, mesh_path, nthreads: int = 0) -> Scene:
+        """From an exported mesh (+ sidecar): see :mod:`.mesh_io`."""
+        from .mesh_io import read_scene
+
+        return cls(read_scene(mesh_path), nthreads=nthreads)
+
+    @classmethod
+    def from_sdf(cls, sdf_path, materials_yaml=None, use_visuals: bool = False, nthreads: int = 0) -> Scene:
+        from .sdf_world import load_sdf_world
+
+        return cls(load_sdf_world(Path(sdf_path), materials_yaml=materials_yaml, use_visuals=use_visuals),
+                   nthreads=nthreads)
+
+    @property
+    def has_foliage(self) -> bool:
+        return self.rays.has_penetrable
+
+    # ---------------------------------------------------------------- frames
+    def world_from_local_enu(self, antenna_world_m) -> np.ndarray:
+        """(M, 3, 3) rotations: world vector = R @ (local ENU vector at the antenna)."""
+        a = np.asarray(antenna_world_m, dtype=np.float64).reshape(-1, 3)
+        if self.spherical is None:
+            return np.broadcast_to(np.eye(3), (len(a), 3, 3)).copy()
+        ecef = self.spherical.world_to_ecef(a)
+        lat, lon, _ = frames.ecef_to_geodetic(ecef[:, 0], ecef[:, 1], ecef[:, 2])
+        rows = _local_enu_rows(np.atleast_1d(lat), np.atleast_1d(lon))         # enu_A = rows @ ecef
+        return np.einsum("ij,mkj->mik", self.spherical.rotation_world_from_ecef(), rows)
+
+    def antenna_ecef(self, antenna_world_m) -> np.ndarray:
+        if self.spherical is None:
+            raise ValueError("scene has no geodetic origin (spherical_coordinates): ECEF is undefined")
+        return self.spherical.world_to_ecef(antenna_world_m)
+
+    # ---------------------------------------------------------------- visibility
+    def visibility(self, antenna_world_m, sat_dirs_enu=None, *, az_deg=None, el_deg=None, mask_deg: float = 0.0,
+                   fresnel_rays: int = 0, wavelength_m: float = L1_WAVELENGTH_M, fresnel_probe_m: float = 20.0,
+                   tnear_m: float = 1e-3) -> VisibilityResult:
+        """Line-of-sight state for M antenna positions x N satellites.
+
+        ``antenna_world_m``: (3,) or (M, 3) world frame [m].  Directions as ``sat_dirs_enu`` (N, 3) or
+        (M, N, 3) (need not be unit) or ``az_deg``/``el_deg`` (N,) or (M, N), in the local ENU frame of
+        each antenna.  Satellites below ``mask_deg`` are not cast (state -1).
+        """
+        a = np.asarray(antenna_world_m, dtype=np.float64)
+        single = a.ndim == 1
+        a = a.reshape(-1, 3)
+        if not np.all(np.isfinite(a)):
+            raise ValueError("antenna_world_m: non-finite position")
+        m = len(a)
+        if sat_dirs_enu is not None:
+            d = np.asarray(sat_dirs_enu, dtype=np.float64)
+            if d.shape[-1] != 3 or d.ndim not in (2, 3):
+                raise ValueError(f"sat_dirs_enu: expected (N, 3) or (M, N, 3), got {d.shape}")
+            d = np.broadcast_to(d, (m,) + d.shape[-2:]) if d.ndim == 2 else d
+            norm = np.linalg.norm(d, axis=-1, keepdims=True)
+            if np.any(norm == 0):
+                raise ValueError("sat_dirs_enu: zero direction vector")
+            d = d / norm
+            az = np.degrees(np.arctan2(d[..., 0], d[..., 1])) % 360.0
+            el = np.degrees(np.arcsin(np.clip(d[..., 2], -1.0, 1.0)))
+        else:
+            if az_deg is None or el_deg is None:
+                raise ValueError("visibility: give sat_dirs_enu or az_deg and el_deg")
+            az, el = np.broadcast_arrays(np.asarray(az_deg, np.float64), np.asarray(el_deg, np.float64))
+            if az.ndim == 1:
+                az, el = np.broadcast_to(az, (m, az.shape[0])), np.broadcast_to(el, (m, el.shape[0]))
+            d = frames.enu_unit_from_az_el(az, el)
+        if d.shape[0] != m:
+            raise ValueError(f"directions for {d.shape[0]} antenna positions, positions for {m}")
+        n = d.shape[1]
+        shape = (m, n)
+        state = np.full(shape, STATE_BELOW_MASK, dtype=np.int8)
+        att_db = np.zeros(shape)
+        path = np.zeros(shape)
+        frac = np.zeros(shape)
+        diff = np.zeros(shape)
+        cast = el >= mask_deg
+        mi, ni = np.nonzero(cast)
+        if len(mi):
+            R = self.world_from_local_enu(a)
+            dw = np.einsum("kij,kj->ki", R[mi], d[mi, ni])
+            dw /= np.linalg.norm(dw, axis=1, keepdims=True)
+            o = a[mi]
+            if fresnel_rays > 0:
+                t0 = self.rays.hit_distance(o, dw, tnear_m=tnear_m)
+                blocked = np.isfinite(t0)
+                f = self._fresnel_fraction(o, dw, t0, int(fresnel_rays), float(wavelength_m),
+                                           float(fresnel_probe_m), tnear_m)
+                frac[mi, ni] = f
+                diff[mi, ni] = knife_edge_loss_db(f)
+            else:
+                blocked = self.rays.occluded(o, dw, tnear_m=tnear_m)
+                frac[mi, ni] = blocked
+            st = np.where(blocked, STATE_BLOCKED, STATE_VISIBLE).astype(np.int8)
+            if self.rays.has_penetrable:
+                clear = ~blocked
+                db, ln = self.rays.penetration(o[clear], dw[clear])
+                sel_m, sel_n = mi[clear], ni[clear]
+                att_db[sel_m, sel_n] = db
+                path[sel_m, sel_n] = ln
+                st[np.flatnonzero(clear)[ln > 0]] = STATE_ATTENUATED
+            state[mi, ni] = st
+        res = VisibilityResult(state, att_db, path, np.zeros(shape), frac, diff, az, el)
+        if single:
+            res = VisibilityResult(*(np.asarray(x)[0] for x in (state, att_db, path, np.zeros(shape), frac, diff,
+                                                               az, el)))
+        return res
+
+    def _fresnel_fraction(self, o, d, t0, k, lam, probe_m, tnear_m):
+        rho, phi = _sunflower(k)
+        u, v = _perp_basis(d)
+        off = rho[None, :, None] * (np.cos(phi)[None, :, None] * u[:, None, :] + np.sin(phi)[None, :, None] * v[:, None, :])
+        dref = np.where(np.isfinite(t0), np.maximum(t0, tnear_m), np.inf)
+        clear = ~np.isfinite(t0)
+        if np.any(clear):
+            psi = math.sqrt(lam / probe_m)
+            dirs = d[clear][:, None, :] + psi * off[clear]
+            dirs /= np.linalg.norm(dirs, axis=-1, keepdims=True)
+            oc = np.repeat(o[clear], k, axis=0)
+            th = self.rays.hit_distance(oc, dirs.reshape(-1, 3), tnear_m=tnear_m).reshape(-1, k)
+            with np.errstate(invalid="ignore"):
+                inside = (rho[None, :] * psi * th) <= np.sqrt(lam * th)     # hit inside the Fresnel paraboloid
+            dref[clear] = np.where(inside, th, np.inf).min(axis=1)
+        frac = np.zeros(len(d))
+        has = np.isfinite(dref)
+        if np.any(has):
+            psi = np.sqrt(lam / dref[has])[:, None, None]
+            dirs = d[has][:, None, :] + psi * off[has]
+            dirs /= np.linalg.norm(dirs, axis=-1, keepdims=True)
+            occ = self.rays.occluded(np.repeat(o[has], k, axis=0), dirs.reshape(-1, 3), tnear_m=tnear_m)
+            frac[has] = occ.reshape(-1, k).mean(axis=1)
+        return frac
+
+    def visibility_ecef(self, antenna_world_m, sat_ecef_m, **kwargs) -> VisibilityResult:
+        """Visibility from satellite ECEF positions (N, 3) or (M, N, 3); az/el in the antenna's local ENU."""
+        a = np.asarray(antenna_world_m, dtype=np.float64)
+        single = a.ndim == 1
+        a2 = a.reshape(-1, 3)
+        rx = self.antenna_ecef(a2)                       # (M, 3)
+        sat = np.asarray(sat_ecef_m, dtype=np.float64)
+        if sat.ndim == 2:
+            sat = np.broadcast_to(sat, (len(a2),) + sat.shape)
+        d_ecef = sat - rx[:, None, :]
+        lat, lon, _ = frames.ecef_to_geodetic(rx[:, 0], rx[:, 1], rx[:, 2])
+        rows = _local_enu_rows(np.atleast_1d(lat), np.atleast_1d(lon))
+        d_enu = np.einsum("mij,mnj->mni", rows, d_ecef)
+        res = self.visibility(a2, d_enu, **kwargs)
+        if single:
+            res = VisibilityResult(*(np.asarray(getattr(res, f))[0] for f in res.__dataclass_fields__))
+        return res
+
+    # ---------------------------------------------------------------- skyline
+    def horizon_profile(self, antenna_world_m, az_step_deg: float = 1.0, which: str = "opaque",
+                        iterations: int = 14, tnear_m: float = 1e-3):
+        """Skyline elevation [deg] at each azimuth (local ENU of the antenna).
+
+        ``which``: "opaque" or "foliage" (penetrable volumes).  The skyline is the highest blocked
+        elevation in [0, 90] (0 when nothing is above the horizon), found on a 1-degree sweep then
+        refined by bisection (``iterations`` halvings: 1/2^14 deg).  Returns (az_deg, el_deg).
+        """
+        if which not in ("opaque", "foliage"):
+            raise ValueError(f"horizon_profile: which must be 'opaque' or 'foliage', got {which!r}")
+        if not az_step_deg > 0:
+            raise ValueError(f"horizon_profile: az_step_deg must be > 0, got {az_step_deg}")
+        a = np.asarray(antenna_world_m, dtype=np.float64).reshape(3)
+        R = self.world_from_local_enu(a)[0]
+        az = np.arange(0.0, 360.0, az_step_deg)
+        els = np.arange(0.0, 91.0, 1.0)
+        test = self.rays.occluded if which == "opaque" else self.rays.touches_penetrable
+
+        def hit(az_, el_):
+            dw = frames.enu_unit_from_az_el(az_, el_) @ R.T
+            return test(a, dw.reshape(-1, 3), tnear_m=tnear_m).reshape(np.shape(az_))
+
+        A, E = np.meshgrid(az, els, indexing="ij")
+        blocked = hit(A, E)
+        any_b = blocked.any(axis=1)
+        top = np.where(any_b, len(els) - 1 - np.argmax(blocked[:, ::-1], axis=1), -1)
+        lo = np.where(top >= 0, els[np.clip(top, 0, None)], 0.0)
+        hi = np.minimum(lo + 1.0, 90.0)
+        out = np.where(any_b, lo, 0.0)
+        ref = any_b & (top < len(els) - 1)
+        lo, hi = lo[ref], hi[ref]
+        for _ in range(iterations):
+            mid = 0.5 * (lo + hi)
+            b = hit(az[ref], mid)
+            lo = np.where(b, mid, lo)
+            hi = np.where(b, hi, mid)
+        out[ref] = 0.5 * (lo + hi)
+        return az, out
