@@ -31,6 +31,7 @@ setup(
     entry_points={
         "console_scripts": [
             "gnss-sim = gnss_sim_ros2.cli:main",
+            "ephemeris_node = gnss_sim_ros2.nodes.ephemeris_node:main",
         ],
     },
 )

@@ -134,7 +134,8 @@ def _iono_from_header(header: Mapping) -> dict[str, list[float]]:
         out.setdefault("GAL", [float(v) for v in np.ravel(header["ionospheric_corr_GAL"])])
     for kind, vals in out.items():
         if kind not in _IONO_ORDER:
-            raise ValueError(f"header IONOSPHERIC CORR: unknown correction type {kind!r}; expected one of {_IONO_ORDER}")
+            raise ValueError(f"header IONOSPHERIC CORR: unknown correction type {kind!r}; "
+                             f"expected one of {_IONO_ORDER}")
         n = 3 if kind == "GAL" else 4
         if len(vals) != n:
             raise ValueError(f"header IONOSPHERIC CORR {kind}: expected {n} coefficients, got {len(vals)}")

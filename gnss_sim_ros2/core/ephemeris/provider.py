@@ -1,0 +1,68 @@
+"""Open the ephemeris source a configuration names: the one entry point that
+the ephemeris node, ``gnss-sim simulate`` and the benchmarks share.
+
+Sources: ``synthetic`` (nominal constellation written as a RINEX navigation
+file, read back through the broadcast path), ``broadcast`` (RINEX navigation
+files), ``sp3`` (precise orbits and clocks), ``download`` (daily broadcast
+files from public IGS archives, cached).  Only the time span simulated is
+loaded (with a margin for the fit intervals).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..time import GnssTime
+
+#: loaded before/after the simulated span [s]: a 4 h fit interval plus GLONASS/BeiDou records
+LOAD_MARGIN_S = 4 * 3600.0
+
+
+def open_ephemeris(source: str, start: GnssTime, duration_s: float, systems: str = "GRECJI",
+                   nav_files=(), sp3_files=(), clk_files=(), workdir: str | Path | None = None,
+                   cache_dir: str | Path | None = None):
+    """A provider with ``states(t, svs, systems)``/``states_at(svs, t)`` for the span.
+
+    Returns (provider, nav_paths) where ``nav_paths`` are the RINEX navigation
+    files behind it (to copy next to the RINEX observations); empty for sp3.
+    """
+    from .broadcast import BroadcastEphemeris
+
+    end = start + float(duration_s)
+    lo, hi = start - LOAD_MARGIN_S, end + LOAD_MARGIN_S
+    if source == "synthetic":
+        from .synthetic import write_synthetic_nav
+
+        workdir = Path(workdir) if workdir else Path.cwd()
+        workdir.mkdir(parents=True, exist_ok=True)
+        y, doy = start.to_datetime().year, start.to_datetime().timetuple().tm_yday
+        path = workdir / f"SYNTHETIC_{y:04d}{doy:03d}_MN.rnx"
+        write_synthetic_nav(path, start - 7200.0, float(duration_s) + 4 * 3600.0, systems=systems)
+        return BroadcastEphemeris.from_files([path], start=lo, end=hi), [path]
+    if source == "broadcast":
+        if not nav_files:
+            raise ValueError("ephemeris source 'broadcast' needs nav_files (RINEX navigation files)")
+        for f in nav_files:
+            if not Path(f).is_file():
+                raise ValueError(f"navigation file {f} does not exist (parameter nav_files)")
+        return BroadcastEphemeris.from_files(list(nav_files), start=lo, end=hi), [Path(f) for f in nav_files]
+    if source == "sp3":
+        from .sp3 import Sp3Ephemeris
+
+        if not sp3_files:
+            raise ValueError("ephemeris source 'sp3' needs sp3_files")
+        for f in list(sp3_files) + list(clk_files):
+            if not Path(f).is_file():
+                raise ValueError(f"file {f} does not exist (parameter sp3_files/clk_files)")
+        return Sp3Ephemeris.from_files(list(sp3_files), list(clk_files), start=lo, end=hi), []
+    if source == "download":
+        import datetime as _dt
+
+        from .download import fetch_broadcast_nav
+
+        paths = []
+        day = start.to_datetime().date()
+        while day <= end.to_datetime().date():
+            paths.append(fetch_broadcast_nav(day, cache_dir=cache_dir))
+            day += _dt.timedelta(days=1)
+        return BroadcastEphemeris.from_files(paths, start=lo, end=hi), paths
+    raise ValueError(f"unknown ephemeris source {source!r} (parameter source: synthetic, broadcast, sp3, download)")

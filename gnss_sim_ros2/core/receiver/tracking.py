@@ -1,0 +1,208 @@
+"""Tracking state per (satellite, signal): acquisition, loss of lock, ambiguities, RINEX LLI flags.
+
+Rules (per key ``(sv, code)``, e.g. ``("G05", "1C")``):
+
+- acquired when the line of sight is usable (``visible``) and C/N0 >=
+  ``acquisition_cn0_dbhz`` (default 33 dB-Hz) continuously for
+  ``acquisition_time_s`` (default 0: at the first such epoch);
+- kept while visible and C/N0 >= ``tracking_cn0_dbhz`` (default 28 dB-Hz):
+  the gap between the two thresholds is the hysteresis real receivers have
+  (acquisition needs more signal than tracking; cf. RTKLIB's simulator, which
+  flags loss of lock below 35 dB-Hz);
+- lost when blocked, below the tracking threshold, or absent from an epoch;
+- every new continuous track draws a new integer carrier-phase ambiguity
+  (uniform in +-``ambiguity_max_cyc``, from the seeded Generator);
+- random cycle slips with the mean time between slips of the PLL
+  (receiver/noise.py mean_time_to_slip_s: negligible above ~30 dB-Hz, frequent
+  near 25 dB-Hz), or forced by the caller (``force_slip``): the ambiguity
+  changes by +-1 cycle and the lock time restarts;
+- RINEX 3.04 LLI (5.3, table A2): bit 0 (value 1) on the first epoch of a new
+  track and on an epoch with a cycle slip; bit 1 (value 2) "half-cycle
+  ambiguity possible" during the first ``half_cycle_time_s`` (default 6 s,
+  one GPS subframe: the time to find the data preamble that resolves the
+  Costas loop's half-cycle) of a track of a data-modulated signal.  Signals
+  tracked on a dataless pilot (L1C-P, L2C-L, L5-Q, E1-C, E5a/b-Q, B1C/B2a-P,
+  ...) never get bit 1.
+- ``lock_time_s``: time since acquisition or the last slip (0 when not tracked).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from gnss_sim_ros2.core.receiver.noise import mean_time_to_slip_s
+from gnss_sim_ros2.core.time import GnssTime
+
+LLI_LOSS_OF_LOCK = 1
+LLI_HALF_CYCLE = 2
+
+#: (system, code) tracked on a dataless pilot component: no half-cycle ambiguity
+PILOT_CODES = frozenset(
+    [("G", c) for c in ("1L", "1X", "2L", "2X", "5Q", "5X")]
+    + [("J", c) for c in ("1L", "1X", "2L", "2X", "5Q", "5X", "6L", "6X")]
+    + [("E", c) for c in ("1C", "1X", "5Q", "5X", "7Q", "7X", "8Q", "8X", "6C", "6X")]
+    + [("C", c) for c in ("1P", "1X", "5P", "5X", "7P", "7Z")]
+)
+
+
+@dataclass
+class TrackingConfig:
+    acquisition_cn0_dbhz: float = 33.0
+    tracking_cn0_dbhz: float = 28.0
+    acquisition_time_s: float = 0.0
+    half_cycle_time_s: float = 6.0
+    ambiguity_max_cyc: int = 1_000_000
+    random_slips: bool = True
+    pll_bn_hz: float = 15.0
+    pll_t_int_s: float = 0.001
+
+    def __post_init__(self):
+        if self.tracking_cn0_dbhz > self.acquisition_cn0_dbhz:
+            raise ValueError(
+                f"TrackingConfig: 'tracking_cn0_dbhz' = {self.tracking_cn0_dbhz} exceeds "
+                f"'acquisition_cn0_dbhz' = {self.acquisition_cn0_dbhz}")
+        if self.acquisition_time_s < 0 or self.half_cycle_time_s < 0 or self.ambiguity_max_cyc < 1:
+            raise ValueError("TrackingConfig: times must be >= 0 and 'ambiguity_max_cyc' >= 1")
+
+
+@dataclass
+class TrackingOutput:
+    """Per input row (same order as the keys passed to :meth:`Tracker.update`)."""
+
+    tracked: np.ndarray        #: bool
+    lli: np.ndarray            #: int8 RINEX LLI bits (0 when not tracked)
+    lock_time_s: np.ndarray    #: float
+    ambiguity_cyc: np.ndarray  #: int64 integer ambiguity of the current track
+    new_track: np.ndarray      #: bool, acquired at this epoch
+    slipped: np.ndarray        #: bool, cycle slip at this epoch
+
+
+class Tracker:
+    """Tracking states for keys (sv, code) that come and go; vectorised over the keys of an epoch."""
+
+    def __init__(self, config: TrackingConfig | None = None, rng: np.random.Generator | int | None = 0):
+        self.config = config or TrackingConfig()
+        self.rng = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
+        self._index: dict[tuple[str, str], int] = {}
+        self._cap = 0
+        self._n = 0
+        self._t0 = None
+        self._t_prev = None
+        self._alloc(64)
+
+    def _alloc(self, cap):
+        def grow(old, fill, dtype):
+            new = np.full(cap, fill, dtype=dtype)
+            if old is not None:
+                new[: self._n] = old[: self._n]
+            return new
+
+        g = self.__dict__.get
+        self._tracked = grow(g("_tracked"), False, bool)
+        self._cand_since = grow(g("_cand_since"), np.nan, np.float64)
+        self._track_start = grow(g("_track_start"), np.nan, np.float64)
+        self._lock_start = grow(g("_lock_start"), np.nan, np.float64)
+        self._amb = grow(g("_amb"), 0, np.int64)
+        self._pilot = grow(g("_pilot"), False, bool)
+        self._cap = cap
+
+    def _rows(self, sv, code):
+        idx = np.empty(len(sv), dtype=np.int64)
+        for j, key in enumerate(zip(sv, code)):
+            i = self._index.get(key)
+            if i is None:
+                if self._n == self._cap:
+                    self._alloc(2 * self._cap)
+                i = self._n
+                self._index[key] = i
+                self._pilot[i] = (key[0][:1], key[1]) in PILOT_CODES
+                self._n += 1
+            idx[j] = i
+        return idx
+
+    def _seconds(self, t):
+        if self._t0 is None:
+            self._t0 = t
+        return float(t - self._t0)
+
+    def update(self, t, sv, code, cn0_dbhz, visible=True, force_slip=None) -> TrackingOutput:
+        """Advance to epoch ``t`` (GnssTime or float s, increasing) with the keys present now.
+
+        ``sv``, ``code``: (N,) strings; ``cn0_dbhz``: (N,); ``visible``: bool or
+        (N,) line of sight usable; ``force_slip``: optional (N,) bool.  Keys
+        tracked before and absent now lose lock.
+        """
+        sv = np.atleast_1d(np.asarray(sv, dtype=str))
+        code = np.atleast_1d(np.asarray(code, dtype=str))
+        n = sv.shape[0]
+        if code.shape != (n,):
+            raise ValueError(f"Tracker.update: 'code' has shape {code.shape}, expected ({n},) like 'sv'")
+        cn0 = np.broadcast_to(np.asarray(cn0_dbhz, dtype=np.float64), (n,))
+        vis = np.broadcast_to(np.asarray(visible, dtype=bool), (n,))
+        forced = np.zeros(n, bool) if force_slip is None else np.broadcast_to(np.asarray(force_slip, bool), (n,))
+        if np.any(~np.isfinite(cn0) & vis):
+            raise ValueError("Tracker.update: 'cn0_dbhz' has non-finite values for visible rows")
+        if not isinstance(t, GnssTime):
+            t = float(t)
+        ts = self._seconds(t)
+        if self._t_prev is not None and ts <= self._t_prev:
+            raise ValueError(f"Tracker.update: epoch {t!r} is not after the previous one")
+        dt = 0.0 if self._t_prev is None else ts - self._t_prev
+        self._t_prev = ts
+        c = self.config
+
+        idx = self._rows(sv, code)
+        if len(np.unique(idx)) != n:
+            raise ValueError("Tracker.update: duplicate (sv, code) keys in one epoch")
+        # keys absent from this epoch lose lock
+        absent = np.ones(self._n, bool)
+        absent[idx] = False
+        self._tracked[: self._n][absent] = False
+        self._cand_since[: self._n][absent] = np.nan
+
+        was = self._tracked[idx]
+        ok_track = vis & (cn0 >= c.tracking_cn0_dbhz)
+        ok_acq = vis & (cn0 >= c.acquisition_cn0_dbhz)
+        keep = was & ok_track
+
+        cand = self._cand_since[idx]
+        cand = np.where(~was & ok_acq, np.where(np.isnan(cand), ts, cand), np.nan)
+        new = ~was & ok_acq & (ts - cand >= c.acquisition_time_s - 1e-9)
+        self._cand_since[idx] = np.where(new, np.nan, cand)
+
+        amb = self._amb[idx]
+        n_new = int(new.sum())
+        if n_new:
+            amb[new] = self.rng.integers(-c.ambiguity_max_cyc, c.ambiguity_max_cyc + 1, size=n_new)
+        slipped = keep & forced
+        if c.random_slips and dt > 0 and np.any(keep):
+            p = 1.0 - np.exp(-dt / mean_time_to_slip_s(cn0, c.pll_bn_hz, c.pll_t_int_s))
+            u = self.rng.random(n)
+            slipped |= keep & (u < p)
+        n_slip = int(slipped.sum())
+        if n_slip:
+            amb[slipped] += self.rng.choice(np.array([-1, 1]), size=n_slip)
+        self._amb[idx] = amb
+
+        track_start = np.where(new, ts, self._track_start[idx])
+        lock_start = np.where(new | slipped, ts, self._lock_start[idx])
+        self._track_start[idx] = track_start
+        self._lock_start[idx] = lock_start
+        tracked = keep | new
+        self._tracked[idx] = tracked
+
+        lli = np.zeros(n, np.int8)
+        lli[tracked & (new | slipped)] |= LLI_LOSS_OF_LOCK
+        half = tracked & ~self._pilot[idx] & (ts - track_start < c.half_cycle_time_s - 1e-9)
+        lli[half] |= LLI_HALF_CYCLE
+        lock_time = np.where(tracked, ts - lock_start, 0.0)
+        return TrackingOutput(tracked.copy(), lli, lock_time, amb.copy(), new.copy(), slipped.copy())
+
+    def keys(self):
+        """All (sv, code) keys seen so far."""
+        return list(self._index)
+
+    def is_tracked(self, sv: str, code: str) -> bool:
+        i = self._index.get((sv, code))
+        return bool(i is not None and self._tracked[i])

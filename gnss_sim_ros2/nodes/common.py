@@ -1,0 +1,150 @@
+"""What every gnss_sim lifecycle node shares: parameters from the one table,
+validation on configure, diagnostics, time stamps.
+
+The pattern follows ros2/demos lifecycle_py: resources are made in
+``on_configure`` and freed in ``on_cleanup``; publishers are lifecycle
+publishers, active only between ``on_activate`` and ``on_deactivate``.
+"""
+from __future__ import annotations
+
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType
+from rclpy.lifecycle import LifecycleNode, TransitionCallbackReturn
+from rclpy.parameter import Parameter
+
+from gnss_sim_ros2.core.time import GnssTime, gnss_to_ros_time, ros_time_to_gnss
+from gnss_sim_ros2.parameters import NODE_NAMES, params_of
+
+_KIND_TYPES = {
+    "bool": (ParameterType.PARAMETER_BOOL, Parameter.Type.BOOL),
+    "integer": (ParameterType.PARAMETER_INTEGER, Parameter.Type.INTEGER),
+    "double": (ParameterType.PARAMETER_DOUBLE, Parameter.Type.DOUBLE),
+    "string": (ParameterType.PARAMETER_STRING, Parameter.Type.STRING),
+    "string_array": (ParameterType.PARAMETER_STRING_ARRAY, Parameter.Type.STRING_ARRAY),
+    "double_array": (ParameterType.PARAMETER_DOUBLE_ARRAY, Parameter.Type.DOUBLE_ARRAY),
+}
+
+
+class GnssSimNode(LifecycleNode):
+    """Base of the gnss_sim lifecycle nodes.
+
+    Subclasses set ``PARAMS_KEY`` (a key of ``parameters.NODE_NAMES``) and
+    implement ``configure(params)`` / ``cleanup()`` / ``activate()`` /
+    ``deactivate()``; a ``ValueError`` from ``configure`` makes the transition
+    fail with the message logged (the node stays unconfigured).
+    """
+
+    PARAMS_KEY = ""
+
+    def __init__(self, node_name: str | None = None, **kwargs):
+        super().__init__(node_name or NODE_NAMES[self.PARAMS_KEY], **kwargs)
+        self.params: dict = {}
+        self.last_error = ""
+        for p in params_of(self.PARAMS_KEY):
+            ros_type, py_type = _KIND_TYPES[p.kind]
+            desc = ParameterDescriptor(name=p.name, type=ros_type, description=p.description)
+            if p.choices:
+                desc.additional_constraints = "one of: " + ", ".join(map(str, p.choices))
+            if p.kind == "double" and (p.min is not None or p.max is not None):
+                desc.floating_point_range = [FloatingPointRange(
+                    from_value=float(p.min if p.min is not None else -1e300),
+                    to_value=float(p.max if p.max is not None else 1e300), step=0.0)]
+            if p.kind == "integer" and (p.min is not None or p.max is not None):
+                desc.integer_range = [IntegerRange(
+                    from_value=int(p.min if p.min is not None else -(2**62)),
+                    to_value=int(p.max if p.max is not None else 2**62), step=0)]
+            if isinstance(p.default, list) and not p.default:
+                self.declare_parameter(p.name, py_type, desc)
+            else:
+                try:
+                    self.declare_parameter(p.name, p.default, desc)
+                except Exception as exc:  # a range violation from the parameter file
+                    # declare without the range so that configure reports it clearly
+                    self.last_error = f"{self.get_name()}: parameter '{p.name}': {exc}"
+                    desc.floating_point_range = []
+                    desc.integer_range = []
+                    self.declare_parameter(p.name, p.default, desc)
+
+    # ----------------------------------------------------------- parameters
+    def read_parameters(self) -> dict:
+        """Current values, validated by the table; ValueError names the node and parameter."""
+        if self.last_error:
+            raise ValueError(self.last_error)
+        out = {}
+        where = f"node {self.get_name()}"
+        for p in params_of(self.PARAMS_KEY):
+            param = self.get_parameter_or(p.name, None)
+            try:
+                value = param.value if param is not None else None
+            except Exception:
+                value = None
+            if value is None:
+                value = list(p.default) if isinstance(p.default, list) else p.default
+            if isinstance(value, tuple) or type(value).__name__ == "array":
+                value = list(value)
+            out[p.name] = p.check(value, where)
+        return out
+
+    # ----------------------------------------------------------- lifecycle
+    def on_configure(self, state) -> TransitionCallbackReturn:
+        try:
+            self.params = self.read_parameters()
+            self.configure(self.params)
+        except (ValueError, OSError) as exc:
+            self.last_error = str(exc)
+            self.get_logger().error(f"configure failed: {exc}")
+            try:
+                self.cleanup()
+            except Exception:  # noqa: BLE001 - best effort after a failed configure
+                pass
+            return TransitionCallbackReturn.FAILURE
+        self.get_logger().info("configured")
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_activate(self, state) -> TransitionCallbackReturn:
+        self.activate()
+        return super().on_activate(state)
+
+    def on_deactivate(self, state) -> TransitionCallbackReturn:
+        self.deactivate()
+        return super().on_deactivate(state)
+
+    def on_cleanup(self, state) -> TransitionCallbackReturn:
+        self.cleanup()
+        self.params = {}
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_shutdown(self, state) -> TransitionCallbackReturn:
+        self.cleanup()
+        return TransitionCallbackReturn.SUCCESS
+
+    # subclasses
+    def configure(self, params: dict):
+        pass
+
+    def activate(self):
+        pass
+
+    def deactivate(self):
+        pass
+
+    def cleanup(self):
+        pass
+
+
+class TimeMapping:
+    """ROS time <-> GNSS time of a run (parameters start_time and time_mapping)."""
+
+    def __init__(self, start_time_iso: str, mode: str = "offset"):
+        self.start = GnssTime.from_iso(start_time_iso)
+        self.mode = mode
+
+    def to_gnss(self, stamp) -> GnssTime:
+        if self.mode == "offset":
+            return ros_time_to_gnss(stamp.sec, stamp.nanosec, offset=self.start)
+        return ros_time_to_gnss(stamp.sec, stamp.nanosec)
+
+    def to_ros(self, t: GnssTime):
+        from builtin_interfaces.msg import Time
+
+        sec, ns = gnss_to_ros_time(t, offset=self.start if self.mode == "offset" else None)
+        return Time(sec=sec, nanosec=ns)

@@ -1,0 +1,144 @@
+"""Ephemeris provision lifecycle node: publishes the satellite states of every epoch.
+
+configure: validates parameters, opens the ephemeris source for the span
+(files checked and loaded here, diagnostics prepared); activate: a timer on
+the ROS clock (simulated time works) publishes ``satellite_states`` for each
+epoch of the grid start_time + k / rate_hz that the clock has reached, in
+order, none skipped (a late timer catches up and counts the late epochs);
+diagnostics report data problems (satellites without a valid ephemeris).
+"""
+from __future__ import annotations
+
+import math
+import sys
+import tempfile
+
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from std_msgs.msg import Header
+
+from gnss_sim_ros2.conversions import states_to_msg
+from gnss_sim_ros2.core.time import GnssTime
+from gnss_sim_ros2.nodes.common import GnssSimNode, TimeMapping
+
+SYSTEMS = set("GRECJI")
+
+
+class EphemerisNode(GnssSimNode):
+    PARAMS_KEY = "ephemeris"
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self.provider = None
+        self.pub = None
+        self.diag_pub = None
+        self.timer = None
+        self.mapping = None
+        self.next_k = 0
+        self.published = 0
+        self.late_epochs = 0
+        self._tmp = None
+
+    def configure(self, p):
+        bad = set(p["systems"]) - SYSTEMS
+        if not p["systems"] or bad:
+            raise ValueError(f"node {self.get_name()}: parameter 'systems' is {p['systems']!r}; "
+                             f"use letters of GRECJI")
+        from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris
+
+        self.mapping = TimeMapping(p["start_time"], p["time_mapping"])
+        self._tmp = tempfile.TemporaryDirectory(prefix="gnss_sim_eph_")
+        self.provider, self.nav_paths = open_ephemeris(
+            p["source"], self.mapping.start, p["duration_s"], p["systems"], p["nav_files"], p["sp3_files"],
+            p["clk_files"], workdir=self._tmp.name, cache_dir=p["download_cache_dir"] or None)
+        self.pub = self.create_lifecycle_publisher(_msg_type(), "satellite_states", 100)
+        self.diag_pub = self.create_lifecycle_publisher(DiagnosticArray, "/diagnostics", 10)
+        self.period_s = 1.0 / p["rate_hz"]
+
+    def activate(self):
+        self.next_k = self._first_epoch_index()
+        self.timer = self.create_timer(min(self.period_s, 0.05), self._tick)
+
+    def deactivate(self):
+        if self.timer is not None:
+            self.destroy_timer(self.timer)
+            self.timer = None
+
+    def cleanup(self):
+        self.deactivate()
+        for pub in (self.pub, self.diag_pub):
+            if pub is not None:
+                self.destroy_publisher(pub)
+        self.pub = self.diag_pub = None
+        self.provider = None
+        if self._tmp is not None:
+            self._tmp.cleanup()
+            self._tmp = None
+
+    # ------------------------------------------------------------------
+    def _epoch(self, k: int) -> GnssTime:
+        return self.mapping.start + k * self.period_s
+
+    def _first_epoch_index(self) -> int:
+        now = self.mapping.to_gnss(self.get_clock().now().to_msg())
+        return max(0, math.ceil((now - self.mapping.start) / self.period_s - 1e-9))
+
+    def _tick(self):
+        now = self.mapping.to_gnss(self.get_clock().now().to_msg())
+        due = []
+        while self._epoch(self.next_k) - now <= 1e-9:
+            due.append(self.next_k)
+            self.next_k += 1
+        if len(due) > 1:
+            self.late_epochs += len(due) - 1
+        for k in due:
+            self.publish_epoch(self._epoch(k))
+
+    def publish_epoch(self, t: GnssTime):
+        states = self.provider.states(t, systems=self.params["systems"])
+        header = Header(stamp=self.mapping.to_ros(t), frame_id="earth")
+        self.pub.publish(states_to_msg(states, t, header))
+        self.published += 1
+        if self.published % max(1, int(round(10.0 / self.period_s))) == 1:
+            self._diagnose(t, len(states))
+
+    def _diagnose(self, t: GnssTime, n: int):
+        status = DiagnosticStatus(name=f"{self.get_name()}: ephemeris", hardware_id="gnss_sim")
+        values = [KeyValue(key="satellites", value=str(n)), KeyValue(key="epochs_published", value=str(self.published)),
+                  KeyValue(key="late_epochs", value=str(self.late_epochs))]
+        diag = getattr(self.provider, "diagnostics", None)
+        problems = []
+        if diag is not None:
+            d = diag(t, systems=self.params["systems"])
+            for name in ("gap", "unhealthy", "stale", "missing"):
+                svs = getattr(d, name, None)
+                if svs:
+                    problems.append(f"{name}: {' '.join(map(str, svs))}")
+                    values.append(KeyValue(key=name, value=" ".join(map(str, svs))))
+        status.level = DiagnosticStatus.WARN if problems or n < 4 else DiagnosticStatus.OK
+        status.message = "; ".join(problems) if problems else f"{n} satellites"
+        status.values = values
+        self.diag_pub.publish(DiagnosticArray(header=Header(stamp=self.get_clock().now().to_msg()), status=[status]))
+
+
+def _msg_type():
+    from gnss_sim_msgs.msg import SatelliteStates
+
+    return SatelliteStates
+
+
+def main(args=None):
+    rclpy.init(args=args)
+    node = EphemerisNode()
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
