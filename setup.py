@@ -32,6 +32,7 @@ setup(
         "console_scripts": [
             "gnss-sim = gnss_sim_ros2.cli:main",
             "ephemeris_node = gnss_sim_ros2.nodes.ephemeris_node:main",
+            "trajectory_player = gnss_sim_ros2.nodes.trajectory_player:main",
         ],
     },
 )

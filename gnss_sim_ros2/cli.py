@@ -17,6 +17,8 @@ from . import __version__
 COMMANDS = {
     "roundtrip": ("roundtrip", "publish every gnss_sim_msgs type and receive it in another process"),
     "config": ("config", "print the default parameter file (config/gnss_sim.yaml) or check one"),
+    "export-world": ("export_world", "export an SDF world's geometry and materials to a scene mesh (PLY + sidecar)"),
+    "skyplot": ("skyplot", "line-of-sight state of every satellite from a point of a world (CSV, sky plot PNG)"),
 }
 
 

@@ -12,8 +12,8 @@ _SOURCES = {"broadcast": 0, "sp3": 1, "synthetic": 2}
 def states_to_msg(states: SatelliteStates, t: GnssTime, header):
     """``gnss_sim_msgs/SatelliteStates`` of one epoch ``t``."""
     from geometry_msgs.msg import Point, Vector3
-
-    from gnss_sim_msgs.msg import SatelliteState, SatelliteStates as Msg
+    from gnss_sim_msgs.msg import SatelliteState
+    from gnss_sim_msgs.msg import SatelliteStates as Msg
 
     week, tow = t.week_tow()
     msg = Msg(header=header, gps_week=int(week), gps_tow_s=float(tow))

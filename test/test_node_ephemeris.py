@@ -3,8 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from ros_helpers import ros  # noqa: F401  (fixture)
 from rclpy.parameter import Parameter
+from ros_helpers import ros  # noqa: F401  (fixture)
 
 from gnss_sim_ros2.conversions import states_from_msg
 from gnss_sim_ros2.core.ephemeris.broadcast import BroadcastEphemeris

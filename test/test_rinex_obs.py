@@ -95,6 +95,18 @@ for k in range(100000):
 """
 
 
+def test_vectorised_f14_3_matches_python_formatting():
+    from gnss_sim_ros2.core.rinex_obs import _f14_3_chars
+
+    rng = np.random.default_rng(7)
+    v = np.concatenate([rng.uniform(-999999999.0, 999999999.0, 20000), rng.uniform(-10, 10, 20000),
+                        rng.uniform(0, 9999999999.0, 20000), np.round(rng.uniform(-1e8, 1e8, 20000), 3),
+                        [0.0, 1.0, -0.0004, 2.0625, -2.0625, 0.9995, 9.9999996, 9999999999.999, -999999999.999]])
+    got = [r.tobytes().decode() for r in _f14_3_chars(v)]
+    exp = [f"{x:14.3f}" for x in v]  # Python's correctly rounded formatting is the reference
+    assert got == exp
+
+
 def test_ssi_from_cn0_spec_table():
     # RINEX 3.04 5.7: 1 <12 dB-Hz, 2 12-17, ..., 9 >=54
     assert ssi_from_cn0(5.0) == 1

@@ -182,9 +182,11 @@ def test_stl_and_dae_meshes(tmp_path):
 def test_primitive_geometry_extents(tmp_path):
     w = write(tmp_path / "w.sdf", """
         <model name="M"><link name="L">
-          <collision name="cyl"><geometry><cylinder><radius>1</radius><length>4</length></cylinder></geometry></collision>
+          <collision name="cyl"><geometry><cylinder><radius>1</radius><length>4</length></cylinder></geometry>
+          </collision>
           <collision name="sph"><geometry><sphere><radius>2</radius></sphere></geometry></collision>
-          <collision name="cap"><geometry><capsule><radius>0.5</radius><length>2</length></capsule></geometry></collision>
+          <collision name="cap"><geometry><capsule><radius>0.5</radius><length>2</length></capsule></geometry>
+          </collision>
           <collision name="ell"><geometry><ellipsoid><radii>1 2 3</radii></ellipsoid></geometry></collision>
           <collision name="pla"><geometry><plane><normal>0 0 1</normal><size>20 10</size></plane></geometry></collision>
           <collision name="pol"><geometry><polyline>

@@ -297,3 +297,28 @@ def test_demo_world_trees_and_ledge(demo_scene):
     az_h, el_h = demo_scene.horizon_profile(np.array([0.0, 0.0, 1.0]))
     assert el_h[0] == pytest.approx(math.degrees(math.atan2(24, 15)), abs=0.01)
     assert el_h[180] < el_h[0]   # the gate in the south
+
+
+# ------------------------------------------------------------------ command line
+def test_skyplot_command_with_real_navigation(opec_dir, tmp_path):
+    import csv
+
+    from gnss_sim_ros2.cli import main
+
+    nav = [str(p) for p in sorted(opec_dir.glob("OPEC00NOR_S_20220010000_01D_*N.rnx"))]
+    assert nav
+    out_csv, out_png = tmp_path / "sky.csv", tmp_path / "sky.png"
+    rc = main(["skyplot", "--world", str(REPO / "worlds" / "courtyard.sdf"), "--at", "0,0,1",
+               "--time", "2022-01-01T00:05:00", "--nav", *nav, "--mask-deg", "5",
+               "--csv", str(out_csv), "--png", str(out_png)])
+    assert rc == 0 and out_png.stat().st_size > 10_000
+    rows = list(csv.DictReader(out_csv.open()))
+    assert len(rows) > 15 and set(rows[0]) == {"sv", "az_deg", "el_deg", "state", "attenuation_db"}
+    assert {r["state"] for r in rows} <= {"visible", "blocked", "attenuated"}
+    el = np.array([float(r["el_deg"]) for r in rows])
+    az = np.array([float(r["az_deg"]) for r in rows])
+    assert el.min() >= 5.0
+    # outside the gate (az 165-195) the lowest skyline is the 12 m south-west wing's corner (-20, -15):
+    # atan(11 / 25) = 23.7 deg seen from (0, 0, 1)
+    low = (el < 23.5) & ((az < 160) | (az > 200))
+    assert low.any() and all(r["state"] == "blocked" for r, k in zip(rows, low) if k)

@@ -91,7 +91,7 @@ def _finish(rx, rx_vel, tau, pos, vel, omega):
     # range rate: rho(t) = |R(w tau) s(t - tau) - r(t)|, tau = rho / c  =>
     # rho_dot = u.(R s_dot - r_dot) / (1 - u.(w R' s - R s_dot) / c)
     a = np.einsum("ni,ni->n", u, v - rx_vel)
-    b = np.einsum("ni,ni->n", u, omega * np.einsum("nij,nj->ni", _drot_z(theta), pos) - v)
+    b = np.einsum("ni,ni->n", u, omega[:, None] * np.einsum("nij,nj->ni", _drot_z(theta), pos) - v)
     rr = a / (1.0 - b / k.C_MPS)
     return p, v, rng, rr, u
 

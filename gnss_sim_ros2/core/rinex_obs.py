@@ -351,104 +351,95 @@ class RinexObsWriter:
         return "".join(lines), offset
 
     # ----- epoch formatting ----------------------------------------------
-    def _lines_from_groups(self, groups: dict) -> dict[str, list[bytes]]:
-        """{system: (svs, val, lli, ssi)} with (n, codes of the system in header order) arrays
-        -> {system: [line bytes]}; all values of the epoch are formatted in one vectorised call."""
-        flat_v, flat_l, flat_s = [], [], []
-        for s, (svs, val, lli, ssi) in groups.items():
-            codes = self.header.obs_types[s]
-            nan = np.isnan(val)
-            bad = ~nan & ~(np.abs(val) <= _F14_MAX) | (val < -_F14_NEG_MAX)
-            if bad.any():
-                r, j = np.argwhere(bad)[0]
-                raise ValueError(f"observations[{svs[r]!r}][{codes[j]!r}]={val[r, j]!r} does not fit F14.3 "
-                                 f"(-1e9 < v < 1e10)")
-            for name, arr, top in (("LLI", lli, 7), ("SSI", ssi, 9)):
-                badi = arr > top
-                if badi.any():
-                    r, j = np.argwhere(badi)[0]
-                    raise ValueError(f"observations[{svs[r]!r}][{codes[j]!r}]: {name}={arr[r, j]} out of range "
-                                     f"0-{top}")
-            flat_v.append(val.ravel())
-            flat_l.append(lli.ravel())
-            flat_s.append(ssi.ravel())
-        if not flat_v:
-            return {}
-        v = np.concatenate(flat_v)
+    def _format_rows(self, svs: list[str], v, lli, ssi) -> list[bytes]:
+        """Satellite lines from flat arrays of the epoch: satellite after satellite, each with
+        the codes of its system in header order (NaN value / negative indicator = blank).
+        All values of the epoch are formatted in one vectorised call."""
+        v = np.asarray(v, dtype=np.float64)
+        try:
+            lli = _int_or_blank(np.asarray(lli, dtype=np.float64))
+            ssi = _int_or_blank(np.asarray(ssi, dtype=np.float64))
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"observations: LLI/SSI must be integers or None ({exc})") from exc
         nan = np.isnan(v)
+        bad = ~nan & ~((v <= _F14_MAX) & (v >= -_F14_NEG_MAX))
+        bad_l, bad_s = lli > 7, ssi > 9
+        if bad.any() or bad_l.any() or bad_s.any():
+            for mask, what in ((bad, "value does not fit F14.3 (-1e9 < v < 1e10)"), (bad_l, "LLI out of range 0-7"),
+                               (bad_s, "SSI out of range 0-9")):
+                if mask.any():
+                    i = int(np.flatnonzero(mask)[0])
+                    sv, code = self._locate(svs, i)
+                    raise ValueError(f"observations[{sv!r}][{code!r}]: {what} "
+                                     f"(value {v[i]!r}, LLI {lli[i]}, SSI {ssi[i]})")
         fields = np.empty((v.size, 16), dtype=np.uint8)
         fields[:, :14] = _f14_3_chars(np.where(nan, 0.0, v))
         fields[nan, :14] = 32
-        fields[:, 14] = _DIGIT_BYTES[np.where(nan, -1, np.maximum(np.concatenate(flat_l), -1)) + 1]
-        fields[:, 15] = _DIGIT_BYTES[np.where(nan, -1, np.maximum(np.concatenate(flat_s), -1)) + 1]
-        out, start = {}, 0
-        for s, (svs, val, _, _) in groups.items():
-            n, k = val.shape
-            lines = np.empty((n, 3 + 16 * k), dtype=np.uint8)
-            lines[:, :3] = np.frombuffer("".join(svs).encode("ascii"), dtype=np.uint8).reshape(n, 3)
-            lines[:, 3:] = fields[start:start + n * k].reshape(n, 16 * k)
-            start += n * k
-            raw, w = lines.tobytes(), 3 + 16 * k
-            out[s] = [raw[r * w:(r + 1) * w].rstrip() for r in range(n)]
+        fields[:, 14] = _DIGIT_BYTES.take(np.where(nan, -1, np.maximum(lli, -1)) + 1)
+        fields[:, 15] = _DIGIT_BYTES.take(np.where(nan, -1, np.maximum(ssi, -1)) + 1)
+        raw = fields.tobytes()
+        out, pos, nc = [], 0, self._n_codes
+        for sv in svs:
+            end = pos + 16 * nc[sv[0]]
+            out.append((sv.encode("ascii") + raw[pos:end]).rstrip())
+            pos = end
         return out
 
-    def _dict_lines(self, observations: Mapping) -> list[str]:
-        groups: dict[str, list] = {}
-        order = []
-        for sv, obs in observations.items():
-            s = sv[:1]
-            idx = self._code_index.get(s)
-            if idx is None or len(sv) != 3:
-                raise ValueError(f"observations: satellite {sv!r} has no system in the header obs_types "
-                                 f"({list(self.header.obs_types)})")
-            n = self._n_codes[s]
-            v, li, si = [math.nan] * n, [-1] * n, [-1] * n
-            for code, item in obs.items():
+    def _locate(self, svs: list[str], i: int) -> tuple[str, str]:
+        """(sv, code) of flat index i."""
+        for sv in svs:
+            n = self._n_codes[sv[0]]
+            if i < n:
+                return sv, self.header.obs_types[sv[0]][i]
+            i -= n
+        return "?", "?"
+
+    def _check_sv(self, sv, where: str) -> None:
+        if not isinstance(sv, str) or len(sv) != 3 or sv[0] not in self._code_index:
+            raise ValueError(f"{where}: satellite {sv!r} is not an id like 'G05' of a system in the header "
+                             f"obs_types ({list(self.header.obs_types)})")
+
+    def _dict_lines(self, observations: Mapping) -> list[bytes]:
+        flat_v, flat_l, flat_s = [], [], []
+        svs = list(observations)
+        nan = math.nan
+        for sv in svs:
+            self._check_sv(sv, "observations")
+            idx = self._code_index[sv[0]]
+            n = self._n_codes[sv[0]]
+            base = len(flat_v)
+            flat_v.extend([nan] * n)
+            flat_l.extend([-1] * n)
+            flat_s.extend([-1] * n)
+            for code, item in observations[sv].items():
                 i = idx.get(code)
                 if i is None:
                     raise ValueError(f"observations[{sv!r}]: code {code!r} is not in the header obs_types for "
-                                     f"{s}: {list(idx)}")
+                                     f"{sv[0]}: {list(idx)}")
+                i += base
                 if type(item) is tuple:
-                    if len(item) == 3:
-                        x, a, b = item
-                    else:
-                        x, a, b = (item + (None, None))[:3]
+                    x, a, b = item if len(item) == 3 else (item + (None, None))[:3]
                     if x is not None:
-                        v[i] = x
+                        flat_v[i] = x
                     if a is not None:
-                        li[i] = a
+                        flat_l[i] = a
                     if b is not None:
-                        si[i] = b
+                        flat_s[i] = b
                 elif item is not None:
-                    v[i] = item
-            g = groups.setdefault(s, [[], [], [], []])
-            order.append((s, len(g[0])))
-            g[0].append(sv)
-            g[1].append(v)
-            g[2].append(li)
-            g[3].append(si)
-        return self._assemble(groups, order)
+                    flat_v[i] = item
+        try:
+            v = np.array(flat_v, dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"observations: values must be numbers or None ({exc})") from exc
+        return self._format_rows(svs, v, flat_l, flat_s)
 
-    def _assemble(self, groups: dict, order: list) -> list[str]:
-        for s, (svs, v, li, si) in list(groups.items()):
-            try:
-                va = np.asarray(v, dtype=np.float64)
-                la = _int_or_blank(np.asarray(li, dtype=np.float64))
-                sa = _int_or_blank(np.asarray(si, dtype=np.float64))
-            except (TypeError, ValueError) as exc:
-                raise ValueError(f"observations of system {s}: values must be numbers or None ({exc})") from exc
-            groups[s] = (svs, va, la, sa)
-        lines = self._lines_from_groups(groups)
-        return [lines[s][i] for s, i in order]
-
-    def _array_lines(self, ep: EpochArrays) -> list[str]:
+    def _array_lines(self, ep: EpochArrays) -> list[bytes]:
         value = np.asarray(ep.value, dtype=np.float64)
         per_sys = isinstance(ep.codes, Mapping)
-        codes_by_sys = {k: tuple(v) for k, v in ep.codes.items()} if per_sys else None
         svs = list(ep.sv)
         n = len(svs)
-        m = len(next(iter(codes_by_sys.values()))) if per_sys else len(ep.codes)
-        if per_sys and any(len(v) != m for v in codes_by_sys.values()):
+        m = len(next(iter(ep.codes.values()))) if per_sys else len(ep.codes)
+        if per_sys and any(len(c) != m for c in ep.codes.values()):
             raise ValueError(f"observations.codes: every system needs {m} codes, got {ep.codes!r}")
         if value.shape != (n, m):
             raise ValueError(f"observations.value: shape {value.shape}, expected ({n}, {m}) = (sv, codes)")
@@ -457,43 +448,40 @@ class RinexObsWriter:
         for name, arr in (("lli", lli), ("ssi", ssi)):
             if arr.shape != (n, m):
                 raise ValueError(f"observations.{name}: shape {arr.shape}, expected ({n}, {m})")
-        sys_of = np.array([sv[:1] for sv in svs])
-        groups, order = {}, [None] * n
-        for s in dict.fromkeys(sys_of.tolist()):
-            rows = np.flatnonzero(sys_of == s)
-            idx = self._code_index.get(s)
-            if idx is None:
-                raise ValueError(f"observations.sv[{rows[0]}]={svs[rows[0]]!r}: system not in the header obs_types")
-            codes = codes_by_sys.get(s) if per_sys else tuple(ep.codes)
+        for r, sv in enumerate(svs):
+            self._check_sv(sv, f"observations.sv[{r}]")
+        sys_rows = [sv[0] for sv in svs]
+        counts = np.array([self._n_codes[s] for s in sys_rows], dtype=np.int64)
+        offsets = np.cumsum(counts) - counts
+        cm = np.empty((n, m), dtype=np.int64)
+        sys_arr = np.array(sys_rows)
+        for s in dict.fromkeys(sys_rows):
+            codes = tuple(ep.codes[s]) if per_sys and s in ep.codes else (None if per_sys else tuple(ep.codes))
             if codes is None:
-                raise ValueError(f"observations.codes has no entry for system {s!r} ({svs[rows[0]]!r})")
+                raise ValueError(f"observations.codes has no entry for system {s!r}")
             key = (s, codes)
             cmap = self._array_maps.get(key)
             if cmap is None:
+                idx = self._code_index[s]
                 cmap = np.array([idx.get(c, -1) for c in codes], dtype=np.int64)
                 self._array_maps[key] = cmap
-            sub = value[rows]
-            unknown = (cmap < 0) & ~np.all(np.isnan(sub), axis=0)
-            if unknown.any():
-                j = int(np.flatnonzero(unknown)[0])
-                raise ValueError(f"observations: system {s} has values for {codes[j]!r}, not in the header "
-                                 f"obs_types for {s}: {list(idx)}")
-            known = cmap >= 0
-            k = self._n_codes[s]
-            v = np.full((len(rows), k), np.nan)
-            li = np.full((len(rows), k), -1, np.int64)
-            si = np.full((len(rows), k), -1, np.int64)
-            v[:, cmap[known]] = sub[:, known]
-            li[:, cmap[known]] = lli[rows][:, known]
-            si[:, cmap[known]] = ssi[rows][:, known]
-            bad = [svs[r] for r in rows if len(svs[r]) != 3]
-            if bad:
-                raise ValueError(f"observations.sv: bad satellite id {bad[0]!r} (expected e.g. 'G05')")
-            groups[s] = ([svs[r] for r in rows], v, li, si)
-            for i, r in enumerate(rows.tolist()):
-                order[r] = (s, i)
-        lines = self._lines_from_groups(groups)
-        return [lines[s][i] for s, i in order]
+            cm[sys_arr == s] = cmap
+        known = cm >= 0
+        unknown = ~known & ~np.isnan(value)
+        if unknown.any():
+            r, j = np.argwhere(unknown)[0]
+            code = ep.codes[sys_rows[r]][j] if per_sys else ep.codes[j]
+            raise ValueError(f"observations: {svs[r]} has a value for {code!r}, not in the header obs_types for "
+                             f"{sys_rows[r]}: {list(self.header.obs_types[sys_rows[r]])}")
+        total = int(counts.sum())
+        pos = (offsets[:, None] + cm)[known]
+        fv = np.full(total, np.nan)
+        fl = np.full(total, -1, np.int64)
+        fs = np.full(total, -1, np.int64)
+        fv[pos] = value[known]
+        fl[pos] = lli[known]
+        fs[pos] = ssi[known]
+        return self._format_rows(svs, fv, fl, fs)
 
     def write_epoch(self, t: GnssTime, observations, clock_offset_s: float | None = None, flag: int = 0) -> None:
         """Append one epoch (time ``t`` in GPS time) and hand it to the OS at once.

@@ -22,7 +22,7 @@ from ..time import GnssTime
 from . import glonass as glo
 from .kepler import KeplerParams
 from .rinex_nav import KEPLER_SYSTEMS, SUPPORTED_SYSTEMS, NavData, read_nav_files
-from .select import EphemerisDiagnostics, Timeline, build_timeline, validity_limits_s
+from .select import EphemerisDiagnostics, build_timeline, validity_windows_s
 from .states import SatelliteStates
 
 _GALILEO_NAV = ("inav", "fnav", "any")
@@ -44,12 +44,13 @@ class BroadcastEphemeris:
     referred to E1/E5b, what an E1 receiver decodes; F/NAV only for satellites
     without any I/NAV record), "fnav" (the reverse; clock referred to E1/E5a as
     IGS/CODE products), "any" (nearest toe of both).
-    ``max_age_s``: override validity limits per system, e.g. {"C": 6*3600}.
+    ``windows_s``: override validity windows per system (select.WINDOW_S), e.g.
+    {"C": 6*3600} (symmetric) or {"E": (0, 14400)} (before, after toe).
     """
 
     source = "broadcast"
 
-    def __init__(self, nav: NavData, galileo_nav: str = "inav", max_age_s: dict | None = None,
+    def __init__(self, nav: NavData, galileo_nav: str = "inav", windows_s: dict | None = None,
                  glonass_step_s: float = glo.STEP_S):
         if galileo_nav not in _GALILEO_NAV:
             raise ValueError(f"galileo_nav={galileo_nav!r}: expected one of {_GALILEO_NAV}")
@@ -78,7 +79,7 @@ class BroadcastEphemeris:
         self._channel = np.concatenate([np.zeros(len(kep), np.int64), gl["channel"].astype(np.int64)])
         systems = np.concatenate([kep["sys"], gl["sys"]]).astype("U1")
         fit_h = np.concatenate([kep["fit_h"], np.full(len(gl), np.nan)])
-        self._limit_s = validity_limits_s(systems, fit_h, max_age_s)
+        self._before_s, self._after_s = validity_windows_s(systems, fit_h, windows_s)
         self._rec_sv_idx = rec_sv_idx
         n = len(rec_sv_idx)
         self._ref_sec = int(np.median(self._toe_sec)) if n else 0
@@ -86,14 +87,15 @@ class BroadcastEphemeris:
         ids = np.arange(n)
         healthy = self._health == 0
         self._timeline = build_timeline(self._ref_sec, rec_sv_idx[healthy], self._toe_sec[healthy],
-                                        self._toe_frac[healthy], self._limit_s[healthy], ids[healthy],
-                                        tiebreak[healthy])
+                                        self._toe_frac[healthy], self._before_s[healthy],
+                                        self._after_s[healthy], ids[healthy], tiebreak[healthy])
         self._timeline_any = build_timeline(self._ref_sec, rec_sv_idx, self._toe_sec, self._toe_frac,
-                                            self._limit_s, ids, tiebreak)
+                                            self._before_s, self._after_s, ids, tiebreak)
         # GLONASS dense orbits over each record's window
         if len(gl):
             self._glo = glo.GlonassOrbits(gl["pos_m"], gl["vel_mps"], gl["acc_mps2"],
-                                          self._limit_s[self.n_kep:] + 1.0, glonass_step_s)
+                                          np.maximum(self._before_s, self._after_s)[self.n_kep:] + 1.0,
+                                          glonass_step_s)
         else:
             self._glo = None
         self._sys_cache: dict[str, np.ndarray] = {}
@@ -259,7 +261,7 @@ class BroadcastEphemeris:
                 out.unhealthy.append(s)
             else:
                 recs = np.flatnonzero(self._rec_sv_idx == sv_idx[k])
-                later = (self._toe_sec[recs] - t.sec) + self._limit_s[recs] >= 0
+                later = (self._toe_sec[recs] - t.sec) + self._after_s[recs] >= 0
                 (out.gap if np.any(later) else out.stale).append(s)
         return out
 

@@ -159,6 +159,8 @@ class NavData:
     paths: list[str] = field(default_factory=list)
     #: records not read, by reason (e.g. "RINEX4 G CNAV": 12)
     skipped: dict[str, int] = field(default_factory=dict)
+    #: corrections applied to malformed input (also logged as warnings)
+    notes: list[str] = field(default_factory=list)
 
     def merge(self, other: NavData) -> NavData:
         tables = dict(self.tables)
@@ -176,6 +178,7 @@ class NavData:
             versions=self.versions + other.versions,
             paths=self.paths + other.paths,
             skipped=skipped,
+            notes=self.notes + other.notes,
         )
 
     def records(self, system: str) -> np.ndarray:
@@ -290,6 +293,9 @@ def parse_nav_text(text: str, name: str = "<text>", start: GnssTime | None = Non
         tab = _georinex_parse(sysid, nav_type, list(recs.values()), major, first, name)
         if tab is not None and len(tab):
             nav.tables[sysid] = SystemTable.concatenate([nav.tables[sysid], tab]) if sysid in nav.tables else tab
+    for sysid, tab in nav.tables.items():
+        if sysid in KEPLER_SYSTEMS:
+            _fix_semicircles(tab, name, nav)
     return nav
 
 
@@ -521,6 +527,35 @@ def _dataset_to_table(ds, sysid, nav_type, name) -> SystemTable | None:
         rec = _kepler_table(sysid, nav_type, sv, epoch, raw, fields, name)
     order = np.lexsort((rec["toe_sec"], rec["sv"]))
     return SystemTable(sysid, rec[order], raw[order], fields, epoch[order])
+
+
+#: nominal inclination [rad] of the non-GEO orbits per system (GPS 55, Galileo 56, BeiDou MEO/IGSO 55,
+#: QZSS IGSO/QZO 41, NavIC GSO 29 deg): tells radians from semicircles
+_NOMINAL_INCLINATION_RAD = {"G": 0.96, "E": 0.98, "C": 0.96, "J": 0.72, "I": 0.51}
+_ANGLE_FIELDS = ("m0", "omega0", "i0", "omega", "delta_n", "omega_dot", "idot")
+_ANGLE_RAW = ("M0", "Omega0", "Io", "omega", "DeltaN", "OmegaDot", "IDOT")
+
+
+def _fix_semicircles(tab: SystemTable, name: str, nav: NavData) -> None:
+    """Some writers put angles in semicircles instead of radians (seen: BeiDou records of
+    gl_Rinex/NMA station files, 2022).  Detected from the inclinations of the non-GEO
+    records (median nearer nominal/pi than nominal) and converted in place."""
+    inc = np.abs(tab.rec["i0"])
+    nongeo = inc > 0.1
+    if not np.any(nongeo):
+        return
+    nominal = _NOMINAL_INCLINATION_RAD[tab.system]
+    med = float(np.median(inc[nongeo]))
+    if abs(med - nominal / np.pi) < abs(med - nominal):
+        for f in _ANGLE_FIELDS:
+            tab.rec[f] *= np.pi
+        for f in _ANGLE_RAW:
+            if f in tab.fields:
+                tab.raw[:, tab.fields.index(f)] *= np.pi
+        msg = (f"{name}: {tab.system} angles are in semicircles, not radians as RINEX requires "
+               f"(median inclination {med:.3f}); multiplied by pi")
+        log.warning(msg)
+        nav.notes.append(msg)
 
 
 def _epoch_gps_seconds(epoch: np.ndarray, scale: str) -> np.ndarray:

@@ -25,35 +25,46 @@ import numpy as np
 
 from ..time import GnssTime
 
-#: default validity limit |t - toe| [s] per system; None = from the record's fit interval (GPS, QZSS)
-MAX_AGE_S = {"G": None, "J": None, "E": 2 * 3600.0, "C": 3600.0, "R": 15 * 60.0, "I": 2 * 3600.0}
+#: default validity window per system: (before, after) toe [s], toe - before <= t <= toe + after;
+#: None = +-half the record's fit interval (GPS, QZSS).  Override with ``windows_s``.
+WINDOW_S = {
+    "G": None,
+    "J": None,
+    "E": (600.0, 4 * 3600.0),
+    "C": (3600.0, 3600.0),
+    "R": (15 * 60.0, 15 * 60.0),
+    "I": (2 * 3600.0, 2 * 3600.0),
+}
 
-_US = 1_000_000
-_BIG = 1 << 52        # key span per satellite [us] (142 years)
-_OFFSET = 1 << 51     # keys are t_us + _OFFSET (t within +-71 years of the reference epoch)
 
+def validity_windows_s(systems: np.ndarray, fit_h: np.ndarray, overrides: dict | None = None):
+    """Per-record (before, after) window [s] from the system and (GPS/QZSS) fit interval [h].
 
-def validity_limits_s(systems: np.ndarray, fit_h: np.ndarray, overrides: dict | None = None) -> np.ndarray:
-    """Per-record limit |t - toe| [s] from the system and (GPS/QZSS) fit interval [h]."""
-    limits = dict(MAX_AGE_S)
+    ``overrides``: {system: seconds (symmetric) or (before, after) or None (fit interval)}.
+    """
+    windows = dict(WINDOW_S)
     if overrides:
         for k, v in overrides.items():
-            if k not in limits:
-                raise ValueError(f"max_age_s: unknown system {k!r} (expected one of {''.join(limits)})")
-            if v is not None and not v > 0:
-                raise ValueError(f"max_age_s[{k!r}]={v} must be positive seconds")
-            limits[k] = v
-    out = np.empty(len(systems))
+            if k not in windows:
+                raise ValueError(f"windows_s: unknown system {k!r} (expected one of {''.join(windows)})")
+            if v is not None:
+                v = (float(v), float(v)) if np.ndim(v) == 0 else tuple(float(x) for x in v)
+                if len(v) != 2 or min(v) < 0 or max(v) <= 0:
+                    raise ValueError(f"windows_s[{k!r}]={v}: expected seconds >= 0 (before, after)")
+            windows[k] = v
+    before = np.empty(len(systems))
+    after = np.empty(len(systems))
     for s in np.unique(systems):
         m = systems == s
-        lim = limits.get(str(s))
-        if lim is None:
+        win = windows.get(str(s))
+        if win is None:
             fh = np.asarray(fit_h, dtype=np.float64)[m]
             default_h = 2.0 if s == "J" else 4.0
-            out[m] = np.where(np.isfinite(fh) & (fh > 0), fh, default_h) * 3600.0 / 2.0
+            half = np.where(np.isfinite(fh) & (fh > 0), fh, default_h) * 3600.0 / 2.0
+            before[m], after[m] = half, half
         else:
-            out[m] = lim
-    return out
+            before[m], after[m] = win
+    return before, after
 
 
 class Timeline:
@@ -87,16 +98,17 @@ class Timeline:
         return (self.start_key[m] - lo - _OFFSET, self.end_key[m] - lo - _OFFSET, self.rec[m])
 
 
-def build_timeline(ref_sec: int, sv_idx, toe_sec, toe_frac, limit_s, rec_ids, tiebreak=None) -> Timeline:
+def build_timeline(ref_sec: int, sv_idx, toe_sec, toe_frac, before_s, after_s, rec_ids, tiebreak=None) -> Timeline:
     """Segments where each record is the nearest-reference-time record inside its window.
 
     ``sv_idx`` (n,) satellite index per record; ``toe_*`` reference time (GPS);
-    ``limit_s`` (n,) validity limit; ``rec_ids`` (n,) the ids returned by lookups;
+    window toe - before_s <= t <= toe + after_s; ``rec_ids`` (n,) the ids returned by lookups;
     ``tiebreak`` (n,) orders records with equal toe (the larger wins, e.g. transmission time).
     """
     sv_idx = np.asarray(sv_idx, dtype=np.int64)
     toe_us = (np.asarray(toe_sec, dtype=np.int64) - int(ref_sec)) * _US + np.round(np.asarray(toe_frac) * _US).astype(np.int64)
-    lim_us = np.round(np.asarray(limit_s, dtype=np.float64) * _US).astype(np.int64)
+    bef_us = np.round(np.broadcast_to(np.asarray(before_s, dtype=np.float64), sv_idx.shape) * _US).astype(np.int64)
+    aft_us = np.round(np.broadcast_to(np.asarray(after_s, dtype=np.float64), sv_idx.shape) * _US).astype(np.int64)
     rec_ids = np.asarray(rec_ids, dtype=np.int64)
     tb = np.zeros(len(sv_idx)) if tiebreak is None else np.asarray(tiebreak, dtype=np.float64)
     starts, ends, recs = [], [], []
@@ -111,8 +123,8 @@ def build_timeline(ref_sec: int, sv_idx, toe_sec, toe_frac, limit_s, rec_ids, ti
         # equal toe: keep the last of the group (largest tiebreak)
         keep = np.append(toe[1:] != toe[:-1], True)
         grp, toe = grp[keep], toe[keep]
-        lo = toe - lim_us[grp]
-        hi = toe + lim_us[grp] + 1          # exclusive end
+        lo = toe - bef_us[grp]
+        hi = toe + aft_us[grp] + 1          # exclusive end
         br = np.unique(np.concatenate([lo, hi]))
         seg_s, seg_e, seg_r = [], [], []
         for k in range(br.size - 1):

@@ -233,7 +233,8 @@ class Scene:
     def _fresnel_fraction(self, o, d, t0, k, lam, probe_m, tnear_m):
         rho, phi = _sunflower(k)
         u, v = _perp_basis(d)
-        off = rho[None, :, None] * (np.cos(phi)[None, :, None] * u[:, None, :] + np.sin(phi)[None, :, None] * v[:, None, :])
+        c, s = np.cos(phi)[None, :, None], np.sin(phi)[None, :, None]
+        off = rho[None, :, None] * (c * u[:, None, :] + s * v[:, None, :])
         dref = np.where(np.isfinite(t0), np.maximum(t0, tnear_m), np.inf)
         clear = ~np.isfinite(t0)
         if np.any(clear):

@@ -1,0 +1,37 @@
+"""``gnss-sim export-world WORLD.sdf --out MESH.ply [--materials FILE.yaml] [--visuals]``.
+
+Reads a Gazebo SDF world (collision geometry, or visuals with ``--visuals``), assigns a material class to
+every triangle (opaque / foliage / user classes) and writes a PLY mesh plus its ``.scene.yaml`` sidecar
+(geodetic origin and material table): see gnss_sim_ros2/core/scene/mesh_io.py.
+"""
+from __future__ import annotations
+
+import sys
+
+
+def add_arguments(parser):
+    parser.add_argument("world", metavar="WORLD.sdf", help="SDF world file")
+    parser.add_argument("--out", required=True, metavar="MESH.ply", help="output mesh (PLY); sidecar written beside")
+    parser.add_argument("--materials", metavar="FILE.yaml", help="material classes and name rules (fnmatch)")
+    parser.add_argument("--visuals", action="store_true", help="use <visual> instead of <collision> geometry")
+
+
+def run(args) -> int:
+    from gnss_sim_ros2.core.scene.mesh_io import export_world, sidecar_path
+
+    try:
+        world = export_world(args.world, args.out, materials_yaml=args.materials, use_visuals=args.visuals)
+    except ValueError as exc:
+        print(f"gnss-sim export-world: error: {exc}", file=sys.stderr)
+        return 2
+    counts = ", ".join(f"{k} {v}" for k, v in world.class_counts().items())
+    print(f"{args.out}: {len(world.triangles)} triangles ({counts}) from {len(world.parts)} parts")
+    sph = world.spherical_coordinates
+    if sph is None:
+        print("warning: the world has no <spherical_coordinates>: satellites cannot be placed in it",
+              file=sys.stderr)
+    else:
+        print(f"origin lat {sph.latitude_deg:.7f} lon {sph.longitude_deg:.7f} h {sph.elevation_m:.2f} m "
+              f"heading {sph.heading_deg:g} deg")
+    print(f"sidecar: {sidecar_path(args.out)}")
+    return 0

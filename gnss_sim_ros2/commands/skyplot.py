@@ -1,0 +1,108 @@
+"""``gnss-sim skyplot``: line-of-sight state of every satellite seen from a point of a world.
+
+    gnss-sim skyplot (--world SDF | --mesh FILE) --at E,N,U --time ISO8601 (--nav FILE ... | --synthetic)
+                     [--mask-deg D] --csv FILE [--png FILE]
+
+``--at`` is in the world frame (Gazebo world, ENU at the origin when heading is 0), metres.  The CSV
+has one row ``sv,az_deg,el_deg,state,attenuation_db`` for each satellite at or above the horizon and
+the mask, with state ``visible``, ``blocked`` or ``attenuated``; az/el in the local ENU frame of the
+antenna.  ``--time`` is read in ``--time-scale`` (GPS by default).
+"""
+from __future__ import annotations
+
+import csv
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+
+def add_arguments(parser):
+    src = parser.add_mutually_exclusive_group(required=True)
+    src.add_argument("--world", metavar="SDF", help="SDF world file")
+    src.add_argument("--mesh", metavar="FILE", help="exported scene mesh (with its .scene.yaml sidecar)")
+    parser.add_argument("--materials", metavar="FILE.yaml", help="material classes/rules (with --world)")
+    parser.add_argument("--at", required=True, metavar="E,N,U", help="antenna position in the world frame [m]")
+    parser.add_argument("--time", required=True, metavar="ISO8601", help="instant, e.g. 2022-01-01T00:05:00")
+    parser.add_argument("--time-scale", default="GPS", choices=["GPS", "UTC"], help="scale of --time [GPS]")
+    sats = parser.add_mutually_exclusive_group(required=True)
+    sats.add_argument("--nav", nargs="+", metavar="FILE", help="RINEX navigation file(s)")
+    sats.add_argument("--synthetic", action="store_true", help="a synthetic constellation (no files needed)")
+    parser.add_argument("--mask-deg", type=float, default=0.0, help="elevation mask [deg] (default 0)")
+    parser.add_argument("--fresnel-rays", type=int, default=0, help="soft-edge rays per satellite (0 = off)")
+    parser.add_argument("--csv", required=True, metavar="FILE", help="output CSV")
+    parser.add_argument("--png", metavar="FILE", help="output sky plot PNG")
+
+
+def _parse_at(text: str) -> np.ndarray:
+    try:
+        vals = [float(v) for v in text.replace(" ", "").split(",")]
+    except ValueError:
+        vals = []
+    if len(vals) != 3 or not all(np.isfinite(vals)):
+        raise ValueError(f"--at {text!r}: expected three numbers E,N,U in metres, e.g. --at 0,-60,1.5")
+    return np.array(vals)
+
+
+def _ephemeris(args, t):
+    from gnss_sim_ros2.core.ephemeris.broadcast import BroadcastEphemeris
+
+    if args.nav:
+        return BroadcastEphemeris.from_files(args.nav)
+    try:
+        from gnss_sim_ros2.core.ephemeris.synthetic import write_synthetic_nav
+    except ImportError as exc:
+        raise ValueError(f"--synthetic: the synthetic constellation is not available ({exc})") from exc
+    tmp = Path(tempfile.mkdtemp(prefix="gnss_sim_skyplot_")) / "synthetic.rnx"
+    write_synthetic_nav(tmp, t + (-3600.0), 7200.0)
+    return BroadcastEphemeris.from_files([tmp])
+
+
+def run(args) -> int:
+    try:
+        return _run(args)
+    except ValueError as exc:
+        print(f"gnss-sim skyplot: error: {exc}", file=sys.stderr)
+        return 2
+
+
+def _run(args) -> int:
+    from gnss_sim_ros2.core.scene.visibility import STATE_NAMES, Scene
+    from gnss_sim_ros2.core.time import GnssTime
+
+    at = _parse_at(args.at)
+    t = GnssTime.from_iso(args.time, scale=args.time_scale)
+    scene = Scene.from_sdf(args.world, materials_yaml=args.materials) if args.world else Scene.load(args.mesh)
+    if scene.spherical is None:
+        raise ValueError(f"{args.world or args.mesh}: no geodetic origin (<spherical_coordinates> in the world, "
+                         f"spherical_coordinates in the sidecar): satellites cannot be placed")
+    eph = _ephemeris(args, t)
+    st = eph.states(t)
+    if len(st.sv) == 0:
+        raise ValueError(f"no satellite has a valid navigation record at {args.time}")
+    mask = max(0.0, float(args.mask_deg))
+    res = scene.visibility_ecef(at, np.asarray(st.pos_ecef_m), mask_deg=mask, fresnel_rays=args.fresnel_rays)
+    keep = np.flatnonzero(res.el_deg >= mask)
+    order = keep[np.argsort(np.asarray(st.sv)[keep])]
+    names = [STATE_NAMES[int(s)] for s in res.state]
+    with open(args.csv, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["sv", "az_deg", "el_deg", "state", "attenuation_db"])
+        for i in order:
+            w.writerow([st.sv[i], f"{res.az_deg[i]:.3f}", f"{res.el_deg[i]:.3f}", names[i],
+                        f"{res.attenuation_db[i]:.2f}"])
+    counts = {k: sum(names[i] == k for i in order) for k in ("visible", "attenuated", "blocked")}
+    print(f"{args.csv}: {len(order)} satellites above {mask:g} deg: "
+          + ", ".join(f"{v} {k}" for k, v in counts.items()))
+    if args.png:
+        from gnss_sim_ros2.core.skyplot import plot_skyplot
+
+        horizon = scene.horizon_profile(at, az_step_deg=1.0)
+        fol = scene.horizon_profile(at, az_step_deg=1.0, which="foliage") if scene.has_foliage else None
+        plot_skyplot(args.png, np.asarray(st.sv)[order], res.az_deg[order], res.el_deg[order],
+                     [names[i] for i in order], horizon=horizon, foliage_horizon=fol, mask_deg=mask or None,
+                     title=f"{Path(args.world or args.mesh).name} at E,N,U = {args.at} m, "
+                           f"{args.time} {args.time_scale}")
+        print(f"{args.png}: sky plot")
+    return 0

@@ -1,0 +1,162 @@
+"""Antenna/robot paths: from a CSV file, from waypoints, or the demo path.
+
+A path is a list of timed points in one frame, named by the CSV header:
+- ``t_s,e_m,n_m,u_m[,yaw_deg]``: world frame (ENU at the world origin of the scene), m;
+- ``t_s,lat_deg,lon_deg,h_m``: geodetic (WGS 84);
+- ``t_s,x_m,y_m,z_m``: ECEF, m.
+Positions are interpolated linearly in time; before the first point the path
+holds its start, after the last its end (or it loops).
+"""
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+FRAMES = {
+    ("e_m", "n_m", "u_m"): "world",
+    ("lat_deg", "lon_deg", "h_m"): "geodetic",
+    ("x_m", "y_m", "z_m"): "ecef",
+}
+
+
+@dataclass
+class Trajectory:
+    t_s: np.ndarray          # (K,) seconds from the start of the run, increasing
+    pos: np.ndarray          # (K, 3) in ``frame``
+    frame: str               # "world" | "geodetic" | "ecef"
+    yaw_deg: np.ndarray | None = None  # (K,) heading about world up, from east counter-clockwise (REP-103)
+    loop: bool = False
+
+    def __post_init__(self):
+        self.t_s = np.asarray(self.t_s, dtype=float)
+        self.pos = np.asarray(self.pos, dtype=float).reshape(-1, 3)
+        if len(self.t_s) == 0 or len(self.t_s) != len(self.pos):
+            raise ValueError("a trajectory needs at least one point, with one time per point")
+        if np.any(np.diff(self.t_s) <= 0):
+            i = int(np.flatnonzero(np.diff(self.t_s) <= 0)[0]) + 1
+            raise ValueError(f"trajectory times must increase: point {i + 1} has t={self.t_s[i]} "
+                             f"after t={self.t_s[i - 1]}")
+        if self.yaw_deg is None:
+            self.yaw_deg = _yaw_along(self.pos) if self.frame == "world" else np.zeros(len(self.t_s))
+
+    @property
+    def duration_s(self) -> float:
+        return float(self.t_s[-1] - self.t_s[0])
+
+    def _wrap(self, t_s):
+        t = np.asarray(t_s, dtype=float)
+        if self.loop and self.duration_s > 0:
+            t = self.t_s[0] + np.mod(t - self.t_s[0], self.duration_s)
+        return t
+
+    def position(self, t_s):
+        """Position(s) at time(s) ``t_s`` (scalar -> (3,), array -> (N, 3))."""
+        t = self._wrap(t_s)
+        out = np.stack([np.interp(t, self.t_s, self.pos[:, i]) for i in range(3)], axis=-1)
+        return out
+
+    def yaw(self, t_s):
+        t = self._wrap(t_s)
+        yaw = np.unwrap(np.radians(self.yaw_deg))
+        return np.degrees(np.interp(t, self.t_s, yaw))
+
+    @property
+    def is_static(self) -> bool:
+        return bool(np.all(self.pos == self.pos[0]))
+
+    # ------------------------------------------------------------------ constructors
+    @classmethod
+    def static(cls, pos, frame: str) -> Trajectory:
+        return cls(np.array([0.0]), np.asarray(pos, dtype=float).reshape(1, 3), frame)
+
+    @classmethod
+    def from_waypoints(cls, flat, loop: bool = False, where: str = "parameter 'waypoints'") -> Trajectory:
+        """From a flat list t_s,e_m,n_m,u_m,... in the world frame."""
+        flat = np.asarray(flat, dtype=float)
+        if flat.size == 0 or flat.size % 4:
+            raise ValueError(f"{where}: needs groups of 4 numbers t_s,e_m,n_m,u_m; got {flat.size} numbers")
+        pts = flat.reshape(-1, 4)
+        return cls(pts[:, 0], pts[:, 1:], "world", loop=loop)
+
+    @classmethod
+    def from_csv(cls, path, loop: bool = False) -> Trajectory:
+        """Read a CSV path (header names the frame; see the module doc). Errors name file and line."""
+        path = Path(path)
+        try:
+            text = path.read_text()
+        except OSError as exc:
+            raise ValueError(f"trajectory file {path}: {exc.strerror}") from None
+        rows = [r for r in csv.reader(text.splitlines())]
+        if not rows:
+            raise ValueError(f"{path}: empty trajectory file")
+        header = [h.strip() for h in rows[0]]
+        frame = None
+        for cols, name in FRAMES.items():
+            if header[:1] == ["t_s"] and tuple(header[1:4]) == cols:
+                frame = name
+        if frame is None:
+            raise ValueError(f"{path}:1: header must be t_s,e_m,n_m,u_m[,yaw_deg] or t_s,lat_deg,lon_deg,h_m "
+                             f"or t_s,x_m,y_m,z_m; got {','.join(header)}")
+        has_yaw = len(header) > 4 and header[4] == "yaw_deg"
+        ts, pos, yaw = [], [], []
+        for lineno, row in enumerate(rows[1:], start=2):
+            if not row or not "".join(row).strip() or row[0].lstrip().startswith("#"):
+                continue
+            try:
+                vals = [float(v) for v in row[: 5 if has_yaw else 4]]
+                if len(vals) < (5 if has_yaw else 4):
+                    raise ValueError
+            except ValueError:
+                raise ValueError(f"{path}:{lineno}: expected {len(header)} numbers, got {','.join(row)}") from None
+            ts.append(vals[0])
+            pos.append(vals[1:4])
+            if has_yaw:
+                yaw.append(vals[4])
+        if not ts:
+            raise ValueError(f"{path}: no points after the header")
+        try:
+            return cls(np.array(ts), np.array(pos), frame, np.array(yaw) if has_yaw else None, loop)
+        except ValueError as exc:
+            raise ValueError(f"{path}: {exc}") from None
+
+
+def _yaw_along(pos: np.ndarray) -> np.ndarray:
+    """Heading of travel [deg, from east counter-clockwise]; held where the robot stops."""
+    d = np.diff(pos[:, :2], axis=0)
+    yaw = np.degrees(np.arctan2(d[:, 1], d[:, 0])) if len(d) else np.zeros(0)
+    moving = np.hypot(d[:, 0], d[:, 1]) > 1e-9 if len(d) else np.zeros(0, bool)
+    out = np.zeros(len(pos))
+    last = 90.0
+    for i in range(len(d)):
+        if moving[i]:
+            last = yaw[i]
+        out[i] = last
+    if len(pos) > 1:
+        out[-1] = last
+    return out
+
+
+#: The demo path through worlds/courtyard.sdf (world ENU, m; see worlds/README.md):
+#: open ground south of the block -> through the gate -> into the courtyard ->
+#: under a tree -> under the ledge -> back to the middle of the yard.
+#: Waypoints t_s, e_m, n_m, u_m at about 1 m/s.
+DEMO_WAYPOINTS = [
+    0.0, 0.0, -60.0, 0.0,
+    30.0, 0.0, -30.0, 0.0,
+    45.0, 0.0, -15.0, 0.0,
+    60.0, 0.0, 0.0, 0.0,
+    70.0, 6.0, -6.0, 0.0,    # under tree_2
+    100.0, 6.0, -6.0, 0.0,   # stop under the tree
+    125.0, -10.0, 5.0, 0.0,  # under tree_1
+    135.0, -10.0, 5.0, 0.0,
+    150.0, -16.0, -3.0, 0.0,  # under the ledge on building_west
+    180.0, -16.0, -3.0, 0.0,
+    200.0, 0.0, 0.0, 0.0,
+]
+
+
+def demo_trajectory(loop: bool = False) -> Trajectory:
+    return Trajectory.from_waypoints(DEMO_WAYPOINTS, loop=loop, where="demo path")

@@ -1,0 +1,79 @@
+"""Antenna pose from TF: tf2_ros on a ROS install, the compact tree here.
+
+Both take the same standard topics (``/tf``, ``/tf_static``, tf2_msgs/TFMessage)
+and answer ``lookup(target, source, stamp)`` -> (translation (3,), scipy Rotation)
+at the stamp (interpolated), or raise ``TransformError``.
+"""
+from __future__ import annotations
+
+import numpy as np
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from scipy.spatial.transform import Rotation
+
+from gnss_sim_ros2.tf_tree import TransformError, TransformTree
+
+try:  # a ROS 2 install
+    import tf2_ros  # type: ignore
+
+    HAVE_TF2_ROS = True
+except ImportError:  # PyPI wheels: tf2_ros does not exist there
+    HAVE_TF2_ROS = False
+
+
+class TfSource:
+    def __init__(self, node, cache_time_s: float = 30.0, prefer_tf2_ros: bool = True):
+        self.node = node
+        self.backend = "tf2_ros" if (HAVE_TF2_ROS and prefer_tf2_ros) else "compact"
+        self._subs = []
+        if self.backend == "tf2_ros":
+            from rclpy.duration import Duration
+
+            self.buffer = tf2_ros.Buffer(cache_time=Duration(seconds=cache_time_s))
+            self.listener = tf2_ros.TransformListener(self.buffer, node, spin_thread=False)
+        else:
+            from tf2_msgs.msg import TFMessage
+
+            self.tree = TransformTree(cache_time_s=cache_time_s)
+            static_qos = QoSProfile(depth=100, durability=DurabilityPolicy.TRANSIENT_LOCAL,
+                                    reliability=ReliabilityPolicy.RELIABLE)
+            self._subs = [
+                node.create_subscription(TFMessage, "/tf", lambda m: self._feed(m, False), 100),
+                node.create_subscription(TFMessage, "/tf_static", lambda m: self._feed(m, True), static_qos),
+            ]
+        #: newest dynamic stamp seen per child frame [s] (compact backend)
+        self.latest_s: dict[str, float] = {}
+
+    def _feed(self, msg, static: bool):
+        for tf in msg.transforms:
+            t = tf.header.stamp.sec + tf.header.stamp.nanosec * 1e-9
+            tr, q = tf.transform.translation, tf.transform.rotation
+            self.tree.set_transform(tf.header.frame_id, tf.child_frame_id, t, (tr.x, tr.y, tr.z),
+                                    (q.x, q.y, q.z, q.w), static=static)
+            if not static:
+                self.latest_s[tf.child_frame_id] = max(t, self.latest_s.get(tf.child_frame_id, -np.inf))
+
+    def lookup(self, target: str, source: str, stamp):
+        """Pose of ``source`` in ``target`` at ``stamp`` (builtin_interfaces/Time)."""
+        if self.backend == "tf2_ros":
+            from rclpy.time import Time
+
+            try:
+                tf = self.buffer.lookup_transform(target, source, Time.from_msg(stamp))
+            except (tf2_ros.LookupException, tf2_ros.ExtrapolationException,
+                    tf2_ros.ConnectivityException) as exc:
+                raise TransformError(str(exc)) from None
+            tr, q = tf.transform.translation, tf.transform.rotation
+            return np.array([tr.x, tr.y, tr.z]), Rotation.from_quat([q.x, q.y, q.z, q.w])
+        return self.tree.lookup(target, source, stamp.sec + stamp.nanosec * 1e-9)
+
+    def can_transform(self, target: str, source: str, stamp) -> bool:
+        try:
+            self.lookup(target, source, stamp)
+            return True
+        except TransformError:
+            return False
+
+    def close(self):
+        for s in self._subs:
+            self.node.destroy_subscription(s)
+        self._subs = []

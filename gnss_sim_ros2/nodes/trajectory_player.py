@@ -1,0 +1,130 @@
+"""Trajectory player lifecycle node: the robot's TF along a path, where Gazebo does not move it.
+
+Publishes ``/tf`` (world_frame -> base_frame) at ``publish_rate_hz`` of the ROS
+clock and ``/tf_static`` (base_frame -> antenna_frame, the lever arm
+``antenna_offset_m``).  With simulated time a clock that jumps forward gets a
+sample for every tick it skipped, so a TF lookup at any epoch in between is
+interpolated between true samples.  The path comes from ``trajectory_file``
+(CSV), ``waypoints`` or the demo path through worlds/courtyard.sdf.
+"""
+from __future__ import annotations
+
+import math
+import sys
+
+import numpy as np
+import rclpy
+from geometry_msgs.msg import TransformStamped
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.time import Time
+
+from gnss_sim_ros2.core.trajectory import Trajectory, demo_trajectory
+from gnss_sim_ros2.nodes.common import GnssSimNode
+
+STATIC_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
+
+
+def _tf_type():
+    from tf2_msgs.msg import TFMessage
+
+    return TFMessage
+
+
+def transform(parent: str, child: str, stamp, xyz, yaw_deg: float = 0.0) -> TransformStamped:
+    tf = TransformStamped()
+    tf.header.stamp = stamp
+    tf.header.frame_id = parent
+    tf.child_frame_id = child
+    tf.transform.translation.x, tf.transform.translation.y, tf.transform.translation.z = (float(v) for v in xyz)
+    half = math.radians(yaw_deg) / 2.0
+    tf.transform.rotation.z = math.sin(half)
+    tf.transform.rotation.w = math.cos(half)
+    return tf
+
+
+class TrajectoryPlayer(GnssSimNode):
+    PARAMS_KEY = "trajectory"
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self.path: Trajectory | None = None
+        self.tf_pub = self.static_pub = self.timer = None
+        self.next_tick = None
+
+    def configure(self, p):
+        if p["trajectory_file"]:
+            self.path = Trajectory.from_csv(p["trajectory_file"], loop=p["loop"])
+        elif p["waypoints"]:
+            self.path = Trajectory.from_waypoints(p["waypoints"], loop=p["loop"],
+                                                  where=f"node {self.get_name()}: parameter 'waypoints'")
+        else:
+            self.path = demo_trajectory(loop=p["loop"])
+        if self.path.frame != "world":
+            raise ValueError(f"node {self.get_name()}: the trajectory player moves {p['base_frame']} in the world "
+                             f"frame; {p['trajectory_file']} is in {self.path.frame} coordinates (use t_s,e_m,n_m,u_m)")
+        if len(p["antenna_offset_m"]) != 3:
+            raise ValueError(f"node {self.get_name()}: parameter 'antenna_offset_m' needs 3 numbers")
+        self.period_ns = int(round(1e9 / p["publish_rate_hz"]))
+        self.tf_pub = self.create_lifecycle_publisher(_tf_type(), "/tf", 100)
+        self.static_pub = self.create_lifecycle_publisher(_tf_type(), "/tf_static", STATIC_QOS)
+
+    def activate(self):
+        now = self.get_clock().now()
+        self.next_tick = (now.nanoseconds // self.period_ns) * self.period_ns
+        self.timer = self.create_timer(self.period_ns * 1e-9, self._tick)
+        self._static_pending = True
+
+    def deactivate(self):
+        if self.timer is not None:
+            self.destroy_timer(self.timer)
+            self.timer = None
+
+    def cleanup(self):
+        self.deactivate()
+        for pub in (self.tf_pub, self.static_pub):
+            if pub is not None:
+                self.destroy_publisher(pub)
+        self.tf_pub = self.static_pub = None
+        self.path = None
+
+    def pose_at(self, t_s: float):
+        return self.path.position(t_s), float(self.path.yaw(t_s))
+
+    def _tick(self):
+        from tf2_msgs.msg import TFMessage
+
+        p = self.params
+        now_ns = self.get_clock().now().nanoseconds
+        if self._static_pending:
+            self.static_pub.publish(TFMessage(transforms=[transform(
+                p["base_frame"], p["antenna_frame"], Time(nanoseconds=now_ns).to_msg(), p["antenna_offset_m"])]))
+            self._static_pending = False
+        ticks = []
+        while self.next_tick <= now_ns:
+            ticks.append(self.next_tick)
+            self.next_tick += self.period_ns
+        if not ticks:
+            return
+        ts = np.array(ticks, dtype=np.int64)
+        pos = self.path.position(ts * 1e-9)
+        yaw = self.path.yaw(ts * 1e-9)
+        msgs = [transform(p["world_frame"], p["base_frame"], Time(nanoseconds=int(t)).to_msg(), pos[i], float(yaw[i]))
+                for i, t in enumerate(ts)]
+        self.tf_pub.publish(TFMessage(transforms=msgs))
+
+
+def main(args=None):
+    rclpy.init(args=args)
+    node = TrajectoryPlayer()
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
