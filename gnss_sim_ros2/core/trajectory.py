@@ -39,6 +39,8 @@ class Trajectory:
             i = int(np.flatnonzero(np.diff(self.t_s) <= 0)[0]) + 1
             raise ValueError(f"trajectory times must increase: point {i + 1} has t={self.t_s[i]} "
                              f"after t={self.t_s[i - 1]}")
+        #: yaw given per point (interpolated) or derived from travel (constant along each segment)
+        self.yaw_given = self.yaw_deg is not None
         if self.yaw_deg is None:
             self.yaw_deg = _yaw_along(self.pos) if self.frame == "world" else np.zeros(len(self.t_s))
 
@@ -59,7 +61,11 @@ class Trajectory:
         return out
 
     def yaw(self, t_s):
+        """Heading [deg] at time(s) ``t_s``."""
         t = self._wrap(t_s)
+        if not self.yaw_given:
+            i = np.clip(np.searchsorted(self.t_s, t, side="right") - 1, 0, len(self.t_s) - 1)
+            return self.yaw_deg[i]
         yaw = np.unwrap(np.radians(self.yaw_deg))
         return np.degrees(np.interp(t, self.t_s, yaw))
 

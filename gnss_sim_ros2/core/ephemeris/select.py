@@ -36,6 +36,10 @@ WINDOW_S = {
     "I": (2 * 3600.0, 2 * 3600.0),
 }
 
+_US = 1_000_000
+_BIG = 1 << 52        # key span per satellite [us] (142 years)
+_OFFSET = 1 << 51     # keys are t_us + _OFFSET (t within +-71 years of the reference epoch)
+
 
 def validity_windows_s(systems: np.ndarray, fit_h: np.ndarray, overrides: dict | None = None):
     """Per-record (before, after) window [s] from the system and (GPS/QZSS) fit interval [h].
