@@ -16,9 +16,11 @@ from . import __version__
 #: subcommand -> (module under gnss_sim_ros2.commands, one-line help)
 COMMANDS = {
     "roundtrip": ("roundtrip", "publish every gnss_sim_msgs type and receive it in another process"),
+    "simulate": ("simulate", "simulate a receiver offline (no ROS): RINEX observation/navigation files + fix.csv"),
     "config": ("config", "print the default parameter file (config/gnss_sim.yaml) or check one"),
     "export-world": ("export_world", "export an SDF world's geometry and materials to a scene mesh (PLY + sidecar)"),
     "skyplot": ("skyplot", "line-of-sight state of every satellite from a point of a world (CSV, sky plot PNG)"),
+    "satpos": ("satpos", "satellite positions, velocities and clocks on a time grid (broadcast or SP3) as CSV"),
 }
 
 

@@ -99,13 +99,13 @@ def test_antenna_above_ground_and_mask(tmp_path):
 def test_below_mask_is_never_cast(tmp_path, monkeypatch):
     scene = wall_scene(tmp_path, 10.0, 5.0)
     cast = []
-    orig = RayScene.occluded
+    orig = RayScene.occluded_buffer
 
-    def spy(self, origins, dirs, **kw):
-        cast.append(len(np.asarray(dirs).reshape(-1, 3)))
-        return orig(self, origins, dirs, **kw)
+    def spy(self, rays, **kw):
+        cast.append(len(rays))
+        return orig(self, rays, **kw)
 
-    monkeypatch.setattr(RayScene, "occluded", spy)
+    monkeypatch.setattr(RayScene, "occluded_buffer", spy)
     r = scene.visibility(np.zeros(3), az_deg=[0, 90, 180, 270], el_deg=[-10, 2, 30, 9.99], mask_deg=10)
     assert cast == [1] and list(r.state) == [STATE_BELOW_MASK, STATE_BELOW_MASK, STATE_VISIBLE, STATE_BELOW_MASK]
 
@@ -322,3 +322,17 @@ def test_skyplot_command_with_real_navigation(opec_dir, tmp_path):
     # atan(11 / 25) = 23.7 deg seen from (0, 0, 1)
     low = (el < 23.5) & ((az < 160) | (az > 200))
     assert low.any() and all(r["state"] == "blocked" for r, k in zip(rows, low) if k)
+
+
+def test_skyplot_command_synthetic(tmp_path):
+    import csv
+
+    from gnss_sim_ros2.cli import main
+
+    out_csv = tmp_path / "sky.csv"
+    rc = main(["skyplot", "--world", str(REPO / "worlds" / "courtyard.sdf"), "--at", "0,-70,1",
+               "--time", "2022-01-01T00:05:00", "--synthetic", "--mask-deg", "10", "--csv", str(out_csv)])
+    assert rc == 0
+    rows = list(csv.DictReader(out_csv.open()))
+    assert len(rows) >= 4
+    assert all(float(r["el_deg"]) >= 10.0 and r["state"] in {"visible", "blocked", "attenuated"} for r in rows)

@@ -12,7 +12,12 @@ output of a 0 dBic RHCP antenna (= the "3 dBi linearly polarised" antenna of
 the GPS/GLONASS ICDs), for a satellite at ``min_power_el_deg`` or higher.
 Sources per row; where the ICD gives several values per satellite type the
 MEO / current-block value is used.  receiver/cn0.py anchors its link budget on
-these numbers.
+these numbers.  The GPS, Galileo E1/E5 and GLONASS figures are the well-known
+ICD values; those of BeiDou B1C/B2a/B2b, Galileo E6, QZSS L6 and NavIC were
+written from the cited ICDs without re-reading them here (no access while
+writing): check them against the documents before relying on them.
+Satellites usually deliver a few dB more than the minimum (receiver/cn0.py
+``power_margin_db``).
 
 Chip rate: of the ranging code that determines the code tracking noise (BPSK
 formula in receiver/noise.py; BOC signals are treated as BPSK of the same chip

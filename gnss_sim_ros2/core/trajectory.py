@@ -150,17 +150,15 @@ def _yaw_along(pos: np.ndarray) -> np.ndarray:
 #: under a tree -> under the ledge -> back to the middle of the yard.
 #: Waypoints t_s, e_m, n_m, u_m at about 1 m/s.
 DEMO_WAYPOINTS = [
-    0.0, 0.0, -60.0, 0.0,
+    0.0, 0.0, -60.0, 0.0,     # open ground south of the block
     30.0, 0.0, -30.0, 0.0,
-    45.0, 0.0, -15.0, 0.0,
-    60.0, 0.0, 0.0, 0.0,
-    70.0, 6.0, -6.0, 0.0,    # under tree_2
-    100.0, 6.0, -6.0, 0.0,   # stop under the tree
-    125.0, -10.0, 5.0, 0.0,  # under tree_1
-    135.0, -10.0, 5.0, 0.0,
-    150.0, -16.0, -3.0, 0.0,  # under the ledge on building_west
-    180.0, -16.0, -3.0, 0.0,
-    200.0, 0.0, 0.0, 0.0,
+    45.0, 0.0, -15.0, 0.0,    # through the gate
+    60.0, 0.0, 0.0, 0.0,      # middle of the courtyard
+    70.0, -8.5, 5.0, 0.0,     # under tree_1's crown, 1.5 m from its trunk
+    100.0, -8.5, 5.0, 0.0,
+    127.0, 17.0, -3.0, 0.0,   # under the ledge of building_east
+    157.0, 17.0, -3.0, 0.0,
+    175.0, 0.0, 0.0, 0.0,     # back to the middle of the yard
 ]
 
 

@@ -216,7 +216,8 @@ class BroadcastEphemeris:
             p, v, a = self._glo.evaluate(rg, dt)
             pos[is_glo], vel[is_glo], acc[is_glo] = p, v, a
             clk[is_glo], drift[is_glo] = glo.glonass_clock(gr["tau_n_s"][rg], gr["gamma_n"][rg], dt)
-        age = (np.asarray(t_sec, dtype=np.int64) - self._toe_sec[rec]).astype(np.float64) + (t_frac - self._toe_frac[rec])
+        age = ((np.asarray(t_sec, dtype=np.int64) - self._toe_sec[rec]).astype(np.float64)
+               + (t_frac - self._toe_frac[rec]))
         return SatelliteStates(
             t=t_out,
             sv=self._sv_names[sv_idx],

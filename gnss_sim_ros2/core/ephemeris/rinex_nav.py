@@ -278,7 +278,7 @@ def parse_nav_text(text: str, name: str = "<text>", start: GnssTime | None = Non
         hi = end.to_datetime("GPS") + _dt.timedelta(seconds=margin_s)
 
     groups: dict[tuple[str, str], dict[tuple[str, _dt.datetime], list[str]]] = {}
-    for sysid, sv, epoch, nav_type, body, lineno in records:
+    for sysid, sv, epoch, nav_type, body, _lineno in records:
         if sysid not in systems:
             continue
         if sysid == "S":

@@ -1,21 +1,29 @@
 """Choice of the broadcast record used at time t, per satellite (RTKLIB's ``seleph`` layer).
 
 A record may serve t when it is healthy and t lies inside its validity window
-|t - toe| <= limit; among those, the record with the nearest reference time
-(toe, GLONASS tb) is chosen (equal distance: the later record).  Limits:
+toe - before <= t <= toe + after; among those, the record with the nearest
+reference time (toe, GLONASS tb) is chosen (equal distance: the later record).
+Default windows (``WINDOW_S``; override per system):
 
-| system  | limit |t - toe|                         | source |
-|---------|----------------------------------------|--------|
-| GPS     | fit interval / 2 (flag 0: 4 h -> 2 h; flag 1: 6-26 h by IODC) | IS-GPS-200N 20.3.4.4, table 20-XII; RTKLIB MAXDTOE 7200 s |
-| QZSS    | fit interval / 2 (flag 0: 2 h -> 1 h)  | IS-QZSS-PNT-005 4.1.2.7 |
-| Galileo | 2 h (4 h window around toe)            | Galileo OS SDD (4 h validity of a data set); RTKLIB allows 4 h (MAXDTOE_GAL) |
-| BeiDou  | 1 h (records are refreshed hourly)    | BDS-SIS-ICD-B1I 3.0 5.2.4 (toe every hour); RTKLIB allows 6 h (MAXDTOE_CMP) |
-| GLONASS | 15 min (tb every 30 min)               | GLONASS ICD 5.1 A.3.1.2 (|t - tb| <= 15 min); RTKLIB allows 30 min (MAXDTOE_GLO) |
-| NavIC   | 2 h                                    | RTKLIB MAXDTOE_IRN 7200 s |
+- GPS: +- fit interval / 2 (flag 0: 4 h; flag 1: 6-26 h by IODC);
+  IS-GPS-200N 20.3.4.4, table 20-XII (RTKLIB MAXDTOE 7200 s).
+- QZSS: +- fit interval / 2 (flag 0: 2 h); IS-QZSS-PNT-005 4.1.2.7.
+- Galileo: -10 min .. +4 h (a 4 h window); Galileo OS SDD: 4 h validity of a
+  data set (RTKLIB MAXDTOE_GAL allows +-4 h).  Measured on OPEC 2022-001
+  against the CODE SP3: 0.8-0.9 m 3D RMS for 0-3 h after toe, 2.0 m at 3-4 h,
+  but 1.8 m at 20-60 min and 9 m at 1-2 h BEFORE toe (the fit looks forward),
+  hence the asymmetric window.
+- BeiDou: +- 1 h (toe refreshed hourly, BDS-SIS-ICD-B1I 3.0 5.2.4; RTKLIB
+  MAXDTOE_CMP allows 6 h).
+- GLONASS: +- 15 min (tb every 30 min); GLONASS ICD 5.1 A.3.1.2 (RTKLIB
+  MAXDTOE_GLO allows 30 min); plus 1 s, because two tb 30 min apart in
+  GLONASST are 1801 s apart across a leap second (no 1 s hole).
+- NavIC: +- 2 h (RTKLIB MAXDTOE_IRN 7200 s).
 
 The choice is precomputed once per record set as piecewise-constant
 segments per satellite; a lookup for many satellites is one
-``np.searchsorted`` over integer microsecond keys (window edges exact to 1 us).
+``np.searchsorted`` over integer microsecond keys (window edges exact to 1 us;
+t is floored to the microsecond).
 """
 from __future__ import annotations
 
@@ -32,7 +40,7 @@ WINDOW_S = {
     "J": None,
     "E": (600.0, 4 * 3600.0),
     "C": (3600.0, 3600.0),
-    "R": (15 * 60.0, 15 * 60.0),
+    "R": (15 * 60.0 + 1.0, 15 * 60.0 + 1.0),   # +1 s: tb 30 min apart are 1801 s apart across a leap second
     "I": (2 * 3600.0, 2 * 3600.0),
 }
 
@@ -110,7 +118,8 @@ def build_timeline(ref_sec: int, sv_idx, toe_sec, toe_frac, before_s, after_s, r
     ``tiebreak`` (n,) orders records with equal toe (the larger wins, e.g. transmission time).
     """
     sv_idx = np.asarray(sv_idx, dtype=np.int64)
-    toe_us = (np.asarray(toe_sec, dtype=np.int64) - int(ref_sec)) * _US + np.round(np.asarray(toe_frac) * _US).astype(np.int64)
+    toe_us = ((np.asarray(toe_sec, dtype=np.int64) - int(ref_sec)) * _US
+              + np.round(np.asarray(toe_frac) * _US).astype(np.int64))
     bef_us = np.round(np.broadcast_to(np.asarray(before_s, dtype=np.float64), sv_idx.shape) * _US).astype(np.int64)
     aft_us = np.round(np.broadcast_to(np.asarray(after_s, dtype=np.float64), sv_idx.shape) * _US).astype(np.int64)
     rec_ids = np.asarray(rec_ids, dtype=np.int64)

@@ -26,6 +26,9 @@
 Resulting GPS L1 C/A figures (test_receiver_models): 49.9 dB-Hz at zenith,
 40.2 at 10 deg, 38.5 at 5 deg, inside the 48-51 (zenith) and 38-42 (10 deg)
 ranges of Kaplan's typical values and RTKLIB's simulator table (40-51).
+Signals whose ICD minimum is low (BeiDou B1I/B3I -163 dBW: 45.3 dB-Hz at
+zenith) come out below what receivers report, because satellites exceed the
+minimum by a few dB; raise ``LinkBudget.power_margin_db`` to model that.
 """
 from __future__ import annotations
 

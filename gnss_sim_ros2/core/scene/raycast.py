@@ -67,7 +67,21 @@ class RayScene:
         r = np.empty((len(d), 6), dtype=np.float32)
         r[:, :3] = o
         r[:, 3:] = d
-        return o3d.core.Tensor(r)
+        return o3d.core.Tensor.from_numpy(r)
+
+    def rays_buffer(self, origins_m, n_per_origin: int) -> np.ndarray:
+        """(M, n, 6) float32 buffer whose origins are filled (shifted by the scene centre); fill [..., 3:]."""
+        o = np.asarray(origins_m, dtype=np.float64).reshape(-1, 3) - self.center_m
+        r = np.empty((len(o), n_per_origin, 6), dtype=np.float32)
+        r[..., :3] = o[:, None, :]
+        return r
+
+    def occluded_buffer(self, rays: np.ndarray, tnear_m: float = 0.0) -> np.ndarray:
+        """Like :meth:`occluded` for a float32 (K, 6) buffer from :meth:`rays_buffer` (no copy)."""
+        if self._opaque is None or len(rays) == 0:
+            return np.zeros(len(rays), dtype=bool)
+        t = o3d.core.Tensor.from_numpy(np.ascontiguousarray(rays, dtype=np.float32))
+        return self._opaque.test_occlusions(t, tnear=tnear_m, nthreads=self.nthreads).numpy()
 
     def occluded(self, origins_m, dirs, tnear_m: float = 0.0, tfar_m: float = np.inf) -> np.ndarray:
         """(K,) bool: does the ray hit an opaque triangle within [tnear, tfar]?"""

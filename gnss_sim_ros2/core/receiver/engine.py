@@ -1,0 +1,357 @@
+"""The simulated receiver, one epoch at a time: satellites + antenna + visibility -> observables.
+
+Observation equations (per satellite s and signal j, all in metres unless noted;
+IS-GPS-200N 20.3.3.3.3, RTKLIB manual E.5):
+
+    P  = rho + c (dt_r - dt_s,j) + I_j + T + m_j + e_P          pseudorange
+    L  = [rho + c (dt_r - dt_s,j) - I_j + T + e_L] / lambda_j + N_j   carrier phase [cycles]
+    D  = -[rho_dot + c (ddt_r - ddt_s)] / lambda_j + e_D         Doppler [Hz]
+
+- rho: geometric range from the satellite at transmit time (light time
+  iterated, Earth rotation during travel) to the antenna at the true
+  reception time t_true = t_tag - dt_r (the receiver tags epochs by its own
+  clock, like a real one);
+- dt_s,j: satellite clock (polynomial + periodic relativistic term
+  -2 r.v/c^2, IS-GPS-200N 20.3.3.3.3.1) minus the broadcast group delay of the
+  signal (GPS/QZSS TGD scaled by (f_L1/f)^2 on L1/L2, IS-GPS-200N 20.3.3.3.3.2;
+  Galileo BGD(E1,E5a) on E1/E5a/E5b, OS SIS ICD 5.1.5; BeiDou TGD1 on B1I,
+  BDS-SIS-ICD-B1I 5.2.4.10); inter-signal corrections of L5/E6/B1C/B2a are not
+  modelled;
+- I_j: ionosphere (Klobuchar from the navigation header, scaled to f_j;
+  the "truth" differs from the broadcast model by a slowly varying factor
+  ``iono_error_frac`` so that a receiver applying Klobuchar keeps a realistic
+  residual); T: troposphere (Saastamoinen + Niell);
+- m_j: code multipath/residual as a first-order Gauss-Markov process per
+  signal, sigma = mp_zenith_m + mp_low_m exp(-el/15 deg) (a stated approximation);
+- e: thermal noise from C/N0 (DLL, PLL, FLL jitter, core/receiver/noise.py);
+- N_j: an integer ambiguity per continuous track (core/receiver/tracking.py).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .. import constants as k
+from .. import propagation as prop
+from .. import signals as sig
+from ..ephemeris.states import SatelliteStates
+from ..frames import az_el_from_ecef, ecef_to_geodetic
+from ..time import GnssTime
+from . import cn0 as cn0_model
+from . import noise as noise_model
+from .clock import ClockConfig, ReceiverClock
+from .tracking import Tracker, TrackingConfig
+
+OMEGA_BY_SYSTEM = {
+    "G": k.OMEGA_E_GPS_RADPS, "J": k.OMEGA_E_GPS_RADPS, "I": k.OMEGA_E_GPS_RADPS,
+    "E": k.OMEGA_E_GAL_RADPS, "C": k.OMEGA_E_BDS_RADPS, "R": k.OMEGA_E_GLO_RADPS,
+}
+#: visibility states (gnss_sim_msgs/SatelliteVisibility)
+VISIBLE, BLOCKED, ATTENUATED, REFLECTED_ONLY = 0, 1, 2, 3
+
+
+@dataclass
+class ReceiverConfig:
+    profile: str | dict = "geodetic"
+    systems: str = "GRECJI"
+    elevation_mask_deg: float = 10.0
+    #: random errors (thermal noise, multipath, clock wander, iono residual) on
+    noise: bool = True
+    ionosphere: str = "klobuchar"      # "klobuchar" | "none"
+    troposphere: str = "saastamoinen"  # "saastamoinen" | "none"
+    #: transmit-time geometry: "recompute" (ephemeris at t_tx) or "expansion" (2nd order from states at t)
+    transmit_time: str = "recompute"
+    light_time_iterations: int = 2
+    seed: int = 1
+    #: DLL: noise bandwidth [Hz], early-late spacing [chips], integration [s]
+    dll_bn_hz: float = 0.5
+    dll_spacing_chips: float = 0.2
+    #: code multipath/residual model (see module doc) [m], correlation time [s]
+    mp_zenith_m: float = 0.15
+    mp_low_m: float = 1.2
+    mp_tau_s: float = 60.0
+    #: truth ionosphere = broadcast model x (1 + iono_error_frac * g), g Gauss-Markov (tau 1800 s)
+    iono_error_frac: float = 0.3
+    cn0_noise_db: float = 0.3
+    tracking: TrackingConfig = field(default_factory=TrackingConfig)
+    clock: ClockConfig = field(default_factory=ClockConfig)
+    link_budget: cn0_model.LinkBudget = field(default_factory=cn0_model.LinkBudget)
+
+    def __post_init__(self):
+        if self.ionosphere not in ("klobuchar", "none"):
+            raise ValueError(f"receiver: parameter 'ionosphere' = {self.ionosphere!r} (klobuchar or none)")
+        if self.troposphere not in ("saastamoinen", "none"):
+            raise ValueError(f"receiver: parameter 'troposphere' = {self.troposphere!r} (saastamoinen or none)")
+        if self.transmit_time not in ("recompute", "expansion"):
+            raise ValueError(f"receiver: parameter 'transmit_time' = {self.transmit_time!r}")
+        if isinstance(self.profile, str):
+            self.profile = sig.profile(self.profile)
+        else:
+            sig.validate_profile(self.profile)
+        if not self.noise:
+            self.clock = ClockConfig(**{**self.clock.__dict__, "noise": False})
+            self.tracking = TrackingConfig(**{**self.tracking.__dict__, "random_slips": False})
+
+
+@dataclass
+class EpochObservations:
+    """Everything the receiver produced at one epoch (rows = signals, sat_* rows = satellites)."""
+
+    t: GnssTime                   # epoch tag (receiver time = GPS time + clock bias)
+    clock_bias_s: float           # receiver clock offset dt_r
+    clock_drift_sps: float
+    # satellites above the horizon
+    sat_sv: np.ndarray
+    sat_az_deg: np.ndarray
+    sat_el_deg: np.ndarray
+    sat_vis_state: np.ndarray
+    sat_attenuation_db: np.ndarray
+    # signals (tracked ones only)
+    sv: np.ndarray
+    code: np.ndarray              # RINEX band+attribute, "1C"
+    frequency_hz: np.ndarray
+    pseudorange_m: np.ndarray
+    carrier_phase_cyc: np.ndarray
+    doppler_hz: np.ndarray
+    cn0_dbhz: np.ndarray
+    lli: np.ndarray
+    lock_time_s: np.ndarray
+    # what a receiver needs for its own solution, per signal row
+    sat_pos_ecef_m: np.ndarray    # at transmit time, in the ECEF frame of reception
+    sat_vel_ecef_mps: np.ndarray
+    sat_clock_s: np.ndarray       # dt_s,j (incl. relativistic, group delay) as the broadcast gives it
+    sat_clock_drift_sps: np.ndarray
+    iono_model_m: np.ndarray      # the broadcast model's delay for this signal (what a receiver would remove)
+    tropo_model_m: np.ndarray
+    el_deg: np.ndarray
+    true_range_m: np.ndarray
+
+    @property
+    def n_tracked_sats(self) -> int:
+        return len(np.unique(self.sv))
+
+
+class Receiver:
+    """A receiver tracking the satellites of one ephemeris provider from a moving antenna."""
+
+    def __init__(self, config: ReceiverConfig, provider=None, iono_coeffs: dict | None = None):
+        self.cfg = config
+        self.provider = provider
+        rng = np.random.default_rng(config.seed)
+        self.rng_noise = np.random.default_rng(rng.integers(2**63))
+        self.clock = ReceiverClock(config.clock, np.random.default_rng(rng.integers(2**63)))
+        self.tracker = Tracker(config.tracking, np.random.default_rng(rng.integers(2**63)))
+        self._mp_rng = np.random.default_rng(rng.integers(2**63))
+        self.iono_alpha, self.iono_beta = _klobuchar_coeffs(iono_coeffs)
+        self._t_prev: GnssTime | None = None
+        self._mp_state: dict[tuple[str, str], float] = {}
+        self._iono_factor = 0.0
+        self._signal_cache: dict = {}
+
+    # ------------------------------------------------------------------
+    def _signal_rows(self, svs: np.ndarray, glo_channel: np.ndarray):
+        key = (tuple(svs), tuple(glo_channel))
+        hit = self._signal_cache.get(key)
+        if hit is not None:
+            return hit
+        sat_i, codes, freq, chip, systems = [], [], [], [], []
+        for i, sv in enumerate(svs):
+            s = sv[0]
+            for code in self.cfg.profile.get(s, []):
+                sat_i.append(i)
+                codes.append(code)
+                systems.append(s)
+                freq.append(sig.frequency_hz(s, code, int(glo_channel[i]) if s == "R" else 0))
+                chip.append(sig.signal(s, code).chip_length_m)
+        out = (np.array(sat_i, dtype=np.int64), np.array(codes, dtype="<U2"), np.array(freq, dtype=float),
+               np.array(chip, dtype=float), np.array(systems, dtype="<U1"))
+        if len(self._signal_cache) > 64:
+            self._signal_cache.clear()
+        self._signal_cache[key] = out
+        return out
+
+    def epoch(self, t: GnssTime, antenna_ecef_m, states: SatelliteStates, vis_state=None, attenuation_db=None,
+              antenna_vel_ecef_mps=None) -> EpochObservations:
+        """Observables at epoch tag ``t`` (GPS time on the receiver's clock).
+
+        ``states``: satellites at ``t`` (rows); ``vis_state``/``attenuation_db``: per row
+        (None: all visible); ``antenna_ecef_m``: (3,) antenna phase centre.
+        """
+        cfg = self.cfg
+        rx = np.asarray(antenna_ecef_m, dtype=float)
+        rx_vel = np.zeros(3) if antenna_vel_ecef_mps is None else np.asarray(antenna_vel_ecef_mps, dtype=float)
+        # receiver clock
+        dt_s = 0.0 if self._t_prev is None else float(t - self._t_prev)
+        if dt_s > 0:
+            bias, drift, _ = self.clock.step(dt_s)
+        else:
+            bias, drift = self.clock.bias_s, self.clock.steered_drift_sps
+        self._t_prev = t
+        t_true = t - bias
+
+        keep = np.array([sv[0] in cfg.systems and sv[0] in cfg.profile for sv in states.sv], dtype=bool)
+        n_all = len(states)
+        vis = np.zeros(n_all, dtype=np.int64) if vis_state is None else np.asarray(vis_state, dtype=np.int64)
+        att = np.zeros(n_all) if attenuation_db is None else np.asarray(attenuation_db, dtype=float)
+        az, el, _ = az_el_from_ecef(rx, states.pos_ecef_m)
+        keep &= el > 0.0
+        st = states.select(keep)
+        az, el, vis, att = az[keep], el[keep], vis[keep], att[keep]
+        svs = np.asarray(st.sv)
+        n = len(svs)
+
+        # geometry at the transmit time, seen at the true reception time
+        omega = np.array([OMEGA_BY_SYSTEM.get(s[0], k.OMEGA_E_GPS_RADPS) for s in svs])
+        sol = self._light_time(rx, rx_vel, t_true, bias, st, omega) if n else None
+        sat_i, codes, freq, chip, systems = self._signal_rows(svs, np.asarray(st.glo_channel))
+        m = len(sat_i)
+        if n == 0 or m == 0:
+            return self._empty(t, bias, drift, svs, az, el, vis, att)
+        lam = k.C_MPS / freq
+        rho = sol.range_m[sat_i]
+        rho_dot = sol.range_rate_mps[sat_i]
+        el_j = el[sat_i]
+        az_j = az[sat_i]
+
+        # satellite clock at transmit time (SP3 convention polynomial + relativistic - group delay)
+        tau = sol.tau_s
+        clk_poly = st.clock_bias_s - st.clock_drift_sps * (bias + tau)
+        rel = -2.0 * np.einsum("ij,ij->i", sol.sat_pos_ecef_m, sol.sat_vel_ecef_mps) / k.C_MPS**2
+        dts = (clk_poly + rel)[sat_i] - _group_delay_factor(systems, codes, freq) * st.tgd_s[sat_i]
+        ddts = st.clock_drift_sps[sat_i]
+
+        # atmosphere
+        lat, lon, h = ecef_to_geodetic(*rx)
+        if cfg.ionosphere == "klobuchar":
+            l1_delay = prop.klobuchar_l1_delay_s(t_true, lat, lon, az_j, el_j, self.iono_alpha, self.iono_beta)
+            iono_model = prop.iono_code_delay_m(l1_delay, freq)
+        else:
+            iono_model = np.zeros(m)
+        if cfg.troposphere == "saastamoinen":
+            tropo = prop.tropo_slant_delay_m(np.maximum(el_j, 1.0), lat, h, prop.day_of_year(t))
+        else:
+            tropo = np.zeros(m)
+        iono_true = iono_model * (1.0 + self._iono_error(dt_s))
+
+        # signal strength and tracking
+        cn0 = cn0_model.cn0_dbhz(systems, codes, rho, el_j, att[sat_i], budget=cfg.link_budget)
+        if cfg.noise and cfg.cn0_noise_db > 0:
+            cn0_meas = cn0 + cfg.cn0_noise_db * self.rng_noise.standard_normal(m)
+        else:
+            cn0_meas = cn0
+        line_ok = (vis[sat_i] == VISIBLE) | (vis[sat_i] == ATTENUATED)
+        line_ok &= el_j >= cfg.elevation_mask_deg
+        sv_j = svs[sat_i]
+        trk = self.tracker.update(t, sv_j, codes, cn0, visible=line_ok)
+
+        # noise
+        if cfg.noise:
+            code_sig = noise_model.dll_sigma_m(cn0, chip, cfg.dll_bn_hz, cfg.dll_spacing_chips)
+            ph_sig = noise_model.pll_sigma_m(cn0, lam)
+            dop_sig = noise_model.doppler_sigma_hz(cn0)
+            r = self.rng_noise.standard_normal((3, m))
+            e_p, e_l, e_d = code_sig * r[0], ph_sig * r[1], dop_sig * r[2]
+            mp = self._multipath(sv_j, codes, el_j, dt_s)
+        else:
+            e_p = e_l = e_d = mp = np.zeros(m)
+
+        common = rho + k.C_MPS * (bias - dts) + tropo
+        pr = common + iono_true + mp + e_p
+        phase = (common - iono_true + e_l) / lam + trk.ambiguity_cyc
+        dop = -(rho_dot + k.C_MPS * (drift - ddts)) / lam + e_d
+
+        tr = trk.tracked
+        return EpochObservations(
+            t=t, clock_bias_s=bias, clock_drift_sps=drift,
+            sat_sv=svs, sat_az_deg=az, sat_el_deg=el, sat_vis_state=vis, sat_attenuation_db=att,
+            sv=sv_j[tr], code=codes[tr], frequency_hz=freq[tr], pseudorange_m=pr[tr], carrier_phase_cyc=phase[tr],
+            doppler_hz=dop[tr], cn0_dbhz=cn0_meas[tr], lli=trk.lli[tr], lock_time_s=trk.lock_time_s[tr],
+            sat_pos_ecef_m=sol.sat_pos_ecef_m[sat_i][tr], sat_vel_ecef_mps=sol.sat_vel_ecef_mps[sat_i][tr],
+            sat_clock_s=dts[tr], sat_clock_drift_sps=ddts[tr], iono_model_m=iono_model[tr],
+            tropo_model_m=tropo[tr], el_deg=el_j[tr], true_range_m=rho[tr],
+        )
+
+    # ------------------------------------------------------------------
+    def _light_time(self, rx, rx_vel, t_true, bias, st, omega):
+        cfg = self.cfg
+        if cfg.transmit_time == "recompute" and self.provider is not None:
+            svs = list(st.sv)
+
+            def at(t_tx):
+                s = self.provider.states_at(svs, t_tx)
+                if len(s) != len(svs):
+                    raise _NoState
+                return s.pos_ecef_m, s.vel_ecef_mps
+
+            try:
+                return prop.transmit_time_solution(rx, t_true, at, cfg.light_time_iterations, rx_vel, omega,
+                                                   n_sats=len(svs))
+            except _NoState:
+                pass
+        # second-order expansion of the states at the epoch tag back to the true reception time, then t_tx
+        pos = st.pos_ecef_m - st.vel_ecef_mps * bias + 0.5 * st.acc_ecef_mps2 * bias**2
+        vel = st.vel_ecef_mps - st.acc_ecef_mps2 * bias
+        return prop.transmit_time_from_states(rx, pos, vel, st.acc_ecef_mps2, t_true, cfg.light_time_iterations,
+                                              rx_vel, omega)
+
+    def _iono_error(self, dt_s: float) -> float:
+        if not self.cfg.noise or self.cfg.iono_error_frac == 0:
+            return 0.0
+        phi = np.exp(-dt_s / 1800.0) if dt_s > 0 else 0.0
+        if dt_s <= 0 and self._iono_factor != 0.0:
+            return self.cfg.iono_error_frac * self._iono_factor
+        self._iono_factor = phi * self._iono_factor + np.sqrt(1 - phi**2) * self._mp_rng.standard_normal()
+        return self.cfg.iono_error_frac * self._iono_factor
+
+    def _multipath(self, sv_j, codes, el_j, dt_s):
+        cfg = self.cfg
+        sigma = cfg.mp_zenith_m + cfg.mp_low_m * np.exp(-np.maximum(el_j, 0.0) / 15.0)
+        phi = np.exp(-dt_s / cfg.mp_tau_s) if dt_s > 0 else 0.0
+        w = self._mp_rng.standard_normal(len(sv_j))
+        out = np.empty(len(sv_j))
+        for i, key in enumerate(zip(sv_j, codes)):
+            prev = self._mp_state.get(key)
+            x = w[i] if prev is None else phi * prev + np.sqrt(1 - phi * phi) * w[i]
+            self._mp_state[key] = x
+            out[i] = sigma[i] * x
+        return out
+
+    def _empty(self, t, bias, drift, svs, az, el, vis, att):
+        z = np.zeros(0)
+        self.tracker.update(t, np.zeros(0, dtype="<U3"), np.zeros(0, dtype="<U2"), z) if len(svs) == 0 else None
+        return EpochObservations(t, bias, drift, svs, az, el, vis, att, np.zeros(0, "<U3"), np.zeros(0, "<U2"),
+                                 z, z, z, z, z, np.zeros(0, np.int8), z, np.zeros((0, 3)), np.zeros((0, 3)), z, z, z,
+                                 z, z, z)
+
+
+#: Klobuchar coefficients used when a navigation file carries none: the GPS broadcast of
+#: 2022-01-01 (OPEC00NOR_S_20220010000_01D_GN.rnx header, IONOSPHERIC CORR GPSA/GPSB)
+KLOBUCHAR_FALLBACK_ALPHA = np.array([1.2107e-08, -7.4506e-09, -5.9605e-08, 1.1921e-07])
+KLOBUCHAR_FALLBACK_BETA = np.array([1.1674e05, -2.4576e05, -6.5536e04, 1.1141e06])
+
+
+class _NoState(Exception):
+    pass
+
+
+def _group_delay_factor(systems, codes, freq):
+    """Factor on the broadcast group delay for each signal (see module doc)."""
+    band = np.array([c[0] for c in codes])
+    f = np.zeros(len(codes))
+    gps_like = (systems == "G") | (systems == "J")
+    f = np.where(gps_like & ((band == "1") | (band == "2")), (k.F_L1_HZ / freq) ** 2, f)
+    gal = (systems == "E") & ((band == "1") | (band == "5") | (band == "7"))
+    f = np.where(gal, (k.F_L1_HZ / freq) ** 2, f)
+    f = np.where((systems == "C") & (band == "2"), 1.0, f)
+    return f
+
+
+def _klobuchar_coeffs(iono: dict | None):
+    """GPS alpha/beta from a navigation header dict ({"GPSA": [...], "GPSB": [...]}); typical values otherwise."""
+    if iono:
+        a = iono.get("GPSA") or iono.get("alpha")
+        b = iono.get("GPSB") or iono.get("beta")
+        if a is not None and b is not None and len(a) == 4 and len(b) == 4:
+            return np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    return KLOBUCHAR_FALLBACK_ALPHA, KLOBUCHAR_FALLBACK_BETA

@@ -1,0 +1,112 @@
+"""What the receiver makes of its observables: a position fix, RINEX epochs, file names.
+
+Shared by the offline simulation and the receiver node, so both write the
+same files and report the same fix.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .. import constants as k
+from ..rinex_obs import EpochArrays, RinexObsHeader, ssi_from_cn0
+from ..solver import PvtSolution, SolverConfig, solve_pvt
+from ..time import GnssTime
+from .engine import EpochObservations
+
+#: RINEX observation kinds written for every tracked signal: code, phase, Doppler, strength
+OBS_KINDS = ("C", "L", "D", "S")
+
+
+def obs_types_for(profile: dict[str, list[str]], systems: str) -> dict[str, list[str]]:
+    """RINEX 3 observation types per system, e.g. {"G": ["C1C", "L1C", "D1C", "S1C", ...]}."""
+    return {s: [kind + code for code in profile[s] for kind in OBS_KINDS] for s in systems if profile.get(s)}
+
+
+def epoch_arrays(obs: EpochObservations, obs_types: dict[str, list[str]]) -> EpochArrays:
+    """One RINEX epoch (rows = satellites with a tracked signal) from the receiver's observables."""
+    svs = list(dict.fromkeys(obs.sv.tolist()))
+    row = {sv: i for i, sv in enumerate(svs)}
+    width = max((len(v) for v in obs_types.values()), default=0)
+    value = np.full((len(svs), width), np.nan)
+    lli = np.full((len(svs), width), -1, dtype=np.int64)
+    ssi = np.full((len(svs), width), -1, dtype=np.int64)
+    col = {s: {c: j for j, c in enumerate(codes)} for s, codes in obs_types.items()}
+    ssi_j = ssi_from_cn0(obs.cn0_dbhz)
+    for j in range(len(obs.sv)):
+        sv = obs.sv[j]
+        cols = col[sv[0]]
+        code = obs.code[j]
+        i = row[sv]
+        for kind, v in (("C", obs.pseudorange_m[j]), ("L", obs.carrier_phase_cyc[j]), ("D", obs.doppler_hz[j]),
+                        ("S", obs.cn0_dbhz[j])):
+            c = cols.get(kind + code)
+            if c is None:
+                continue
+            value[i, c] = v
+            if kind in "CL":
+                ssi[i, c] = ssi_j[j]
+            if kind == "L":
+                lli[i, c] = int(obs.lli[j])
+    # shorter systems' code lists padded to the common width with names not in the header (never filled)
+    codes = {s: list(v) + [f"X{i}Z" for i in range(width - len(v))] for s, v in obs_types.items()}
+    return EpochArrays(sv=svs, codes=codes, value=value, lli=lli, ssi=ssi)
+
+
+def header(obs_types, marker_name: str, approx_pos_ecef_m, interval_s: float, glonass_slots: dict,
+           comments=()) -> RinexObsHeader:
+    return RinexObsHeader(
+        obs_types=obs_types, marker_name=marker_name, marker_type="NON_GEODETIC",
+        observer="gnss_sim", agency="gnss_sim", receiver_number="1", receiver_type="GNSS_SIM",
+        receiver_version="0.1", antenna_number="1", antenna_type="GNSS_SIM_PATCH  NONE",
+        approx_pos_ecef_m=tuple(float(v) for v in approx_pos_ecef_m), interval_s=interval_s,
+        glonass_slots=glonass_slots, glonass_cod_phs_bis_m={"C1C": 0.0, "C1P": 0.0, "C2C": 0.0, "C2P": 0.0},
+        comments=list(comments),
+    )
+
+
+def rinex_name(marker: str, start: GnssTime, duration_s: float, interval_s: float, kind: str) -> str:
+    """RINEX 3 long file name (RINEX 3.04 section 4.1), ``kind`` "MO" or "MN"."""
+    d = start.to_datetime()
+    mk = (marker.upper() + "XXXX")[:4]
+    period = (f"{int(round(duration_s / 86400)):02d}D" if duration_s >= 86400 else
+              f"{int(round(duration_s / 3600)):02d}H" if duration_s >= 3600 else
+              f"{max(1, int(round(duration_s / 60))):02d}M")
+    if kind == "MN":
+        return f"{mk}00XXX_S_{d.year:04d}{d.timetuple().tm_yday:03d}{d.hour:02d}{d.minute:02d}_{period}_MN.rnx"
+    freq = f"{int(round(interval_s)):02d}S" if interval_s >= 1 else f"{int(round(1 / interval_s)):02d}Z"
+    return f"{mk}00XXX_S_{d.year:04d}{d.timetuple().tm_yday:03d}{d.hour:02d}{d.minute:02d}_{period}_{freq}_MO.rnx"
+
+
+def spp_rows(obs: EpochObservations, profile: dict[str, list[str]]) -> np.ndarray:
+    """Row index of the signal each satellite's position fix uses: its system's first profile code."""
+    first = {s: codes[0] for s, codes in profile.items() if codes}
+    pick = np.array([first.get(sv[0]) == c for sv, c in zip(obs.sv, obs.code)], dtype=bool)
+    return np.flatnonzero(pick)
+
+
+def position_fix(obs: EpochObservations, profile: dict[str, list[str]], prior_ecef_m=None,
+                 config: SolverConfig | None = None) -> PvtSolution:
+    """Single point position and velocity from the observables, as a receiver computes it:
+    broadcast satellite clock (with group delay), broadcast ionosphere, troposphere model."""
+    rows = spp_rows(obs, profile)
+    lam = k.C_MPS / obs.frequency_hz[rows]
+    return solve_pvt(
+        obs.sv[rows], obs.sat_pos_ecef_m[rows], obs.pseudorange_m[rows],
+        sat_clock_bias_s=obs.sat_clock_s[rows], iono_delay_m=obs.iono_model_m[rows],
+        tropo_delay_m=obs.tropo_model_m[rows], cn0_dbhz=obs.cn0_dbhz[rows], prior_ecef_m=prior_ecef_m,
+        sat_vel_ecef_mps=obs.sat_vel_ecef_mps[rows], range_rate_mps=-obs.doppler_hz[rows] * lam,
+        sat_clock_drift_sps=obs.sat_clock_drift_sps[rows], config=config,
+    )
+
+
+def write_navigation(path: Path, provider, systems: str) -> Path | None:
+    """The navigation data used, as one RINEX 3.04 mixed navigation file (None for SP3 sources)."""
+    nav = getattr(provider, "nav", None)
+    if nav is None:
+        return None
+    from ..ephemeris.rinex_nav import header_dict, records_as_dicts
+    from ..ephemeris.rinex_nav_writer import write_rinex3_nav
+
+    return write_rinex3_nav(path, records_as_dicts(nav, systems), header_dict(nav))

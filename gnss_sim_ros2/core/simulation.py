@@ -1,0 +1,205 @@
+"""The offline simulation loop: what `gnss-sim simulate`, the benchmarks and the tests share.
+
+Per epoch (GPS time tag t on the grid start + k * interval):
+antenna position (static, or along a path) -> satellite states at t ->
+visibility from the scene (if any) -> receiver observables -> position fix ->
+RINEX epoch (written and handed to the OS at once) and a fix.csv row.
+"""
+from __future__ import annotations
+
+import csv
+import shutil
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .ephemeris.provider import open_ephemeris
+from .frames import geodetic_to_ecef
+from .presets import preset as preset_switches
+from .receiver.engine import ATTENUATED, BLOCKED, VISIBLE, Receiver, ReceiverConfig
+from .receiver.outputs import epoch_arrays, header, obs_types_for, position_fix, rinex_name, write_navigation
+from .rinex_obs import RinexObsWriter
+from .time import GnssTime
+from .trajectory import Trajectory
+
+
+@dataclass
+class SimulationSetup:
+    start: GnssTime
+    duration_s: float
+    interval_s: float
+    out_dir: Path
+    trajectory: Trajectory
+    systems: str = "GRECJI"
+    elevation_mask_deg: float = 10.0
+    source: str = "synthetic"
+    nav_files: list = field(default_factory=list)
+    sp3_files: list = field(default_factory=list)
+    clk_files: list = field(default_factory=list)
+    world_file: str = ""
+    mesh_file: str = ""
+    materials_file: str = ""
+    preset: str = "balanced"
+    fresnel_rays: int = -1
+    receiver: dict = field(default_factory=dict)   # ReceiverConfig overrides
+    marker_name: str = "GSIM"
+    seed: int = 1
+    progress: bool = False
+
+
+@dataclass
+class SimulationResult:
+    obs_path: Path
+    nav_path: Path | None
+    fix_path: Path
+    epochs: int
+    fixes: int
+    tracked_per_epoch: list
+    visible_per_epoch: list
+    blocked_per_epoch: list
+    attenuated_per_epoch: list
+    horizontal_error_m: list
+    wall_s: float
+    sim_s: float
+
+    @property
+    def realtime_factor(self) -> float:
+        return self.sim_s / self.wall_s if self.wall_s > 0 else float("inf")
+
+
+def load_scene(world_file: str = "", mesh_file: str = "", materials_file: str = ""):
+    """The raycasting scene from an exported mesh or an SDF world (None when neither is given)."""
+    if not world_file and not mesh_file:
+        return None
+    from .scene.visibility import Scene
+
+    if mesh_file:
+        return Scene.load(mesh_file)
+    return Scene.from_sdf(world_file, materials_yaml=materials_file or None)
+
+
+class AntennaPath:
+    """Antenna positions along a trajectory in ECEF and (with a scene) in the world frame."""
+
+    def __init__(self, trajectory: Trajectory, scene=None):
+        self.tr = trajectory
+        self.scene = scene
+        if trajectory.frame == "world" and (scene is None or scene.spherical is None):
+            raise ValueError("a path in world coordinates (t_s,e_m,n_m,u_m) needs a georeferenced scene "
+                             "(--world with spherical_coordinates, or --mesh)")
+        if trajectory.frame != "world" and scene is not None and scene.spherical is None:
+            raise ValueError("the scene has no spherical_coordinates: cannot place a geodetic/ECEF path in it")
+
+    def at(self, t_s: float):
+        """(ecef (3,), world (3,) or None)."""
+        p = self.tr.position(t_s)
+        if self.tr.frame == "world":
+            return self.scene.antenna_ecef(p), p
+        if self.tr.frame == "geodetic":
+            ecef = np.array(geodetic_to_ecef(*p))
+        else:
+            ecef = p
+        world = self.scene.spherical.ecef_to_world(ecef) if self.scene is not None else None
+        return ecef, world
+
+
+def receiver_config(setup: SimulationSetup) -> ReceiverConfig:
+    sw = preset_switches(setup.preset)
+    kw = {"systems": setup.systems, "elevation_mask_deg": setup.elevation_mask_deg, "seed": setup.seed,
+          "transmit_time": sw["transmit_time"], "light_time_iterations": sw["light_time_iterations"],
+          "ionosphere": sw["ionosphere"], "troposphere": sw["troposphere"]}
+    kw.update({k: v for k, v in setup.receiver.items() if v is not None and v != ""})
+    return ReceiverConfig(**kw)
+
+
+def run_simulation(setup: SimulationSetup) -> SimulationResult:
+    out = Path(setup.out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    for old in list(out.glob("*_MO.rnx")) + list(out.glob("*_MN.rnx")):
+        old.unlink()  # exactly one observation and one navigation file per run
+    scene = load_scene(setup.world_file, setup.mesh_file, setup.materials_file)
+    path = AntennaPath(setup.trajectory, scene)
+    fresnel = setup.fresnel_rays if setup.fresnel_rays >= 0 else preset_switches(setup.preset)["fresnel_rays"]
+
+    provider, nav_paths = open_ephemeris(setup.source, setup.start, setup.duration_s, setup.systems,
+                                         setup.nav_files, setup.sp3_files, setup.clk_files, workdir=out / ".ephemeris")
+    cfg = receiver_config(setup)
+    rx = Receiver(cfg, provider, getattr(provider, "iono", None))
+
+    n_epochs = int(np.floor(setup.duration_s / setup.interval_s + 1e-9)) + 1
+    ecef0, _ = path.at(0.0)
+    obs_types = obs_types_for(cfg.profile, setup.systems)
+    obs_path = out / rinex_name(setup.marker_name, setup.start, setup.duration_s, setup.interval_s, "MO")
+    nav_path = out / rinex_name(setup.marker_name, setup.start, setup.duration_s, setup.interval_s, "MN")
+    nav_written = write_navigation(nav_path, provider, setup.systems)
+    if nav_written is None and nav_paths:
+        shutil.copyfile(nav_paths[0], nav_path)
+        nav_written = nav_path
+    glo_slots = {}
+    st0 = provider.states(setup.start, systems=setup.systems)
+    for sv, ch in zip(st0.sv, st0.glo_channel):
+        if sv[0] == "R":
+            glo_slots[str(sv)] = int(ch)
+    approx = ecef0 if setup.trajectory.is_static else ecef0
+    hdr = header(obs_types, setup.marker_name, approx, setup.interval_s, glo_slots,
+                 comments=[f"gnss_sim simulate, preset {setup.preset}, source {setup.source}",
+                           f"seed {setup.seed}; noise {'on' if cfg.noise else 'off'}"])
+    fix_path = out / "fix.csv"
+    res = SimulationResult(obs_path, nav_written, fix_path, 0, 0, [], [], [], [], [], 0.0, 0.0)
+    wall0 = time.perf_counter()
+    prior = None
+    with RinexObsWriter(obs_path, hdr) as writer, open(fix_path, "w", newline="") as fcsv:
+        w = csv.writer(fcsv)
+        w.writerow(["time", "lat_deg", "lon_deg", "h_m", "n_sats", "status"])
+        for i in range(n_epochs):
+            t_rel = i * setup.interval_s
+            t = setup.start + t_rel
+            ecef, world = path.at(t_rel)
+            states = provider.states(t, systems=setup.systems)
+            vis_state = att = None
+            if scene is not None and len(states):
+                v = scene.visibility_ecef(world, states.pos_ecef_m, mask_deg=setup.elevation_mask_deg,
+                                          fresnel_rays=fresnel)
+                vis_state = np.where(v.state < 0, VISIBLE, v.state)
+                att = v.attenuation_db + v.diffraction_db
+            obs = rx.epoch(t, ecef, states, vis_state, att)
+            sol = position_fix(obs, cfg.profile, prior)
+            if sol.is_fix:
+                prior = sol.pos_ecef_m
+                res.fixes += 1
+                res.horizontal_error_m.append(_horizontal_error(sol.pos_ecef_m, ecef))
+                w.writerow([t.isoformat(digits=3 if setup.interval_s < 1 else 0), f"{sol.lat_deg:.9f}",
+                            f"{sol.lon_deg:.9f}", f"{sol.h_m:.4f}", sol.n_used, "fix"])
+            else:
+                w.writerow([t.isoformat(digits=3 if setup.interval_s < 1 else 0), "", "", "", sol.n_used,
+                            "no_fix"])
+            if len(obs.sv):
+                writer.write_epoch(t, epoch_arrays(obs, obs_types))
+            res.epochs += 1
+            above = obs.sat_el_deg >= setup.elevation_mask_deg
+            res.tracked_per_epoch.append(obs.n_tracked_sats)
+            res.visible_per_epoch.append(int(np.sum(above & (obs.sat_vis_state == VISIBLE))))
+            res.blocked_per_epoch.append(int(np.sum(above & (obs.sat_vis_state == BLOCKED))))
+            res.attenuated_per_epoch.append(int(np.sum(above & (obs.sat_vis_state == ATTENUATED))))
+            if setup.progress and (i % max(1, n_epochs // 20) == 0 or i == n_epochs - 1):
+                el = time.perf_counter() - wall0
+                print(f"\r[simulate] epoch {i + 1}/{n_epochs}  {obs.n_tracked_sats} sats tracked  "
+                      f"{(t_rel + setup.interval_s) / max(el, 1e-9):.0f}x real time", end="", file=sys.stderr,
+                      flush=True)
+    if setup.progress:
+        print(file=sys.stderr)
+    res.wall_s = time.perf_counter() - wall0
+    res.sim_s = n_epochs * setup.interval_s
+    shutil.rmtree(out / ".ephemeris", ignore_errors=True)
+    return res
+
+
+def _horizontal_error(est_ecef, true_ecef) -> float:
+    from .frames import ecef_to_enu, ecef_to_geodetic
+
+    lat, lon, h = ecef_to_geodetic(*true_ecef)
+    d = ecef_to_enu(est_ecef, lat, lon, h)
+    return float(np.hypot(d[0], d[1]))
