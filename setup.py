@@ -33,6 +33,8 @@ setup(
             "gnss-sim = gnss_sim_ros2.cli:main",
             "ephemeris_node = gnss_sim_ros2.nodes.ephemeris_node:main",
             "trajectory_player = gnss_sim_ros2.nodes.trajectory_player:main",
+            "visibility_node = gnss_sim_ros2.nodes.visibility_node:main",
+            "receiver_node = gnss_sim_ros2.nodes.receiver_node:main",
         ],
     },
 )

@@ -15,6 +15,7 @@ from . import __version__
 
 #: subcommand -> (module under gnss_sim_ros2.commands, one-line help)
 COMMANDS = {
+    "run": ("run", "run the node graph (what sim.launch.py starts): RINEX, bag, sky plot, summary"),
     "roundtrip": ("roundtrip", "publish every gnss_sim_msgs type and receive it in another process"),
     "simulate": ("simulate", "simulate a receiver offline (no ROS): RINEX observation/navigation files + fix.csv"),
     "config": ("config", "print the default parameter file (config/gnss_sim.yaml) or check one"),

@@ -9,14 +9,18 @@ from gnss_sim_ros2.core.time import GnssTime
 _SOURCES = {"broadcast": 0, "sp3": 1, "synthetic": 2}
 
 
-def states_to_msg(states: SatelliteStates, t: GnssTime, header):
-    """``gnss_sim_msgs/SatelliteStates`` of one epoch ``t``."""
+def states_to_msg(states: SatelliteStates, t: GnssTime, header, iono: dict | None = None):
+    """``gnss_sim_msgs/SatelliteStates`` of one epoch ``t`` (``iono``: the navigation header's
+    coefficients, {"GPSA": [4], "GPSB": [4]})."""
     from geometry_msgs.msg import Point, Vector3
     from gnss_sim_msgs.msg import SatelliteState
     from gnss_sim_msgs.msg import SatelliteStates as Msg
 
     week, tow = t.week_tow()
     msg = Msg(header=header, gps_week=int(week), gps_tow_s=float(tow))
+    if iono and iono.get("GPSA") and iono.get("GPSB"):
+        msg.klobuchar_alpha = [float(v) for v in iono["GPSA"]]
+        msg.klobuchar_beta = [float(v) for v in iono["GPSB"]]
     source = _SOURCES.get(states.source.split("+")[0], 0)
     pos, vel, acc = states.pos_ecef_m, states.vel_ecef_mps, states.acc_ecef_mps2
     out = []

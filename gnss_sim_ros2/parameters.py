@@ -111,6 +111,9 @@ SHARED = [
     Param("world_frame", "world", "TF frame of the Gazebo world (ENU at spherical_coordinates)"),
     Param("antenna_frame", "gnss_antenna", "TF frame of the receiver antenna phase centre"),
     Param("seed", 1, "seed of every random process (noise, clock, ambiguities)", min=0),
+    Param("output_dir", "gnss_sim_output", "folder of the RINEX observation/navigation (and NMEA) files; "
+          "empty: none written"),
+    Param("marker_name", "GSIM", "RINEX marker name (its first 4 characters start the file names)"),
     Param("preset", "balanced", "fidelity preset: default values of the model switches",
           choices=("fast", "balanced", "accurate")),
 ]
@@ -140,8 +143,6 @@ NODE_PARAMS: dict[str, list[Param]] = {
         Param("noise", True, "random errors on (thermal noise, clock wander); off keeps deterministic models"),
         Param("ionosphere", "", "ionosphere model (empty: from preset)", choices=("", "klobuchar", "none")),
         Param("troposphere", "", "troposphere model (empty: from preset)", choices=("", "saastamoinen", "none")),
-        Param("output_dir", "gnss_sim_output", "folder of the RINEX (and NMEA) files; empty: none written"),
-        Param("marker_name", "GSIM", "RINEX marker name (4 characters used in file names)"),
         Param("write_nmea_file", False, "also write the NMEA sentences to output_dir/gnss_sim.nmea"),
         Param("cn0_acquire_dbhz", 33.0, "C/N0 above which a signal is acquired [dB-Hz]", min=0.0, max=70.0),
         Param("cn0_lose_dbhz", 28.0, "C/N0 below which a signal is lost [dB-Hz]", min=0.0, max=70.0),

@@ -312,7 +312,7 @@ def test_rinex2_3_4_and_gzip_give_the_same_states(tmp_path):
     assert nav4.iono["GPSA"] == pytest.approx([1.2107e-08, -7.4506e-09, -5.9605e-08, 1.1921e-07])
     assert nav4.iono["GPSB"] == pytest.approx([116740.0, -245760.0, -65536.0, 1114100.0])
     nav2 = read_nav_files([tmp_path / "b.22n"])
-    assert nav2.iono["GPSB"][3] == pytest.approx(1114100.0)
+    assert nav2.iono["GPSB"][3] == pytest.approx(1114000.0)  # 0.1114D+07 as written
 
 
 def test_blank_spare_fields_do_not_lose_records(tmp_path):
@@ -551,3 +551,17 @@ def test_kepler_states_function_matches_provider(tmp_path):
     t = GnssTime.from_iso("2022-01-01T01:00:00")
     o = kepler_states(eph.records("G"), t)
     np.testing.assert_array_equal(o["pos_ecef_m"], eph.states(t).pos_ecef_m)
+
+
+def test_rinex2_glonass_equals_rinex3(tmp_path):
+    r = _glonass_record(R_POS, R_VEL, R_ACC)
+    epoch = (2022, 1, 1, 0, 15, 0)
+    r3 = _hdr3() + _rec3("R07", epoch, glo_values(r))
+    r2 = (f"{'2.11':>9}{'':11}{'G: GLONASS NAV DATA':<40}RINEX VERSION / TYPE\n"
+          f"{'':60}END OF HEADER\n") + _rec2(7, epoch, glo_values(r))
+    t = GnssTime.from_iso("2022-01-01T00:20:18")  # 00:20:00 UTC
+    s3 = _eph_from_text(tmp_path, r3, "a.rnx").states(t)
+    s2 = _eph_from_text(tmp_path, r2, "b.22g").states(t)
+    assert list(s2.sv) == ["R07"] and s2.age_s[0] == pytest.approx(300.0)
+    np.testing.assert_array_equal(s2.pos_ecef_m, s3.pos_ecef_m)
+    assert s2.glo_channel[0] == -3 and s2.clock_bias_s[0] == pytest.approx(-1e-5 + 300e-12)

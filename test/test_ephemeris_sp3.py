@@ -275,6 +275,18 @@ def test_systems_filter(eph):
     assert len(st.sv) == 24 + 3
 
 
+def test_unix_compress_and_empty_queries(tmp_path, sp3_path, eph):
+    ncompress = pytest.importorskip("ncompress")
+    z = tmp_path / "orb.sp3.Z"
+    z.write_bytes(ncompress.compress(sp3_path.read_bytes()))
+    e = Sp3Ephemeris.from_files(z, require_clock=False)
+    t = GnssTime.from_iso("2022-01-01T07:07:07")
+    np.testing.assert_array_equal(e.states(t).pos_ecef_m, eph.states(t).pos_ecef_m)
+    assert len(eph.states(t, svs=[])) == 0
+    assert len(eph.states(t, systems="I")) == 0  # no NavIC in the file
+    assert len(eph.states_at([], t)) == 0
+
+
 def test_bad_file_names_the_file(tmp_path):
     p = tmp_path / "bad.sp3"
     p.write_text("hello\n")

@@ -2,8 +2,8 @@
 from __future__ import annotations
 
 import numpy as np
-from ros_helpers import ros  # noqa: F401  (fixture)
 from rclpy.parameter import Parameter
+from ros_helpers import ros  # noqa: F401  (fixture)
 
 from gnss_sim_ros2.core.trajectory import demo_trajectory
 from gnss_sim_ros2.nodes.tf_source import TfSource

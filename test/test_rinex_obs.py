@@ -169,7 +169,7 @@ def test_array_input_equals_dict_input(tmp_path):
     hdr = RinexObsHeader(obs_types=SYN_TYPES)
     with RinexObsWriter(p1, hdr) as w:
         w.write_epoch(T0, obs)
-    with RinexObsWriter(p2, hdr) as w:
+    with RinexObsWriter(p2, hdr, fsync=True) as w:
         w.write_epoch(T0, EpochArrays(svs, codes, val, lli, ssi))
     body = lambda p: [ln for ln in _obs_lines(p) if "PGM / RUN BY" not in ln]  # noqa: E731
     assert body(p1) == body(p2)

@@ -101,8 +101,9 @@ class GnssSimNode(LifecycleNode):
         return TransitionCallbackReturn.SUCCESS
 
     def on_activate(self, state) -> TransitionCallbackReturn:
+        ret = super().on_activate(state)  # lifecycle publishers first: activate() may publish
         self.activate()
-        return super().on_activate(state)
+        return ret
 
     def on_deactivate(self, state) -> TransitionCallbackReturn:
         self.deactivate()
@@ -148,3 +149,25 @@ class TimeMapping:
 
         sec, ns = gnss_to_ros_time(t, offset=self.start if self.mode == "offset" else None)
         return Time(sec=sec, nanosec=ns)
+
+
+def run_node(cls, args=None) -> int:
+    """``main`` of a node executable: spin until Ctrl-C / SIGTERM / shutdown, then free the node's
+    resources (files closed: a RINEX file stays valid up to its last epoch)."""
+    import signal
+
+    import rclpy
+    from rclpy.executors import ExternalShutdownException
+
+    rclpy.init(args=args)
+    node = cls()
+    signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.cleanup()
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0

@@ -13,13 +13,12 @@ import math
 import sys
 import tempfile
 
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from std_msgs.msg import Header
 
 from gnss_sim_ros2.conversions import states_to_msg
 from gnss_sim_ros2.core.time import GnssTime
-from gnss_sim_ros2.nodes.common import GnssSimNode, TimeMapping
+from gnss_sim_ros2.nodes.common import GnssSimNode, TimeMapping, run_node
 
 SYSTEMS = set("GRECJI")
 
@@ -54,10 +53,21 @@ class EphemerisNode(GnssSimNode):
         self.pub = self.create_lifecycle_publisher(_msg_type(), "satellite_states", 100)
         self.diag_pub = self.create_lifecycle_publisher(DiagnosticArray, "/diagnostics", 10)
         self.period_s = 1.0 / p["rate_hz"]
+        self.nav_path = None
+        if p["output_dir"]:
+            from pathlib import Path
+
+            from gnss_sim_ros2.core.receiver.outputs import rinex_name, write_navigation
+
+            out = Path(p["output_dir"])
+            out.mkdir(parents=True, exist_ok=True)
+            name = rinex_name(p["marker_name"], self.mapping.start, p["duration_s"], self.period_s, "MN")
+            self.nav_path = write_navigation(out / name, self.provider, p["systems"])
 
     def activate(self):
         self.next_k = self._first_epoch_index()
         self.timer = self.create_timer(min(self.period_s, 0.05), self._tick)
+        self._tick()  # the epoch the clock stands at now (a simulated clock may wait for it)
 
     def deactivate(self):
         if self.timer is not None:
@@ -97,7 +107,7 @@ class EphemerisNode(GnssSimNode):
     def publish_epoch(self, t: GnssTime):
         states = self.provider.states(t, systems=self.params["systems"])
         header = Header(stamp=self.mapping.to_ros(t), frame_id="earth")
-        self.pub.publish(states_to_msg(states, t, header))
+        self.pub.publish(states_to_msg(states, t, header, getattr(self.provider, "iono", None)))
         self.published += 1
         if self.published % max(1, int(round(10.0 / self.period_s))) == 1:
             self._diagnose(t, len(states))
@@ -128,16 +138,7 @@ def _msg_type():
 
 
 def main(args=None):
-    rclpy.init(args=args)
-    node = EphemerisNode()
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(EphemerisNode, args)
 
 
 if __name__ == "__main__":

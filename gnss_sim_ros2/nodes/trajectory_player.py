@@ -13,13 +13,12 @@ import math
 import sys
 
 import numpy as np
-import rclpy
 from geometry_msgs.msg import TransformStamped
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.time import Time
 
 from gnss_sim_ros2.core.trajectory import Trajectory, demo_trajectory
-from gnss_sim_ros2.nodes.common import GnssSimNode
+from gnss_sim_ros2.nodes.common import GnssSimNode, run_node
 
 STATIC_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
 
@@ -73,6 +72,7 @@ class TrajectoryPlayer(GnssSimNode):
         self.next_tick = (now.nanoseconds // self.period_ns) * self.period_ns
         self.timer = self.create_timer(self.period_ns * 1e-9, self._tick)
         self._static_pending = True
+        self._tick()  # a simulated clock may stand still until the first epoch is answered
 
     def deactivate(self):
         if self.timer is not None:
@@ -114,16 +114,7 @@ class TrajectoryPlayer(GnssSimNode):
 
 
 def main(args=None):
-    rclpy.init(args=args)
-    node = TrajectoryPlayer()
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(TrajectoryPlayer, args)
 
 
 if __name__ == "__main__":

@@ -40,7 +40,7 @@ SYSTEM_CONSTANTS = {
 
 # parameter rows of the (NPAR, n) matrix
 _NAMES = ("gm", "we", "f", "geo", "a", "n", "e", "sq1me2", "m0", "omega", "cuc", "cus", "crc", "crs",
-          "cic", "cis", "i0", "idot", "omega0", "omega_dot", "toe_tow", "af0", "af1", "af2", "sqrt_a")
+          "cic", "cis", "i0", "idot", "om_base", "omega_dot_k", "ae", "af0", "af1", "af2", "sqrt_a")
 _IX = {name: i for i, name in enumerate(_NAMES)}
 
 _SIN_TILT = np.sin(np.radians(K.BDS_GEO_TILT_DEG))
@@ -80,10 +80,14 @@ class KeplerParams:
         P[_IX["n"]] = np.sqrt(P[_IX["gm"]] / a**3) + rec["delta_n"]
         P[_IX["e"]] = rec["e"]
         P[_IX["sq1me2"]] = np.sqrt(1.0 - rec["e"] ** 2)
-        for name in ("m0", "omega", "cuc", "cus", "crc", "crs", "cic", "cis", "i0", "idot", "omega0",
-                     "omega_dot", "af0", "af1", "af2"):
+        for name in ("m0", "omega", "cuc", "cus", "crc", "crs", "cic", "cis", "i0", "idot", "af0", "af1", "af2"):
             P[_IX[name]] = rec[name]
-        P[_IX["toe_tow"]] = rec["toe_tow_s"]
+        # IS-GPS-200N table 20-IV: Omega_k = Omega0 + (OmegaDot - we) tk - we toe;
+        # BDS GEO (B1I ICD 5.2.4.12): Omega_k = Omega0 + OmegaDot tk - we toe
+        we = P[_IX["we"]]
+        P[_IX["om_base"]] = rec["omega0"] - we * rec["toe_tow_s"]
+        P[_IX["omega_dot_k"]] = np.where(P[_IX["geo"]] > 0, rec["omega_dot"], rec["omega_dot"] - we)
+        P[_IX["ae"]] = a * rec["e"]
         self.P = P
         self.toe_sec = np.asarray(rec["toe_sec"], dtype=np.int64)
         self.toe_frac = np.asarray(rec["toe_frac"], dtype=np.float64)
@@ -115,8 +119,8 @@ def _solve_kepler(M, e):
 
 def kepler_from_params(P: np.ndarray, tk, dtc, any_geo: bool = True, acceleration: bool = True) -> dict:
     """Orbit and clock from a parameter matrix (rows as ``_NAMES``), tk = t - toe, dtc = t - toc [s]."""
-    (gm, we, f, geo, a, n, e, sq1me2, m0, omega, cuc, cus, crc, crs, cic, cis, i0, idot, omega0,
-     omega_dot, toe_tow, af0, af1, af2, sqrt_a) = P
+    (gm, we, f, geo, a, n, e, sq1me2, m0, omega, cuc, cus, crc, crs, cic, cis, i0, idot, om_base,
+     omega_dot_k, ae, af0, af1, af2, sqrt_a) = P
     tk = np.asarray(tk, dtype=np.float64)
     # IS-GPS-200N table 20-IV
     M = m0 + n * tk
@@ -133,15 +137,14 @@ def kepler_from_params(P: np.ndarray, tk, dtc, any_geo: bool = True, acceleratio
     Edot = n / one_m_ecosE
     nudot = Edot * sq1me2 / one_m_ecosE
     udot = nudot * (1.0 + 2.0 * (cus * c2 - cuc * s2))
-    rdot = a * e * sinE * Edot + 2.0 * nudot * (crs * c2 - crc * s2)
+    rdot = ae * sinE * Edot + 2.0 * nudot * (crs * c2 - crc * s2)
     idot_k = idot + 2.0 * nudot * (cis * c2 - cic * s2)
     cu, su = np.cos(u), np.sin(u)
     xp, yp = r * cu, r * su
     xpdot = rdot * cu - yp * udot
     ypdot = rdot * su + xp * udot
     # longitude of the ascending node: MEO/IGSO in ECEF; GEO in the inertial-like GK frame
-    omega_dot_k = np.where(geo > 0, omega_dot, omega_dot - we) if any_geo else omega_dot - we
-    Om = omega0 + omega_dot_k * tk - we * toe_tow
+    Om = om_base + omega_dot_k * tk
     cO, sO = np.cos(Om), np.sin(Om)
     ci, si = np.cos(inc), np.sin(inc)
     x = xp * cO - yp * ci * sO

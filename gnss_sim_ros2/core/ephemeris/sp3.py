@@ -49,10 +49,10 @@ def _open_text(path: Path):
         magic = fb.read(2)
     if magic == b"\x1f\x8b":
         return gzip.open(path, "rt", encoding="ascii", errors="replace")
-    if magic == b"\x1f\x9d":
-        import unlzw3  # installed with georinex
+    if magic == b"\x1f\x9d":  # Unix compress (.Z)
+        from ncompress import decompress  # installed with georinex
 
-        return _StringLines(unlzw3.unlzw(Path(path)).decode("ascii", errors="replace"))
+        return _StringLines(decompress(Path(path).read_bytes()).decode("ascii", errors="replace"))
     return open(path, encoding="ascii", errors="replace")
 
 
@@ -136,7 +136,7 @@ def read_sp3(path) -> tuple[GnssTime, list[str], np.ndarray, np.ndarray]:
                 if ts not in _SP3_TIME_SYSTEMS:
                     raise ValueError(f"{path} line {lineno}: unknown SP3 time system {ts!r}")
                 scale = _SP3_TIME_SYSTEMS[ts]
-            elif c0 == "+" and line[1] == " " and not epochs:
+            elif c0 == "+" and line[1:2] == " " and not epochs:
                 for k in range(9, 60, 3):
                     token = line[k:k + 3]
                     if token.strip() and token.strip() != "0":
@@ -341,10 +341,10 @@ class Sp3Ephemeris:
         return cls(grid, svs, pos, clk, clk_files=clk_files, **kwargs)
 
     # ----- queries -------------------------------------------------------------
-    def svs(self) -> list[str]:
-        """Satellites with at least one valid position sample."""
+    def svs(self, systems: str = "GRECJI") -> list[str]:
+        """Satellites of ``systems`` with at least one valid position sample."""
         ok = self._bad_cum[-1] < len(self._tsec)
-        return [str(s) for s in self._svs[ok]]
+        return [str(s) for s in self._svs[ok] if s[:1] in systems]
 
     def time_span(self) -> tuple[GnssTime, GnssTime]:
         """(first, last) SP3 epoch: states are served inside this span only."""

@@ -66,11 +66,13 @@ def header(obs_types, marker_name: str, approx_pos_ecef_m, interval_s: float, gl
     )
 
 
-def rinex_name(marker: str, start: GnssTime, duration_s: float, interval_s: float, kind: str) -> str:
-    """RINEX 3 long file name (RINEX 3.04 section 4.1), ``kind`` "MO" or "MN"."""
+def rinex_name(marker: str, start: GnssTime, duration_s: float | None, interval_s: float, kind: str) -> str:
+    """RINEX 3 long file name (RINEX 3.04 section 4.1), ``kind`` "MO" or "MN";
+    ``duration_s`` None: period unknown while writing ("00U")."""
     d = start.to_datetime()
     mk = (marker.upper() + "XXXX")[:4]
-    period = (f"{int(round(duration_s / 86400)):02d}D" if duration_s >= 86400 else
+    period = ("00U" if duration_s is None else
+              f"{int(round(duration_s / 86400)):02d}D" if duration_s >= 86400 else
               f"{int(round(duration_s / 3600)):02d}H" if duration_s >= 3600 else
               f"{max(1, int(round(duration_s / 60))):02d}M")
     if kind == "MN":

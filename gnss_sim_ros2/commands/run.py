@@ -1,0 +1,373 @@
+"""``gnss-sim run``: the running system, what ``ros2 launch gnss_sim sim.launch.py`` starts.
+
+Builds the node graph of gnss_sim_ros2/graph.py (trajectory player, ephemeris,
+visibility, receiver) with the parameters of one file, in this process
+(composed) or one process per node, brings every node through configure and
+activate, drives the simulated clock (/clock) epoch by epoch as fast as the
+chain answers (or at real-time pace), records a rosbag2 (MCAP) bag, and
+writes into the output folder: RINEX observation and navigation files, the
+bag, a sky plot PNG and a summary.
+"""
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+
+def add_arguments(p):
+    p.add_argument("--config", help="gnss_sim parameter file (the one the launch file takes)")
+    sc = p.add_mutually_exclusive_group()
+    sc.add_argument("--world", metavar="SDF", help="Gazebo world (default: worlds/courtyard.sdf)")
+    sc.add_argument("--mesh", metavar="FILE", help="mesh exported by export-world")
+    p.add_argument("--out", default="gnss_sim_run", metavar="DIR", help="output folder [gnss_sim_run]")
+    p.add_argument("--duration", type=float, default=None, metavar="S", help="simulated seconds [from config]")
+    p.add_argument("--rate", type=float, default=None, metavar="HZ", help="epoch rate [from config]")
+    p.add_argument("--systems", default=None, help="GNSS systems, letters of GRECJI")
+    p.add_argument("--processes", action="store_true", help="one process per node (default: all in this one)")
+    p.add_argument("--realtime", action="store_true", help="simulated time at wall-clock pace")
+    p.add_argument("--no-record", action="store_true", help="do not record a bag")
+    p.add_argument("--no-autostart", action="store_true",
+                   help="do not configure/activate the nodes (leave them to another lifecycle manager)")
+    p.add_argument("--antenna-frame", default=None, help="TF frame of the antenna [from config]")
+    p.add_argument("--quiet", action="store_true")
+
+
+def _overrides(args) -> dict:
+    shared = {}
+    if args.systems:
+        shared["systems"] = args.systems
+    if args.rate:
+        shared["rate_hz"] = args.rate
+    if args.antenna_frame:
+        shared["antenna_frame"] = args.antenna_frame
+    out = {"/**": shared}
+    if args.world:
+        out["visibility"] = {"world_file": str(Path(args.world).resolve()), "mesh_file": ""}
+    if args.mesh:
+        out["visibility"] = {"mesh_file": str(Path(args.mesh).resolve()), "world_file": ""}
+    if args.duration:
+        out["ephemeris"] = {"duration_s": args.duration}
+    return out
+
+
+def run(args) -> int:
+    from gnss_sim_ros2.parameters import load_config
+
+    out = Path(args.out).resolve()
+    out.mkdir(parents=True, exist_ok=True)
+    try:
+        ov = _overrides(args)
+        ov["/**"]["output_dir"] = str(out)
+        cfg = load_config(args.config, ov)
+    except ValueError as exc:
+        print(f"gnss-sim run: error: {exc}", file=sys.stderr)
+        return 2
+    for old in list(out.glob("*.rnx")):
+        old.unlink()
+    import yaml
+
+    params_file = out / "params.yaml"
+    params_file.write_text(yaml.safe_dump(cfg.ros_parameter_file_dict(), sort_keys=False))
+    bag_dir = out / "bag"
+    if bag_dir.exists():
+        import shutil
+
+        shutil.rmtree(bag_dir)
+    runner = Runner(cfg, out, params_file, args)
+    stop = {"flag": False}
+
+    def on_signal(*_):
+        stop["flag"] = True
+
+    signal.signal(signal.SIGTERM, on_signal)
+    signal.signal(signal.SIGINT, on_signal)
+    try:
+        return runner.run(stop)
+    finally:
+        runner.close()
+
+
+class Runner:
+    def __init__(self, cfg, out: Path, params_file: Path, args):
+        self.cfg, self.out, self.params_file, self.args = cfg, out, params_file, args
+        self.procs: list[subprocess.Popen] = []
+        self.local = []
+        self.executor = None
+        self.recorder = None
+        self.manager = None
+        self.started = False
+
+    def log(self, text: str):
+        if not self.args.quiet:
+            print(f"[gnss-sim run] {text}", file=sys.stderr, flush=True)
+
+    # ------------------------------------------------------------------ graph
+    def start(self):
+        import rclpy
+        from rclpy.executors import SingleThreadedExecutor
+        from rosgraph_msgs.msg import Clock
+
+        from gnss_sim_ros2 import graph
+        from gnss_sim_ros2.nodes.manager import LocalNodes, RemoteNodes
+
+        rclpy.init()
+        self.rclpy = rclpy
+        self.executor = SingleThreadedExecutor()
+        self.driver = rclpy.create_node("gnss_sim_run")
+        self.executor.add_node(self.driver)
+        self.clock_pub = self.driver.create_publisher(Clock, "/clock", 10)
+        self._subscribe_outputs()
+        self.set_clock(0.0)
+        specs = graph.nodes()
+        if self.args.processes:
+            env = dict(os.environ)
+            for spec in specs:
+                cmd = [sys.executable, "-m", spec.module] + graph.ros_args(spec, str(self.params_file), True)
+                self.procs.append(subprocess.Popen(cmd, env=env))
+            self.manager = RemoteNodes(self.driver, [s.name for s in specs], self.executor)
+            self.manager.wait_for_services()
+        else:
+            import importlib
+
+            from rclpy.parameter import Parameter
+
+            for spec in specs:
+                cls = getattr(importlib.import_module(spec.module), spec.cls)
+                overrides = [Parameter("use_sim_time", value=True)] + [
+                    Parameter(k, value=v) for k, v in self.cfg.node(spec.key).items()
+                    if not (isinstance(v, list) and not v)]
+                node = cls(parameter_overrides=overrides, cli_args=graph.ros_args(spec, None, True)[:-2])
+                self.local.append(node)
+                self.executor.add_node(node)
+            self.manager = LocalNodes(self.local)
+        if not self.args.no_record:
+            from gnss_sim_ros2.recorder import BagRecorder
+
+            self.recorder = BagRecorder(self.driver, self.out / "bag")
+        self.started = True
+
+    def _subscribe_outputs(self):
+        from gnss_sim_msgs.msg import Observations, ReceiverStatus, SatelliteStates, Visibility
+        from sensor_msgs.msg import NavSatFix
+
+        self.t_states, self.t_obs, self.status, self.fix, self.truth = {}, {}, {}, {}, {}
+        self.last_vis = None
+
+        def key(m):
+            return m.header.stamp.sec + m.header.stamp.nanosec * 1e-9
+
+        def on_states(m):
+            self.t_states[key(m)] = time.perf_counter()
+
+        def on_obs(m):
+            self.t_obs[key(m)] = time.perf_counter()
+
+        def on_status(m):
+            self.status[key(m)] = m
+
+        def on_fix(m):
+            self.fix[key(m)] = m
+
+        def on_vis(m):
+            self.truth[key(m)] = np.array([m.antenna_ecef_m.x, m.antenna_ecef_m.y, m.antenna_ecef_m.z])
+            self.last_vis = m
+
+        d = self.driver
+        self._subs = [d.create_subscription(SatelliteStates, "/gnss/satellite_states", on_states, 100),
+                      d.create_subscription(Observations, "/gnss/observations", on_obs, 100),
+                      d.create_subscription(ReceiverStatus, "/gnss/status", on_status, 100),
+                      d.create_subscription(NavSatFix, "/gnss/fix", on_fix, 100),
+                      d.create_subscription(Visibility, "/gnss/visibility", on_vis, 100)]
+
+    def set_clock(self, t_s: float):
+        from builtin_interfaces.msg import Time
+        from rosgraph_msgs.msg import Clock
+
+        ns = int(round(t_s * 1e9))
+        self.clock_pub.publish(Clock(clock=Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)))
+
+    def spin(self, seconds: float):
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            self.executor.spin_once(timeout_sec=0.005)
+            if self.recorder is not None:
+                self.recorder.poll_topics()
+
+    # ------------------------------------------------------------------ run
+    def run(self, stop) -> int:
+        from gnss_sim_ros2.nodes.manager import TransitionFailed
+
+        eph = self.cfg.node("ephemeris")
+        duration = eph["duration_s"]
+        period = 1.0 / eph["rate_hz"]
+        n_epochs = int(np.floor(duration / period + 1e-9)) + 1
+        self.log(f"starting {'one process per node' if self.args.processes else 'all nodes in one process'}; "
+                 f"{n_epochs} epochs of {period:g} s; output {self.out}")
+        try:
+            self.start()
+            if self.args.no_autostart:
+                self.log("--no-autostart: waiting for another lifecycle manager (Ctrl-C to stop)")
+                while not stop["flag"]:
+                    self.spin(0.1)
+                return 0
+            self.manager.transition("configure")
+            self.manager.transition("activate")
+        except TransitionFailed as exc:
+            print(f"gnss-sim run: error: {exc}", file=sys.stderr)
+            return 3
+        self.spin(0.3)  # let the recorder find the topics and TF static latch
+        wall0 = time.perf_counter()
+        dropped = 0
+        k_done = 0
+        for k in range(n_epochs):
+            if stop["flag"]:
+                self.log(f"stopped after {k_done} epochs")
+                break
+            t_s = k * period
+            if self.args.realtime:
+                while time.perf_counter() - wall0 < t_s:
+                    self.set_clock(time.perf_counter() - wall0)
+                    self.spin(0.002)
+            self.set_clock(t_s)
+            deadline = time.monotonic() + 10.0
+            while not any(abs(s - t_s) < 1e-6 for s in list(self.status)[-3:]) and time.monotonic() < deadline:
+                self.executor.spin_once(timeout_sec=0.001)
+                if self.recorder is not None and k < 3:
+                    self.recorder.poll_topics()
+            if not any(abs(s - t_s) < 1e-6 for s in self.status):
+                dropped += 1
+            k_done = k + 1
+            if not self.args.quiet and (k % max(1, n_epochs // 20) == 0 or k == n_epochs - 1):
+                st = self.status.get(t_s)
+                el = time.perf_counter() - wall0
+                print(f"\r[gnss-sim run] epoch {k + 1}/{n_epochs}  tracked {st.satellites_tracked if st else '-'}"
+                      f"  {'fix' if st and st.solution_type else 'no fix'}  {t_s / max(el, 1e-9):.1f}x real time ",
+                      end="", file=sys.stderr, flush=True)
+        if not self.args.quiet:
+            print(file=sys.stderr)
+        self.spin(0.3)
+        wall = time.perf_counter() - wall0
+        self.finish(k_done, dropped, wall, period)
+        return 0
+
+    def finish(self, n_epochs: int, dropped: int, wall_s: float, period: float):
+        """Close the files (nodes cleaned up), then summary, sky plot and bag counts."""
+        self.shutdown_nodes()
+        if self.recorder is not None:
+            self.recorder.close()
+        summary = self.summary(n_epochs, dropped, wall_s, period)
+        (self.out / "summary.json").write_text(json.dumps(summary, indent=2))
+        (self.out / "summary.md").write_text(_summary_markdown(summary))
+        self.sky_plot()
+        print(_summary_markdown(summary))
+
+    def summary(self, n_epochs, dropped, wall_s, period) -> dict:
+        from gnss_sim_ros2.core.frames import ecef_to_enu, ecef_to_geodetic, geodetic_to_ecef
+
+        tracked = [m.satellites_tracked for m in self.status.values()]
+        fixes = [m for m in self.fix.values() if m.status.status >= 0]
+        err = []
+        for t, f in self.fix.items():
+            if f.status.status < 0 or t not in self.truth:
+                continue
+            est = np.array(geodetic_to_ecef(f.latitude, f.longitude, f.altitude))
+            tru = self.truth[t]
+            lat, lon, h = ecef_to_geodetic(*tru)
+            d = ecef_to_enu(est, lat, lon, h)
+            err.append(float(np.hypot(d[0], d[1])))
+        lat_ms = [1e3 * (self.t_obs[t] - self.t_states[t]) for t in self.t_obs if t in self.t_states]
+        rinex = sorted(str(p.name) for p in self.out.glob("*.rnx"))
+        out = {
+            "epochs": n_epochs, "epochs_without_output": dropped, "wall_s": round(wall_s, 3),
+            "realtime_factor": round(n_epochs * period / wall_s, 2) if wall_s > 0 else None,
+            "satellites_tracked_mean": round(float(np.mean(tracked)), 2) if tracked else 0,
+            "satellites_tracked_min": int(min(tracked)) if tracked else 0,
+            "satellites_tracked_max": int(max(tracked)) if tracked else 0,
+            "fix_availability": round(len(fixes) / max(n_epochs, 1), 4),
+            "horizontal_error_rms_m": round(float(np.sqrt(np.mean(np.square(err)))), 3) if err else None,
+            "horizontal_error_p95_m": round(float(np.percentile(err, 95)), 3) if err else None,
+            "latency_ms_median": round(float(np.median(lat_ms)), 3) if lat_ms else None,
+            "latency_ms_p99": round(float(np.percentile(lat_ms, 99)), 3) if lat_ms else None,
+            "mode": "processes" if self.args.processes else "composed",
+            "pace": "realtime" if self.args.realtime else "as fast as the chain answers",
+            "rinex_files": rinex,
+        }
+        if self.recorder is not None:
+            from gnss_sim_ros2.recorder import count_messages
+
+            out["bag"] = str(self.out / "bag")
+            out["bag_messages"] = count_messages(self.out / "bag")
+        return out
+
+    def sky_plot(self):
+        m = self.last_vis
+        if m is None:
+            return
+        from gnss_sim_ros2.core.simulation import load_scene
+        from gnss_sim_ros2.core.skyplot import plot_skyplot
+
+        vis = self.cfg.node("visibility")
+        world = vis["world_file"]
+        if not world and not vis["mesh_file"]:
+            from gnss_sim_ros2.commands.simulate import default_world
+
+            world = str(default_world())
+        scene = load_scene(world, vis["mesh_file"], vis["materials_file"])
+        at = np.array([m.antenna_world_m.x, m.antenna_world_m.y, m.antenna_world_m.z])
+        sats = m.satellites
+        plot_skyplot(self.out / "skyplot.png", [s.sv for s in sats], np.array([s.azimuth_deg for s in sats]),
+                     np.array([s.elevation_deg for s in sats]), np.array([s.state for s in sats]),
+                     horizon=scene.horizon_profile(at), mask_deg=self.cfg.node("receiver")["elevation_mask_deg"],
+                     title=f"last epoch, antenna at E {at[0]:.1f} N {at[1]:.1f} U {at[2]:.1f} m")
+
+    def shutdown_nodes(self):
+        if self.manager is None:
+            return
+        from gnss_sim_ros2.nodes.manager import TransitionFailed
+
+        try:
+            self.manager.transition("deactivate")
+            self.manager.transition("cleanup")
+        except TransitionFailed as exc:
+            self.log(f"shutdown: {exc}")
+        self.manager = None
+
+    def close(self):
+        if not self.started:
+            return
+        try:
+            self.shutdown_nodes()
+        except Exception as exc:  # noqa: BLE001 - still close the bag and stop the processes
+            self.log(f"shutdown: {exc}")
+        if self.recorder is not None:
+            self.recorder.close()
+        for p in self.procs:
+            if p.poll() is None:
+                p.send_signal(signal.SIGINT)
+        for p in self.procs:
+            try:
+                p.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                p.kill()
+        for n in self.local:
+            self.executor.remove_node(n)
+            n.destroy_node()
+        self.driver.destroy_node()
+        self.rclpy.try_shutdown()
+        self.started = False
+
+
+def _summary_markdown(s: dict) -> str:
+    lines = ["# gnss_sim run summary", "", "| figure | value |", "|---|---|"]
+    for k, v in s.items():
+        if k == "bag_messages":
+            v = ", ".join(f"{t}: {n}" for t, n in sorted(v.items()))
+        lines.append(f"| {k} | {v} |")
+    return "\n".join(lines) + "\n"

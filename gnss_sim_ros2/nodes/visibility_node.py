@@ -1,0 +1,191 @@
+"""Visibility lifecycle node: which satellites the scene hides or weakens at the antenna.
+
+configure: loads the scene (an exported mesh, or an SDF world exported on the
+fly; the demo courtyard by default) and builds the Open3D raycasting scene;
+active: for each ``satellite_states`` epoch, waits until TF has the antenna
+pose (antenna_frame in world_frame) at that epoch's stamp, then casts one
+batch of rays and publishes ``visibility`` (same stamp) and, once per second
+of ROS time, ``sky_view`` (sensor_msgs/Image, a polar sky plot for RViz);
+diagnostics count the epochs processed and dropped (no TF in time).
+"""
+from __future__ import annotations
+
+import collections
+import sys
+
+import numpy as np
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import Point
+from sensor_msgs.msg import Image
+from std_msgs.msg import Header
+
+from gnss_sim_ros2.conversions import states_from_msg
+from gnss_sim_ros2.core.presets import preset as preset_switches
+from gnss_sim_ros2.nodes.common import GnssSimNode, run_node
+from gnss_sim_ros2.nodes.tf_source import TfSource
+
+#: a states message waits at most this long (ROS time) for its TF before it is dropped [s]
+TF_WAIT_S = 2.0
+#: the sky view image is rendered at most this often (ROS time) [s]
+SKY_VIEW_PERIOD_S = 5.0
+
+
+class VisibilityNode(GnssSimNode):
+    PARAMS_KEY = "visibility"
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self.scene = None
+        self.tf = None
+        self.pub = self.image_pub = self.diag_pub = None
+        self.sub = None
+        self.queue: collections.deque = collections.deque()
+        self.processed = 0
+        self.dropped = 0
+        self._last_image_s = -1e9
+        self._horizon = None
+
+    def configure(self, p):
+        from gnss_sim_ros2.core.simulation import load_scene
+
+        world = p["world_file"]
+        if not world and not p["mesh_file"]:
+            from gnss_sim_ros2.commands.simulate import default_world
+
+            world = str(default_world())
+        try:
+            self.scene = load_scene(world, p["mesh_file"], p["materials_file"])
+        except ValueError as exc:
+            raise ValueError(f"node {self.get_name()}: {exc}") from None
+        if self.scene.spherical is None:
+            raise ValueError(f"node {self.get_name()}: the world has no spherical_coordinates: it cannot be placed "
+                             f"on the Earth (parameter world_file/mesh_file)")
+        self.fresnel_rays = p["fresnel_rays"] if p["fresnel_rays"] >= 0 else preset_switches(p["preset"])[
+            "fresnel_rays"]
+        from gnss_sim_msgs.msg import Visibility
+
+        self.pub = self.create_lifecycle_publisher(Visibility, "visibility", 100)
+        self.image_pub = self.create_lifecycle_publisher(Image, "sky_view", 2)
+        self.diag_pub = self.create_lifecycle_publisher(DiagnosticArray, "/diagnostics", 10)
+        self.tf = TfSource(self)
+
+    def activate(self):
+        from gnss_sim_msgs.msg import SatelliteStates
+
+        self.sub = self.create_subscription(SatelliteStates, "satellite_states", self._on_states, 100)
+        self.timer = self.create_timer(0.01, self._drain)
+
+    def deactivate(self):
+        if self.sub is not None:
+            self.destroy_subscription(self.sub)
+            self.sub = None
+        if getattr(self, "timer", None) is not None:
+            self.destroy_timer(self.timer)
+            self.timer = None
+        self.queue.clear()
+
+    def cleanup(self):
+        self.deactivate()
+        for pub in (self.pub, self.image_pub, self.diag_pub):
+            if pub is not None:
+                self.destroy_publisher(pub)
+        self.pub = self.image_pub = self.diag_pub = None
+        if self.tf is not None:
+            self.tf.close()
+            self.tf = None
+        self.scene = None
+
+    # ------------------------------------------------------------------
+    def _on_states(self, msg):
+        self.queue.append(msg)
+        self._drain()
+
+    def _drain(self):
+        p = self.params
+        while self.queue:
+            msg = self.queue[0]
+            try:
+                tr, _ = self.tf.lookup(p["world_frame"], p["antenna_frame"], msg.header.stamp)
+            except LookupError:
+                now = self.get_clock().now().nanoseconds * 1e-9
+                stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+                if now - stamp > TF_WAIT_S:
+                    self.queue.popleft()
+                    self.dropped += 1
+                    self.get_logger().warning(f"no TF {p['antenna_frame']} -> {p['world_frame']} at {stamp:.3f} s:"
+                                              f" epoch dropped ({self.dropped} so far)")
+                    continue
+                return
+            self.queue.popleft()
+            self.process(msg, np.asarray(tr))
+
+    def process(self, msg, antenna_world_m):
+        from gnss_sim_msgs.msg import SatelliteVisibility, Visibility
+
+        _, states = states_from_msg(msg)
+        ecef = self.scene.antenna_ecef(antenna_world_m)
+        out = Visibility(header=Header(stamp=msg.header.stamp, frame_id=self.params["world_frame"]),
+                         antenna_world_m=Point(x=float(antenna_world_m[0]), y=float(antenna_world_m[1]),
+                                               z=float(antenna_world_m[2])),
+                         antenna_ecef_m=Point(x=float(ecef[0]), y=float(ecef[1]), z=float(ecef[2])))
+        sats = []
+        if len(states):
+            v = self.scene.visibility_ecef(antenna_world_m, states.pos_ecef_m, mask_deg=0.0,
+                                           fresnel_rays=self.fresnel_rays)
+            above = v.el_deg >= 0.0
+            for i in np.flatnonzero(above):
+                sats.append(SatelliteVisibility(
+                    sv=str(states.sv[i]), azimuth_deg=float(v.az_deg[i]), elevation_deg=float(v.el_deg[i]),
+                    state=int(max(v.state[i], 0)), attenuation_db=float(v.attenuation_db[i] + v.diffraction_db[i]),
+                    extra_path_m=float(v.extra_path_m[i]), fraction_blocked=float(v.fraction_blocked[i])))
+        out.satellites = sats
+        self.pub.publish(out)
+        self.processed += 1
+        t_s = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        if t_s - self._last_image_s >= SKY_VIEW_PERIOD_S and self.image_pub.get_subscription_count() > 0:
+            self._last_image_s = t_s
+            self.image_pub.publish(self._sky_image(out, antenna_world_m))
+        if self.processed % 10 == 1:
+            self._diagnose(len(sats))
+
+    def _sky_image(self, vis, antenna_world_m, size: int = 241) -> Image:
+        """A polar sky view (north up, zenith centre): skyline grey, satellites green/yellow/red."""
+        img = np.full((size, size, 3), 255, dtype=np.uint8)
+        c = size // 2
+        yy, xx = np.mgrid[0:size, 0:size]
+        dx, dy = xx - c, c - yy
+        r = np.hypot(dx, dy) / c  # 0 at zenith, 1 at the horizon
+        az = np.degrees(np.arctan2(dx, dy)) % 360.0
+        if self._horizon is None or np.linalg.norm(self._horizon[0] - antenna_world_m) > 1.0:
+            prof = self.scene.horizon_profile(antenna_world_m, az_step_deg=2.0)
+            self._horizon = (np.array(antenna_world_m), prof)
+        prof_az, prof_el = self._horizon[1]
+        sky_el = np.interp(az, prof_az, prof_el, period=360.0)
+        el_px = 90.0 * (1.0 - r)
+        img[(r <= 1.0) & (el_px <= sky_el)] = (170, 170, 170)
+        img[(r > 1.0)] = (40, 40, 40)
+        colors = {0: (0, 170, 0), 1: (200, 0, 0), 2: (230, 170, 0), 3: (0, 0, 200)}
+        for s in vis.satellites:
+            rr = (90.0 - s.elevation_deg) / 90.0 * c
+            x = int(round(c + rr * np.sin(np.radians(s.azimuth_deg))))
+            y = int(round(c - rr * np.cos(np.radians(s.azimuth_deg))))
+            img[max(0, y - 3):y + 4, max(0, x - 3):x + 4] = colors.get(s.state, (0, 0, 0))
+        return Image(header=vis.header, height=size, width=size, encoding="rgb8", is_bigendian=0, step=3 * size,
+                     data=img.tobytes())
+
+    def _diagnose(self, n: int):
+        status = DiagnosticStatus(name=f"{self.get_name()}: visibility", hardware_id="gnss_sim",
+                                  level=DiagnosticStatus.WARN if self.dropped else DiagnosticStatus.OK,
+                                  message=f"{self.processed} epochs, {self.dropped} dropped (no TF)")
+        status.values = [KeyValue(key="satellites_above_horizon", value=str(n)),
+                         KeyValue(key="epochs_processed", value=str(self.processed)),
+                         KeyValue(key="epochs_dropped", value=str(self.dropped))]
+        self.diag_pub.publish(DiagnosticArray(header=Header(stamp=self.get_clock().now().to_msg()), status=[status]))
+
+
+def main(args=None):
+    return run_node(VisibilityNode, args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
