@@ -35,6 +35,8 @@ setup(
             "trajectory_player = gnss_sim_ros2.nodes.trajectory_player:main",
             "visibility_node = gnss_sim_ros2.nodes.visibility_node:main",
             "receiver_node = gnss_sim_ros2.nodes.receiver_node:main",
+            "container = gnss_sim_ros2.nodes.container:main",
+            "lifecycle_manager = gnss_sim_ros2.nodes.lifecycle_manager:main",
         ],
     },
 )

@@ -44,12 +44,20 @@ REMAPPINGS = (
     ("nmea", f"{TOPIC_NAMESPACE}/nmea"),
 )
 
-#: topics a run records (rosbag2); the sky view images are left out (bulky)
-RECORDED_TOPICS = (
-    f"{TOPIC_NAMESPACE}/satellite_states", f"{TOPIC_NAMESPACE}/visibility", f"{TOPIC_NAMESPACE}/observations",
-    f"{TOPIC_NAMESPACE}/fix", f"{TOPIC_NAMESPACE}/vel", f"{TOPIC_NAMESPACE}/status", f"{TOPIC_NAMESPACE}/nmea",
-    "/tf", "/tf_static", "/diagnostics",
+#: topics a run records (rosbag2) with their types; the sky view images are left out (bulky)
+RECORDED = (
+    (f"{TOPIC_NAMESPACE}/satellite_states", "gnss_sim_msgs/msg/SatelliteStates"),
+    (f"{TOPIC_NAMESPACE}/visibility", "gnss_sim_msgs/msg/Visibility"),
+    (f"{TOPIC_NAMESPACE}/observations", "gnss_sim_msgs/msg/Observations"),
+    (f"{TOPIC_NAMESPACE}/fix", "sensor_msgs/msg/NavSatFix"),
+    (f"{TOPIC_NAMESPACE}/vel", "geometry_msgs/msg/TwistWithCovarianceStamped"),
+    (f"{TOPIC_NAMESPACE}/status", "gnss_sim_msgs/msg/ReceiverStatus"),
+    (f"{TOPIC_NAMESPACE}/nmea", "std_msgs/msg/String"),
+    ("/tf", "tf2_msgs/msg/TFMessage"),
+    ("/tf_static", "tf2_msgs/msg/TFMessage"),
+    ("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray"),
 )
+RECORDED_TOPICS = tuple(t for t, _ in RECORDED)
 
 
 def nodes(with_trajectory_player: bool = True) -> list[NodeSpec]:

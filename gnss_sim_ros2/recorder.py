@@ -15,7 +15,7 @@ from pathlib import Path
 
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
-from gnss_sim_ros2.graph import RECORDED_TOPICS
+from gnss_sim_ros2.graph import RECORDED
 
 
 def _msg_dir() -> Path:
@@ -42,7 +42,7 @@ def typestore():
 class BagRecorder:
     """Subscribe to ``topics`` on ``node`` and write every message into ``bag_dir``."""
 
-    def __init__(self, node, bag_dir: Path, topics=RECORDED_TOPICS):
+    def __init__(self, node, bag_dir: Path, topics=RECORDED):
         from rosbags.rosbag2 import StoragePlugin, Writer
 
         self.node = node
@@ -55,17 +55,9 @@ class BagRecorder:
         self.counts: dict[str, int] = {}
         self.connections = {}
         self.subs = []
-        self.topics = list(topics)
-        self._pending = set(self.topics)
         self.closed = False
-
-    def poll_topics(self):
-        """Subscribe to the wanted topics as soon as they (and their types) appear in the graph."""
-        if not self._pending:
-            return
-        for name, types in self.node.get_topic_names_and_types():
-            if name in self._pending and types:
-                self._subscribe(name, types[0])
+        for topic, ros_type in topics:  # before any node publishes: the first epoch is recorded too
+            self._subscribe(topic, ros_type)
 
     def _subscribe(self, topic: str, ros_type: str):
         import importlib
@@ -86,7 +78,6 @@ class BagRecorder:
             self.counts[topic] += 1
 
         self.subs.append(self.node.create_subscription(cls, topic, cb, qos, raw=True))
-        self._pending.discard(topic)
 
     def close(self):
         if self.closed:

@@ -125,6 +125,10 @@ class Runner:
         self.clock_pub = self.driver.create_publisher(Clock, "/clock", 10)
         self._subscribe_outputs()
         self.set_clock(0.0)
+        if not self.args.no_record:
+            from gnss_sim_ros2.recorder import BagRecorder
+
+            self.recorder = BagRecorder(self.driver, self.out / "bag")
         specs = graph.nodes()
         if self.args.processes:
             env = dict(os.environ)
@@ -147,10 +151,6 @@ class Runner:
                 self.local.append(node)
                 self.executor.add_node(node)
             self.manager = LocalNodes(self.local)
-        if not self.args.no_record:
-            from gnss_sim_ros2.recorder import BagRecorder
-
-            self.recorder = BagRecorder(self.driver, self.out / "bag")
         self.started = True
 
     def _subscribe_outputs(self):
@@ -197,8 +197,6 @@ class Runner:
         end = time.monotonic() + seconds
         while time.monotonic() < end:
             self.executor.spin_once(timeout_sec=0.005)
-            if self.recorder is not None:
-                self.recorder.poll_topics()
 
     # ------------------------------------------------------------------ run
     def run(self, stop) -> int:
@@ -239,8 +237,6 @@ class Runner:
             deadline = time.monotonic() + 10.0
             while not any(abs(s - t_s) < 1e-6 for s in list(self.status)[-3:]) and time.monotonic() < deadline:
                 self.executor.spin_once(timeout_sec=0.001)
-                if self.recorder is not None and k < 3:
-                    self.recorder.poll_topics()
             if not any(abs(s - t_s) < 1e-6 for s in self.status):
                 dropped += 1
             k_done = k + 1

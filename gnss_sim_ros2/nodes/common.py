@@ -102,7 +102,12 @@ class GnssSimNode(LifecycleNode):
 
     def on_activate(self, state) -> TransitionCallbackReturn:
         ret = super().on_activate(state)  # lifecycle publishers first: activate() may publish
-        self.activate()
+        try:
+            self.activate()
+        except Exception as exc:  # noqa: BLE001 - report any failure as the transition's error
+            self.last_error = f"activate: {type(exc).__name__}: {exc}"
+            self.get_logger().error(self.last_error)
+            return TransitionCallbackReturn.FAILURE
         return ret
 
     def on_deactivate(self, state) -> TransitionCallbackReturn:
@@ -132,23 +137,37 @@ class GnssSimNode(LifecycleNode):
         pass
 
 
-class TimeMapping:
-    """ROS time <-> GNSS time of a run (parameters start_time and time_mapping)."""
+def run_origin_ns(node) -> int:
+    """ROS time [ns] at which a run's time 0 lies: 0 on a simulated clock (Gazebo, gnss-sim run
+    start their /clock at 0), the current time on a wall clock (the run starts now)."""
+    use_sim = node.get_parameter("use_sim_time").value if node.has_parameter("use_sim_time") else False
+    return 0 if use_sim else node.get_clock().now().nanoseconds
 
-    def __init__(self, start_time_iso: str, mode: str = "offset"):
+
+class TimeMapping:
+    """ROS time <-> GNSS time of a run (parameters start_time and time_mapping).
+
+    ``offset``: GNSS time = start_time + (ROS time - origin), origin from :func:`run_origin_ns`;
+    ``utc``: ROS stamps are UNIX time in UTC (a robot on the wall clock of today).
+    """
+
+    def __init__(self, start_time_iso: str, mode: str = "offset", origin_ns: int = 0):
         self.start = GnssTime.from_iso(start_time_iso)
         self.mode = mode
+        self.origin_ns = int(origin_ns)
 
     def to_gnss(self, stamp) -> GnssTime:
         if self.mode == "offset":
-            return ros_time_to_gnss(stamp.sec, stamp.nanosec, offset=self.start)
+            ns = stamp.sec * 1_000_000_000 + stamp.nanosec - self.origin_ns
+            return ros_time_to_gnss(ns // 1_000_000_000, ns % 1_000_000_000, offset=self.start)
         return ros_time_to_gnss(stamp.sec, stamp.nanosec)
 
     def to_ros(self, t: GnssTime):
         from builtin_interfaces.msg import Time
 
         sec, ns = gnss_to_ros_time(t, offset=self.start if self.mode == "offset" else None)
-        return Time(sec=sec, nanosec=ns)
+        total = sec * 1_000_000_000 + ns + (self.origin_ns if self.mode == "offset" else 0)
+        return Time(sec=total // 1_000_000_000, nanosec=total % 1_000_000_000)
 
 
 def run_node(cls, args=None) -> int:

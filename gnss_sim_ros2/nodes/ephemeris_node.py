@@ -18,7 +18,7 @@ from std_msgs.msg import Header
 
 from gnss_sim_ros2.conversions import states_to_msg
 from gnss_sim_ros2.core.time import GnssTime
-from gnss_sim_ros2.nodes.common import GnssSimNode, TimeMapping, run_node
+from gnss_sim_ros2.nodes.common import GnssSimNode, TimeMapping, run_node, run_origin_ns
 
 SYSTEMS = set("GRECJI")
 
@@ -65,6 +65,7 @@ class EphemerisNode(GnssSimNode):
             self.nav_path = write_navigation(out / name, self.provider, p["systems"])
 
     def activate(self):
+        self.mapping.origin_ns = run_origin_ns(self)
         self.next_k = self._first_epoch_index()
         self.timer = self.create_timer(min(self.period_s, 0.05), self._tick)
         self._tick()  # the epoch the clock stands at now (a simulated clock may wait for it)

@@ -18,7 +18,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.time import Time
 
 from gnss_sim_ros2.core.trajectory import Trajectory, demo_trajectory
-from gnss_sim_ros2.nodes.common import GnssSimNode, run_node
+from gnss_sim_ros2.nodes.common import GnssSimNode, run_node, run_origin_ns
 
 STATIC_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
 
@@ -68,6 +68,7 @@ class TrajectoryPlayer(GnssSimNode):
         self.static_pub = self.create_lifecycle_publisher(_tf_type(), "/tf_static", STATIC_QOS)
 
     def activate(self):
+        self.origin_ns = run_origin_ns(self)  # path time 0: ROS time 0 (simulated clock) or now
         now = self.get_clock().now()
         self.next_tick = (now.nanoseconds // self.period_ns) * self.period_ns
         self.timer = self.create_timer(self.period_ns * 1e-9, self._tick)
@@ -106,8 +107,8 @@ class TrajectoryPlayer(GnssSimNode):
         if not ticks:
             return
         ts = np.array(ticks, dtype=np.int64)
-        pos = self.path.position(ts * 1e-9)
-        yaw = self.path.yaw(ts * 1e-9)
+        pos = self.path.position((ts - self.origin_ns) * 1e-9)
+        yaw = self.path.yaw((ts - self.origin_ns) * 1e-9)
         msgs = [transform(p["world_frame"], p["base_frame"], Time(nanoseconds=int(t)).to_msg(), pos[i], float(yaw[i]))
                 for i, t in enumerate(ts)]
         self.tf_pub.publish(TFMessage(transforms=msgs))

@@ -16,6 +16,7 @@ import sys
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Point
+from rclpy.clock import Clock, ClockType
 from sensor_msgs.msg import Image
 from std_msgs.msg import Header
 
@@ -73,7 +74,8 @@ class VisibilityNode(GnssSimNode):
         from gnss_sim_msgs.msg import SatelliteStates
 
         self.sub = self.create_subscription(SatelliteStates, "satellite_states", self._on_states, 100)
-        self.timer = self.create_timer(0.01, self._drain)
+        # a steady-clock timer: a simulated clock stands still while an epoch waits for its TF
+        self.timer = self.create_timer(0.005, self._drain, clock=Clock(clock_type=ClockType.STEADY_TIME))
 
     def deactivate(self):
         if self.sub is not None:

@@ -177,6 +177,8 @@ class Receiver:
         self._t_prev: GnssTime | None = None
         self._mp_state: dict[tuple[str, str], float] = {}
         self._world_terms: dict = {}
+        self._geo_key = None
+        self._geo = (0.0, 0.0, 0.0)
         self._signal_cache: dict = {}
 
     # ------------------------------------------------------------------
@@ -252,7 +254,10 @@ class Receiver:
         ddts = st.clock_drift_sps[sat_i]
 
         # atmosphere
-        lat, lon, h = ecef_to_geodetic(*rx)
+        key = (rx[0], rx[1], rx[2])
+        if self._geo_key != key:    # geodetic antenna position: computed again only when it moves
+            self._geo_key, self._geo = key, ecef_to_geodetic(*rx)
+        lat, lon, h = self._geo
         if cfg.ionosphere == "klobuchar":
             l1_delay = prop.klobuchar_l1_delay_s(t_true, lat, lon, az_j, el_j, self.iono_alpha, self.iono_beta)
             iono_model = prop.iono_code_delay_m(l1_delay, freq)
