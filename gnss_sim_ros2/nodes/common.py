@@ -39,6 +39,8 @@ class GnssSimNode(LifecycleNode):
         super().__init__(node_name or NODE_NAMES[self.PARAMS_KEY], **kwargs)
         self.params: dict = {}
         self.last_error = ""
+        self._owned_publishers: list = []  # made in configure, destroyed after cleanup()
+        self._owned_active: list = []      # timers and subscriptions made in activate, destroyed after deactivate()
         for p in params_of(self.PARAMS_KEY):
             ros_type, py_type = _KIND_TYPES[p.kind]
             desc = ParameterDescriptor(name=p.name, type=ros_type, description=p.description)
@@ -63,6 +65,38 @@ class GnssSimNode(LifecycleNode):
                     desc.floating_point_range = []
                     desc.integer_range = []
                     self.declare_parameter(p.name, p.default, desc)
+
+    # ----------------------------------------------------------- owned entities
+    def lifecycle_publisher(self, msg_type, topic: str, qos):
+        """A lifecycle publisher (configure), destroyed by the base class after ``cleanup()``."""
+        pub = self.create_lifecycle_publisher(msg_type, topic, qos)
+        self._owned_publishers.append(pub)
+        return pub
+
+    def active_timer(self, period_s: float, callback, clock=None):
+        """A timer (activate), destroyed by the base class after ``deactivate()``."""
+        timer = self.create_timer(period_s, callback, clock=clock)
+        self._owned_active.append(timer)
+        return timer
+
+    def active_subscription(self, msg_type, topic: str, callback, qos):
+        """A subscription (activate), destroyed by the base class after ``deactivate()``."""
+        sub = self.create_subscription(msg_type, topic, callback, qos)
+        self._owned_active.append(sub)
+        return sub
+
+    def _release_active(self):
+        for entity in self._owned_active:
+            if hasattr(entity, "timer_period_ns"):
+                self.destroy_timer(entity)
+            else:
+                self.destroy_subscription(entity)
+        self._owned_active = []
+
+    def _release_publishers(self):
+        for pub in self._owned_publishers:
+            self.destroy_publisher(pub)
+        self._owned_publishers = []
 
     # ----------------------------------------------------------- parameters
     def read_parameters(self) -> dict:
@@ -93,7 +127,7 @@ class GnssSimNode(LifecycleNode):
             self.last_error = str(exc)
             self.get_logger().error(f"configure failed: {exc}")
             try:
-                self.cleanup()
+                self.release()
             except Exception:  # noqa: BLE001 - best effort after a failed configure
                 pass
             return TransitionCallbackReturn.FAILURE
@@ -112,18 +146,26 @@ class GnssSimNode(LifecycleNode):
 
     def on_deactivate(self, state) -> TransitionCallbackReturn:
         self.deactivate()
+        self._release_active()
         return super().on_deactivate(state)
 
     def on_cleanup(self, state) -> TransitionCallbackReturn:
-        self.cleanup()
+        self.release()
         self.params = {}
         return TransitionCallbackReturn.SUCCESS
 
     def on_shutdown(self, state) -> TransitionCallbackReturn:
-        self.cleanup()
+        self.release()
         return TransitionCallbackReturn.SUCCESS
 
-    # subclasses
+    def release(self):
+        """Everything the node holds, whatever its state (idempotent): files closed, entities destroyed."""
+        self.deactivate()
+        self._release_active()
+        self.cleanup()
+        self._release_publishers()
+
+    # subclasses: make resources in configure/activate, free the rest (files, scenes) in cleanup
     def configure(self, params: dict):
         pass
 
@@ -186,7 +228,7 @@ def run_node(cls, args=None) -> int:
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
-        node.cleanup()
+        node.release()
         node.destroy_node()
         rclpy.try_shutdown()
     return 0

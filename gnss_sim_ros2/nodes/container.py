@@ -46,7 +46,7 @@ def main(args=None) -> int:
         pass
     finally:
         for n in nodes:
-            n.cleanup()
+            n.release()
             n.destroy_node()
         ctl.destroy_node()
         rclpy.try_shutdown()

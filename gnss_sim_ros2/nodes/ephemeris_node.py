@@ -31,7 +31,6 @@ class EphemerisNode(GnssSimNode):
         self.provider = None
         self.pub = None
         self.diag_pub = None
-        self.timer = None
         self.mapping = None
         self.next_k = 0
         self.published = 0
@@ -50,8 +49,8 @@ class EphemerisNode(GnssSimNode):
         self.provider, self.nav_paths = open_ephemeris(
             p["source"], self.mapping.start, p["duration_s"], p["systems"], p["nav_files"], p["sp3_files"],
             p["clk_files"], workdir=self._tmp.name, cache_dir=p["download_cache_dir"] or None)
-        self.pub = self.create_lifecycle_publisher(_msg_type(), "satellite_states", 100)
-        self.diag_pub = self.create_lifecycle_publisher(DiagnosticArray, "/diagnostics", 10)
+        self.pub = self.lifecycle_publisher(_msg_type(), "satellite_states", 100)
+        self.diag_pub = self.lifecycle_publisher(DiagnosticArray, "/diagnostics", 10)
         self.period_s = 1.0 / p["rate_hz"]
         self.nav_path = None
         if p["output_dir"]:
@@ -67,19 +66,10 @@ class EphemerisNode(GnssSimNode):
     def activate(self):
         self.mapping.origin_ns = run_origin_ns(self)
         self.next_k = self._first_epoch_index()
-        self.timer = self.create_timer(min(self.period_s, 0.05), self._tick)
+        self.active_timer(min(self.period_s, 0.05), self._tick)
         self._tick()  # the epoch the clock stands at now (a simulated clock may wait for it)
 
-    def deactivate(self):
-        if self.timer is not None:
-            self.destroy_timer(self.timer)
-            self.timer = None
-
     def cleanup(self):
-        self.deactivate()
-        for pub in (self.pub, self.diag_pub):
-            if pub is not None:
-                self.destroy_publisher(pub)
         self.pub = self.diag_pub = None
         self.provider = None
         if self._tmp is not None:

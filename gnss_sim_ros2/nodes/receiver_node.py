@@ -43,7 +43,6 @@ class ReceiverNode(GnssSimNode):
         self.writer = None
         self.nmea_file = None
         self.pubs = {}
-        self.subs = []
         self.states: dict[tuple, object] = {}
         self.vis: dict[tuple, object] = {}
         self.last_stamp = None
@@ -77,31 +76,25 @@ class ReceiverNode(GnssSimNode):
         from gnss_sim_msgs.msg import Observations, ReceiverStatus
 
         self.pubs = {
-            "obs": self.create_lifecycle_publisher(Observations, "observations", 100),
-            "fix": self.create_lifecycle_publisher(NavSatFix, "fix", 100),
-            "vel": self.create_lifecycle_publisher(TwistWithCovarianceStamped, "vel", 100),
-            "status": self.create_lifecycle_publisher(ReceiverStatus, "status", 100),
-            "nmea": self.create_lifecycle_publisher(String, "nmea", 100),
-            "diag": self.create_lifecycle_publisher(DiagnosticArray, "/diagnostics", 10),
+            "obs": self.lifecycle_publisher(Observations, "observations", 100),
+            "fix": self.lifecycle_publisher(NavSatFix, "fix", 100),
+            "vel": self.lifecycle_publisher(TwistWithCovarianceStamped, "vel", 100),
+            "status": self.lifecycle_publisher(ReceiverStatus, "status", 100),
+            "nmea": self.lifecycle_publisher(String, "nmea", 100),
+            "diag": self.lifecycle_publisher(DiagnosticArray, "/diagnostics", 10),
         }
 
     def activate(self):
         from gnss_sim_msgs.msg import SatelliteStates, Visibility
 
-        self.subs = [self.create_subscription(SatelliteStates, "satellite_states", self._on_states, 100),
-                     self.create_subscription(Visibility, "visibility", self._on_vis, 100)]
+        self.active_subscription(SatelliteStates, "satellite_states", self._on_states, 100)
+        self.active_subscription(Visibility, "visibility", self._on_vis, 100)
 
     def deactivate(self):
-        for s in self.subs:
-            self.destroy_subscription(s)
-        self.subs = []
         self.states.clear()
         self.vis.clear()
 
     def cleanup(self):
-        self.deactivate()
-        for pub in self.pubs.values():
-            self.destroy_publisher(pub)
         self.pubs = {}
         if self.writer is not None:
             self.writer.close()

@@ -47,7 +47,7 @@ class TrajectoryPlayer(GnssSimNode):
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
         self.path: Trajectory | None = None
-        self.tf_pub = self.static_pub = self.timer = None
+        self.tf_pub = self.static_pub = None
         self.next_tick = None
 
     def configure(self, p):
@@ -64,27 +64,18 @@ class TrajectoryPlayer(GnssSimNode):
         if len(p["antenna_offset_m"]) != 3:
             raise ValueError(f"node {self.get_name()}: parameter 'antenna_offset_m' needs 3 numbers")
         self.period_ns = int(round(1e9 / p["publish_rate_hz"]))
-        self.tf_pub = self.create_lifecycle_publisher(_tf_type(), "/tf", 100)
-        self.static_pub = self.create_lifecycle_publisher(_tf_type(), "/tf_static", STATIC_QOS)
+        self.tf_pub = self.lifecycle_publisher(_tf_type(), "/tf", 100)
+        self.static_pub = self.lifecycle_publisher(_tf_type(), "/tf_static", STATIC_QOS)
 
     def activate(self):
         self.origin_ns = run_origin_ns(self)  # path time 0: ROS time 0 (simulated clock) or now
         now = self.get_clock().now()
         self.next_tick = (now.nanoseconds // self.period_ns) * self.period_ns
-        self.timer = self.create_timer(self.period_ns * 1e-9, self._tick)
+        self.active_timer(self.period_ns * 1e-9, self._tick)
         self._static_pending = True
         self._tick()  # a simulated clock may stand still until the first epoch is answered
 
-    def deactivate(self):
-        if self.timer is not None:
-            self.destroy_timer(self.timer)
-            self.timer = None
-
     def cleanup(self):
-        self.deactivate()
-        for pub in (self.tf_pub, self.static_pub):
-            if pub is not None:
-                self.destroy_publisher(pub)
         self.tf_pub = self.static_pub = None
         self.path = None
 

@@ -39,7 +39,6 @@ class VisibilityNode(GnssSimNode):
         self.scene = None
         self.tf = None
         self.pub = self.image_pub = self.diag_pub = None
-        self.sub = None
         self.queue: collections.deque = collections.deque()
         self.processed = 0
         self.dropped = 0
@@ -65,32 +64,22 @@ class VisibilityNode(GnssSimNode):
             "fresnel_rays"]
         from gnss_sim_msgs.msg import Visibility
 
-        self.pub = self.create_lifecycle_publisher(Visibility, "visibility", 100)
-        self.image_pub = self.create_lifecycle_publisher(Image, "sky_view", 2)
-        self.diag_pub = self.create_lifecycle_publisher(DiagnosticArray, "/diagnostics", 10)
+        self.pub = self.lifecycle_publisher(Visibility, "visibility", 100)
+        self.image_pub = self.lifecycle_publisher(Image, "sky_view", 2)
+        self.diag_pub = self.lifecycle_publisher(DiagnosticArray, "/diagnostics", 10)
         self.tf = TfSource(self)
 
     def activate(self):
         from gnss_sim_msgs.msg import SatelliteStates
 
-        self.sub = self.create_subscription(SatelliteStates, "satellite_states", self._on_states, 100)
+        self.active_subscription(SatelliteStates, "satellite_states", self._on_states, 100)
         # a steady-clock timer: a simulated clock stands still while an epoch waits for its TF
-        self.timer = self.create_timer(0.005, self._drain, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self.active_timer(0.005, self._drain, clock=Clock(clock_type=ClockType.STEADY_TIME))
 
     def deactivate(self):
-        if self.sub is not None:
-            self.destroy_subscription(self.sub)
-            self.sub = None
-        if getattr(self, "timer", None) is not None:
-            self.destroy_timer(self.timer)
-            self.timer = None
         self.queue.clear()
 
     def cleanup(self):
-        self.deactivate()
-        for pub in (self.pub, self.image_pub, self.diag_pub):
-            if pub is not None:
-                self.destroy_publisher(pub)
         self.pub = self.image_pub = self.diag_pub = None
         if self.tf is not None:
             self.tf.close()

@@ -31,24 +31,16 @@ from __future__ import annotations
 import numpy as np
 
 from .. import constants as K
+from .kepler import gravity_j2_ecef
 
 #: RK4 step [s] (GLONASS ICD 5.1 A.3.1.2 asks for <= 60 s; RTKLIB uses 60 s)
 STEP_S = 30.0
 
 
 def glonass_acceleration(pos_m, vel_mps, acc_ls_mps2):
-    """Right-hand side of GLONASS ICD 5.1 A.3.1.2 in PZ-90 ECEF [m/s^2] (arrays (..., 3))."""
-    gm, ae, j2, w = K.GM_GLO_M3PS2, K.A_E_GLO_M, K.J2_GLO, K.OMEGA_E_GLO_RADPS
-    x, y, z = pos_m[..., 0], pos_m[..., 1], pos_m[..., 2]
-    r2 = x * x + y * y + z * z
-    r = np.sqrt(r2)
-    mu_r3 = gm / (r2 * r)
-    k = 1.5 * j2 * ae * ae / r2
-    zz = 5.0 * z * z / r2
-    ax = -mu_r3 * x * (1.0 + k * (1.0 - zz)) + w * w * x + 2.0 * w * vel_mps[..., 1] + acc_ls_mps2[..., 0]
-    ay = -mu_r3 * y * (1.0 + k * (1.0 - zz)) + w * w * y - 2.0 * w * vel_mps[..., 0] + acc_ls_mps2[..., 1]
-    az = -mu_r3 * z * (1.0 + k * (3.0 - zz)) + acc_ls_mps2[..., 2]
-    return np.stack([ax, ay, az], axis=-1)
+    """Right-hand side of GLONASS ICD 5.1 A.3.1.2 in PZ-90 ECEF [m/s^2] (arrays (..., 3)):
+    two-body + J2 in the rotating frame with the PZ-90 constants, plus the broadcast luni-solar terms."""
+    return gravity_j2_ecef(pos_m, vel_mps, K.GM_GLO_M3PS2, K.OMEGA_E_GLO_RADPS, K.A_E_GLO_M, K.J2_GLO) + acc_ls_mps2
 
 
 def rk4_step(pos, vel, acc_ls, h):
