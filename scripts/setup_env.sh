@@ -72,7 +72,10 @@ if ! stamp_ok deps "$h"; then
   log "installing Python packages (first run: a few minutes; pip caches the downloads)"
   args=()
   for f in "${req_files[@]}"; do args+=(-r "$f"); done
-  "$VPY" -m pip install -q "${args[@]}"
+  mkdir -p "$REPO/build"
+  "$VPY" -m pip install -q "${args[@]}" > "$REPO/build/pip-install.log" 2>&1 \
+    || { grep -v "is ignored: it is neither" "$REPO/build/pip-install.log" | tail -30 >&2;
+         die "pip install failed (log: $REPO/build/pip-install.log)"; }
   stamp_set deps "$h"
 fi
 
@@ -141,7 +144,8 @@ fi
 h=$(hash_of "$REPO"/setup.py "$REPO"/setup.cfg "$REPO"/package.xml)
 if ! stamp_ok pkg "$h"; then
   log "installing gnss_sim (editable)"
-  "$VPY" -m pip install -q --no-deps --no-build-isolation -e "$REPO"
+  "$VPY" -m pip install -q --no-deps --no-build-isolation -e "$REPO" > "$REPO/build/pip-install-pkg.log" 2>&1 \
+    || { tail -30 "$REPO/build/pip-install-pkg.log" >&2; die "installing gnss_sim failed"; }
   stamp_set pkg "$h"
 fi
 # setup.cfg puts executables in lib/gnss_sim (where `ros2 run` looks); expose

@@ -100,3 +100,8 @@ R_EARTH_MEAN_M = 6371008.8
 #: Vogel & Goldhirsh (IEEE Trans. Antennas Propag. 34(12), 1986, 869 MHz; fades 10-20 dB;
 #: see docs notes physics-anchors.md): 1.85 dB/m x 6.5 m = 12.0 dB.
 FOLIAGE_ATTENUATION_DB_PER_M = 1.85
+#: fixed foliage loss [dB] of the "touch" foliage model (any penetrable volume on the line of sight
+#: costs this, whatever the path length inside): the median single-tree fade of Vogel & Goldhirsh
+#: (IEEE Trans. Antennas Propag. 34(12), 1986; fades 10-20 dB), the figure FOLIAGE_ATTENUATION_DB_PER_M
+#: is scaled to (1.85 dB/m x 6.5 m)
+FOLIAGE_MEDIAN_LOSS_DB = 12.0

@@ -1,14 +1,32 @@
 """Earth frames: ECEF (WGS 84), geodetic (WGS 84), local ENU at a stated origin.
 
 Thin wrappers over pymap3d (one function for a scalar or an array) so that the
-rest of gnss_sim names frames and units the same way everywhere.  Angles are
+rest of gnss_sim names frames and units the same way everywhere, except the
+ECEF -> geodetic conversion, which the receiver, the solver and the visibility
+step call several times per epoch: it is computed here in closed form (Bowring
+1976, two iterations: round-off accurate from 300 km below the surface to
+beyond GNSS orbits, see test_frames.py), with pymap3d only for points deep
+inside the Earth.  Angles are
 degrees in names ending ``_deg``; ENU vectors are "east, north, up" at the
 geodetic origin (lat0_deg, lon0_deg, h0_m), up along the ellipsoid normal.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pymap3d
+
+from .constants import WGS84_A_M, WGS84_F
+
+# WGS 84 derived quantities (NIMA TR8350.2, 3rd ed., table 3.3)
+_B_M = WGS84_A_M * (1.0 - WGS84_F)          # semi-minor axis b [m]
+_E2 = WGS84_F * (2.0 - WGS84_F)             # first eccentricity squared e^2
+_EP2 = _E2 / (1.0 - _E2)                    # second eccentricity squared e'^2
+_ONE_M_F = 1.0 - WGS84_F
+#: closer to the Earth centre than this [m], ecef_to_geodetic hands over to pymap3d (the fast
+#: iteration is verified from 300 km below the surface outwards; such points are no antenna)
+_FAST_MIN_RADIUS_M = 5.0e6
 
 
 def geodetic_to_ecef(lat_deg, lon_deg, h_m):
@@ -17,8 +35,43 @@ def geodetic_to_ecef(lat_deg, lon_deg, h_m):
 
 
 def ecef_to_geodetic(x_m, y_m, z_m):
-    """ECEF [m] -> geodetic (WGS 84). Returns (lat_deg, lon_deg, h_m); lon in (-180, 180]."""
-    return pymap3d.ecef2geodetic(x_m, y_m, z_m)
+    """ECEF [m] -> geodetic (WGS 84). Returns (lat_deg, lon_deg, h_m); lon in (-180, 180].
+
+    Scalars give numpy float64 scalars, arrays (broadcast) give arrays.  Bowring's
+    (1976, Survey Review 23:323) iteration on the reduced latitude beta, started at
+    tan beta = a z / (b p), p = hypot(x, y):
+    tan lat = (z + e'^2 b sin^3 beta) / (p - e^2 a cos^3 beta), tan beta = (1 - f) tan lat,
+    two iterations; h = p cos lat + z sin lat - a sqrt(1 - e^2 sin^2 lat) (no loss of
+    precision at the poles).  Against pymap3d's geodetic2ecef round trip: latitude and
+    height within 1e-7 m from -300 km to 40 000 km height (test_frames.py).
+    """
+    if np.ndim(x_m) == 0 and np.ndim(y_m) == 0 and np.ndim(z_m) == 0:
+        x, y, z = float(x_m), float(y_m), float(z_m)
+        p = math.hypot(x, y)
+        if math.hypot(p, z) < _FAST_MIN_RADIUS_M or not math.isfinite(p + z):
+            return pymap3d.ecef2geodetic(x, y, z)
+        beta = math.atan2(z, _ONE_M_F * p)
+        for _ in range(2):
+            sb, cb = math.sin(beta), math.cos(beta)
+            lat = math.atan2(z + _EP2 * _B_M * sb * sb * sb, p - _E2 * WGS84_A_M * cb * cb * cb)
+            beta = math.atan2(_ONE_M_F * math.sin(lat), math.cos(lat))
+        sl, cl = math.sin(lat), math.cos(lat)
+        h = p * cl + z * sl - WGS84_A_M * math.sqrt(1.0 - _E2 * sl * sl)
+        return np.float64(math.degrees(lat)), np.float64(math.degrees(math.atan2(y, x))), np.float64(h)
+    x, y, z = np.broadcast_arrays(np.asarray(x_m, dtype=np.float64), np.asarray(y_m, dtype=np.float64),
+                                  np.asarray(z_m, dtype=np.float64))
+    p = np.hypot(x, y)
+    r = np.hypot(p, z)
+    if not np.all(r >= _FAST_MIN_RADIUS_M):     # deep inside the Earth, or NaN: pymap3d's own handling
+        return pymap3d.ecef2geodetic(x, y, z)
+    beta = np.arctan2(z, _ONE_M_F * p)
+    for _ in range(2):
+        sb, cb = np.sin(beta), np.cos(beta)
+        lat = np.arctan2(z + _EP2 * _B_M * sb**3, p - _E2 * WGS84_A_M * cb**3)
+        beta = np.arctan2(_ONE_M_F * np.sin(lat), np.cos(lat))
+    sl, cl = np.sin(lat), np.cos(lat)
+    h = p * cl + z * sl - WGS84_A_M * np.sqrt(1.0 - _E2 * sl * sl)
+    return np.degrees(lat), np.degrees(np.arctan2(y, x)), h
 
 
 def enu_rotation(lat0_deg, lon0_deg) -> np.ndarray:
@@ -54,11 +107,26 @@ def az_el_from_ecef(rx_ecef_m, sat_ecef_m):
     Returns (az_deg in [0, 360), el_deg in [-90, 90], range_m).
     """
     rx = np.asarray(rx_ecef_m, dtype=np.float64)
-    sat = np.asarray(sat_ecef_m, dtype=np.float64)
     lat, lon, _ = ecef_to_geodetic(rx[..., 0], rx[..., 1], rx[..., 2])
+    return az_el_at(rx, lat, lon, sat_ecef_m)
+
+
+def az_el_at(rx_ecef_m, lat_deg, lon_deg, sat_ecef_m):
+    """:func:`az_el_from_ecef` with the receiver's geodetic latitude/longitude already known.
+
+    ``rx_ecef_m`` [3] or [..., 3]; ``lat_deg``/``lon_deg`` its geodetic position (broadcast
+    like ``rx_ecef_m[..., 0]``); ``sat_ecef_m`` [..., 3].  Returns (az_deg, el_deg, range_m)
+    in the ENU frame at (lat_deg, lon_deg).
+    """
+    rx = np.asarray(rx_ecef_m, dtype=np.float64)
+    sat = np.asarray(sat_ecef_m, dtype=np.float64)
     d = sat - rx
-    lat_r, lon_r = np.radians(lat), np.radians(lon)
-    sl, cl, so, co = np.sin(lat_r), np.cos(lat_r), np.sin(lon_r), np.cos(lon_r)
+    if np.ndim(lat_deg) == 0 and np.ndim(lon_deg) == 0:
+        lat_r, lon_r = math.radians(lat_deg), math.radians(lon_deg)
+        sl, cl, so, co = math.sin(lat_r), math.cos(lat_r), math.sin(lon_r), math.cos(lon_r)
+    else:
+        lat_r, lon_r = np.radians(lat_deg), np.radians(lon_deg)
+        sl, cl, so, co = np.sin(lat_r), np.cos(lat_r), np.sin(lon_r), np.cos(lon_r)
     e = -so * d[..., 0] + co * d[..., 1]
     n = -sl * co * d[..., 0] - sl * so * d[..., 1] + cl * d[..., 2]
     u = cl * co * d[..., 0] + cl * so * d[..., 1] + sl * d[..., 2]

@@ -1,30 +1,86 @@
 """Fidelity presets: default values of the model switches (speed against accuracy).
 
-Each switch, what it costs and what it buys (figures: README, `gnss-sim bench`):
-- ``transmit_time``: "recompute" evaluates the ephemeris again at the transmit
-  time of each satellite (light time iterated, ~3 extra ephemeris calls per
-  epoch); "expansion" moves the epoch's states back with a second-order
-  Taylor series (sub-millimetre over 0.07 s, no extra calls).
-- ``light_time_iterations``: 1 leaves ~1 mm of range error, 2 far below.
-- ``ionosphere`` / ``troposphere``: "none" saves the models' evaluation and
-  removes the delays from both the observations and the receiver's corrections.
+A preset is a dict of switches; ``SimulationSetup.switches`` overrides single
+ones, ``ReceiverConfig`` overrides (``SimulationSetup.receiver``) win over both.
+Costs are per epoch of the demo scenario (courtyard world, demo path, synthetic
+GRECJI constellation, ~45 satellites above the horizon, 2-core machine);
+effects are measured by ``gnss-sim bench`` (README trade table) and
+``bench/bench_skips.py``.
+
+- ``orbit``: "broadcast" keeps the navigation message; "precise" uses the SP3
+  orbits and clocks when the setup gives ``sp3_files`` (else broadcast).
+  Cost: none per epoch (an SP3 file loads in about the time of a navigation
+  file).  Effect: the satellite positions/clocks the observations are built
+  from are the truth instead of the broadcast prediction (SISRE ~0.7 m GPS);
+  without broadcast group delays (SP3 clocks are ionosphere-free).
+- ``transmit_time``: "recompute" evaluates the ephemeris again at the
+  transmit time of each satellite (``light_time_iterations`` extra ephemeris
+  calls per epoch, ~0.4 ms each); "expansion" moves the epoch's states back
+  with a second-order Taylor series (no extra calls; range error < 1 mm for
+  the 0.07-0.09 s light time).
+- ``light_time_iterations``: 1 leaves ~1 mm of range error, 2 ~1e-6 m, 3 is
+  converged to float precision.  Cost: a few vector operations per iteration
+  (expansion) or one ephemeris evaluation (recompute).
+- ``ionosphere`` / ``troposphere``: "klobuchar" / "saastamoinen" or "none".
+  "none" removes the delays (2-30 m) from the observations *and* the
+  receiver's own corrections: the position fix is unchanged but the
+  pseudoranges no longer look like a real receiver's.  Cost ~0.1 ms each.
+- ``noise``: thermal noise, multipath, clock wander, ionosphere residual,
+  SISRE.  Cost ~0.5 ms (the per-signal multipath recursion is a Python loop).
+  On in every preset: the errors are what a receiver simulator is for; the
+  benchmark turns it off only to isolate model differences.
 - ``fresnel_rays``: rays over the first Fresnel zone per satellite for soft
-  edges (0 = one ray: a hard shadow).
-- ``noise``: thermal noise, multipath, clock wander, iono residual.
+  edges and a knife-edge diffraction loss (0 = one ray: a hard shadow).
+  Cost: K + 1 rays (and a probe ring) per satellite instead of one occlusion
+  test; 8 rays ~4x the raycasting time.  Effect: C/N0 drops near edges, so
+  tracked sets differ by a few satellites per epoch near buildings.
+- ``foliage``: "path" measures the path length through every tree crown hit
+  (``list_intersections``) and charges dB/m; "touch" only tests whether a ray
+  touches foliage and charges the fixed median single-tree fade
+  (constants.FOLIAGE_MEDIAN_LOSS_DB).  Cost: one multi-hit query for the rays
+  touching foliage.  Effect: thin or doubled crowns get the median loss.
+- ``epoch_interval_s``: the epoch interval a run uses when its setup leaves
+  it open (``SimulationSetup.interval_s <= 0``, as the benchmark does).  The
+  cost of one epoch is nearly independent of the interval, so the real-time
+  factor scales with it; the receiver keeps tracking (no interpolation).
 """
 from __future__ import annotations
 
+#: the switches every preset sets (see the module docstring)
+SWITCHES = ("orbit", "transmit_time", "light_time_iterations", "ionosphere", "troposphere", "noise",
+            "fresnel_rays", "foliage", "epoch_interval_s")
+
 PRESETS: dict[str, dict] = {
-    "fast": {"transmit_time": "expansion", "light_time_iterations": 1, "ionosphere": "klobuchar",
-             "troposphere": "saastamoinen", "fresnel_rays": 0},
-    "balanced": {"transmit_time": "recompute", "light_time_iterations": 2, "ionosphere": "klobuchar",
-                 "troposphere": "saastamoinen", "fresnel_rays": 0},
-    "accurate": {"transmit_time": "recompute", "light_time_iterations": 3, "ionosphere": "klobuchar",
-                 "troposphere": "saastamoinen", "fresnel_rays": 8},
+    "fast": {"orbit": "broadcast", "transmit_time": "expansion", "light_time_iterations": 1,
+             "ionosphere": "klobuchar", "troposphere": "saastamoinen", "noise": True, "fresnel_rays": 0,
+             "foliage": "touch", "epoch_interval_s": 10.0},
+    "balanced": {"orbit": "broadcast", "transmit_time": "expansion", "light_time_iterations": 2,
+                 "ionosphere": "klobuchar", "troposphere": "saastamoinen", "noise": True, "fresnel_rays": 0,
+                 "foliage": "path", "epoch_interval_s": 1.0},
+    "accurate": {"orbit": "precise", "transmit_time": "recompute", "light_time_iterations": 3,
+                 "ionosphere": "klobuchar", "troposphere": "saastamoinen", "noise": True, "fresnel_rays": 8,
+                 "foliage": "path", "epoch_interval_s": 1.0},
 }
 
+_CHOICES = {"orbit": ("broadcast", "precise"), "transmit_time": ("recompute", "expansion"),
+            "ionosphere": ("klobuchar", "none"), "troposphere": ("saastamoinen", "none"),
+            "foliage": ("path", "touch")}
 
-def preset(name: str) -> dict:
+
+def preset(name: str, overrides: dict | None = None) -> dict:
+    """The switches of preset ``name`` with ``overrides`` applied (checked)."""
     if name not in PRESETS:
         raise ValueError(f"unknown preset {name!r} (parameter preset: {', '.join(PRESETS)})")
-    return dict(PRESETS[name])
+    out = dict(PRESETS[name])
+    for key, value in (overrides or {}).items():
+        if key not in SWITCHES:
+            raise ValueError(f"unknown preset switch {key!r} (switches: {', '.join(SWITCHES)})")
+        if key in _CHOICES and value not in _CHOICES[key]:
+            raise ValueError(f"preset switch {key!r} = {value!r}: use one of {', '.join(_CHOICES[key])}")
+        if key in ("light_time_iterations", "fresnel_rays") and (int(value) != value or value < (
+                1 if key == "light_time_iterations" else 0)):
+            raise ValueError(f"preset switch {key!r} = {value!r}: a non-negative integer (>= 1 for iterations)")
+        if key == "epoch_interval_s" and not value > 0:
+            raise ValueError(f"preset switch 'epoch_interval_s' = {value!r}: must be > 0")
+        out[key] = value
+    return out

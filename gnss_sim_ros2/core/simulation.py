@@ -4,6 +4,18 @@ Per epoch (GPS time tag t on the grid start + k * interval):
 antenna position (static, or along a path) -> satellite states at t ->
 visibility from the scene (if any) -> receiver observables -> position fix ->
 RINEX epoch (written and handed to the OS at once) and a fix.csv row.
+
+Offline the whole trajectory is known in advance, so the first three steps run
+for ``SimulationSetup.batch_epochs`` epochs at once: one ephemeris evaluation
+(``states_at``) for every satellite and epoch of the block, one
+azimuth/elevation computation and one Open3D query for all rays of the block.
+Satellites more than 1 degree below the horizon never reach the receiver (it
+drops everything below 0 degrees itself); only the systems simulated are
+evaluated; the ephemeris is loaded for the simulated span only (provider.py).
+The results equal the epoch-by-epoch chain (test_simulation_batch.py).
+
+Model switches come from the preset (core/presets.py) with
+``SimulationSetup.switches`` overriding single ones.
 """
 from __future__ import annotations
 
@@ -48,6 +60,14 @@ class SimulationSetup:
     marker_name: str = "GSIM"
     seed: int = 1
     progress: bool = False
+    #: preset switch overrides (core/presets.SWITCHES), e.g. {"foliage": "touch"}
+    switches: dict = field(default_factory=dict)
+    #: epochs whose states, elevations and raycasts are computed in one block (1: epoch by epoch)
+    batch_epochs: int = 300
+    #: drop scene triangles that cannot block a ray above the mask from the trajectory (crop_world_mesh)
+    crop_scene: bool = False
+    #: called after every epoch as observer(t, true_ecef_m, obs, sol) (benchmarks, tests)
+    observer: object = None
 
 
 @dataclass
@@ -64,6 +84,9 @@ class SimulationResult:
     horizontal_error_m: list
     wall_s: float
     sim_s: float
+    setup_s: float = 0.0          # scene, ephemeris and files before the first epoch [s]
+    interval_s: float = 0.0
+    orbit_source: str = ""
 
     @property
     def realtime_factor(self) -> float:
@@ -79,6 +102,32 @@ def load_scene(world_file: str = "", mesh_file: str = "", materials_file: str = 
     if mesh_file:
         return Scene.load(mesh_file)
     return Scene.from_sdf(world_file, materials_yaml=materials_file or None)
+
+
+def crop_world_mesh(world, antenna_world_m, mask_deg: float, margin_deg: float = 0.0):
+    """The triangles of ``world`` (a WorldMesh) that may block a ray at or above the mask.
+
+    A ray from an antenna p at elevation >= m rises tan(m) per metre of
+    horizontal distance, so a triangle whose highest vertex z_t and nearest
+    horizontal distance d to the bounding box of the antenna positions satisfy
+    z_t - z_min < tan(m) d can never block it (conservative: the whole box
+    against the triangle's bounding box).  ``m`` = ``mask_deg - margin_deg``
+    (margin for the tilt of geodetic up across the world and for Fresnel rays).
+    Returns (cropped WorldMesh, number of triangles dropped).
+    """
+    import dataclasses
+
+    a = np.asarray(antenna_world_m, dtype=np.float64).reshape(-1, 3)
+    m_deg = max(float(mask_deg) - float(margin_deg), 0.0)
+    tri = world.vertices_m[world.triangles]                       # (T, 3, 3)
+    lo, hi = tri.min(axis=1), tri.max(axis=1)
+    bmin, bmax = a.min(axis=0), a.max(axis=0)
+    dx = np.maximum(0.0, np.maximum(lo[:, 0] - bmax[0], bmin[0] - hi[:, 0]))
+    dy = np.maximum(0.0, np.maximum(lo[:, 1] - bmax[1], bmin[1] - hi[:, 1]))
+    keep = hi[:, 2] - bmin[2] >= np.tan(np.radians(m_deg)) * np.hypot(dx, dy)
+    parts = []
+    out = dataclasses.replace(world, triangles=world.triangles[keep], material=world.material[keep], parts=parts)
+    return out, int((~keep).sum())
 
 
 class AntennaPath:
@@ -105,12 +154,40 @@ class AntennaPath:
         world = self.scene.spherical.ecef_to_world(ecef) if self.scene is not None else None
         return ecef, world
 
+    def at_many(self, t_s):
+        """(ecef (K, 3), world (K, 3) or None) at the times ``t_s`` (K,)."""
+        p = np.asarray(self.tr.position(np.asarray(t_s, dtype=float)), dtype=float).reshape(-1, 3)
+        if self.tr.frame == "world":
+            return self.scene.antenna_ecef(p), p
+        if self.tr.frame == "geodetic":
+            ecef = np.stack(geodetic_to_ecef(p[:, 0], p[:, 1], p[:, 2]), axis=-1)
+        else:
+            ecef = p
+        world = self.scene.spherical.ecef_to_world(ecef) if self.scene is not None else None
+        return ecef, world
+
+
+def switches(setup: SimulationSetup) -> dict:
+    """The preset's switches with the setup's overrides."""
+    return preset_switches(setup.preset, setup.switches)
+
+
+def orbit_source(setup: SimulationSetup, sw: dict | None = None) -> str:
+    """The ephemeris source after the ``orbit`` switch: "precise" takes SP3 when sp3_files are given,
+    "broadcast" takes the navigation files when they are given."""
+    sw = sw or switches(setup)
+    if sw["orbit"] == "precise" and setup.sp3_files and setup.source in ("broadcast", "sp3"):
+        return "sp3"
+    if sw["orbit"] == "broadcast" and setup.source == "sp3" and setup.nav_files:
+        return "broadcast"
+    return setup.source
+
 
 def receiver_config(setup: SimulationSetup) -> ReceiverConfig:
-    sw = preset_switches(setup.preset)
+    sw = switches(setup)
     kw = {"systems": setup.systems, "elevation_mask_deg": setup.elevation_mask_deg, "seed": setup.seed,
           "transmit_time": sw["transmit_time"], "light_time_iterations": sw["light_time_iterations"],
-          "ionosphere": sw["ionosphere"], "troposphere": sw["troposphere"]}
+          "ionosphere": sw["ionosphere"], "troposphere": sw["troposphere"], "noise": sw["noise"]}
     kw.update({k: v for k, v in setup.receiver.items() if v is not None and v != ""})
     return ReceiverConfig(**kw)
 

@@ -18,6 +18,11 @@ opaque surface, 2 attenuated by penetrable volumes (foliage), 3 reserved for
 Queries: satellites below ``mask_deg`` are never cast; a scene without
 penetrable triangles uses only ``test_occlusions``; the penetrable path is
 measured only for rays that are not blocked (a blocked ray reports 0 dB).
+Foliage model (``foliage``): "path" (default) measures the path length inside
+the penetrable volumes (``list_intersections``, every crossing) and charges
+its dB/m; "touch" asks only whether the ray touches foliage at all (one
+``test_occlusions``) and charges the fixed ``foliage_touch_db`` (default
+constants.FOLIAGE_MEDIAN_LOSS_DB; ``path_in_foliage_m`` is NaN there).
 
 Soft edges (``fresnel_rays`` = K > 0): K extra rays per line of sight, spread
 over the first Fresnel zone at the obstacle (a sunflower pattern over the disc
@@ -41,7 +46,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import frames
-from ..constants import C_MPS, F_L1_HZ
+from ..constants import C_MPS, F_L1_HZ, FOLIAGE_MEDIAN_LOSS_DB
 from .raycast import RayScene
 from .sdf_world import WorldMesh
 
@@ -177,13 +182,17 @@ class Scene:
     # ---------------------------------------------------------------- visibility
     def visibility(self, antenna_world_m, sat_dirs_enu=None, *, az_deg=None, el_deg=None, mask_deg: float = 0.0,
                    fresnel_rays: int = 0, wavelength_m: float = L1_WAVELENGTH_M, fresnel_probe_m: float = 20.0,
-                   tnear_m: float = 1e-3) -> VisibilityResult:
+                   tnear_m: float = 1e-3, foliage: str = "path",
+                   foliage_touch_db: float = FOLIAGE_MEDIAN_LOSS_DB) -> VisibilityResult:
         """Line-of-sight state for M antenna positions x N satellites.
 
         ``antenna_world_m``: (3,) or (M, 3) world frame [m].  Directions as ``sat_dirs_enu`` (N, 3) or
         (M, N, 3) (need not be unit) or ``az_deg``/``el_deg`` (N,) or (M, N), in the local ENU frame of
-        each antenna.  Satellites below ``mask_deg`` are not cast (state -1).
+        each antenna.  Satellites below ``mask_deg`` are not cast (state -1).  ``foliage``: "path" or
+        "touch" (module docstring).
         """
+        if foliage not in ("path", "touch"):
+            raise ValueError(f"visibility: parameter 'foliage' must be 'path' or 'touch', got {foliage!r}")
         a = np.asarray(antenna_world_m, dtype=np.float64)
         single = a.ndim == 1
         a = a.reshape(-1, 3)
@@ -248,11 +257,17 @@ class Scene:
             clear = np.flatnonzero(~blocked)
             r_clear = rays[clear]
             o = r_clear[:, :3].astype(np.float64) + self.rays.center_m
-            db, ln = self.rays.penetration(o, r_clear[:, 3:].astype(np.float64))
             idx = clear if all_cast else flat[clear]
-            att_db.reshape(-1)[idx] = db
-            path.reshape(-1)[idx] = ln
-            st[clear[ln > 0]] = STATE_ATTENUATED
+            if foliage == "touch":
+                touched = self.rays.touches_penetrable(o, r_clear[:, 3:].astype(np.float64))
+                att_db.reshape(-1)[idx] = np.where(touched, float(foliage_touch_db), 0.0)
+                path.reshape(-1)[idx] = np.where(touched, np.nan, 0.0)
+                st[clear[touched]] = STATE_ATTENUATED
+            else:
+                db, ln = self.rays.penetration(o, r_clear[:, 3:].astype(np.float64))
+                att_db.reshape(-1)[idx] = db
+                path.reshape(-1)[idx] = ln
+                st[clear[ln > 0]] = STATE_ATTENUATED
         if all_cast:
             state = st.reshape(shape)
         else:
