@@ -2,7 +2,10 @@
 
 1. ``Receiver.epoch`` with 40 satellites x 3 signals (synthetic GPS/GLONASS/Galileo/BeiDou/QZSS,
    static antenna, transmit time recomputed from the ephemeris as in the "balanced" preset): median and
-   90th percentile of the wall time of one call over many successive epochs (1 s apart).
+   90th percentile of the wall time of one call over many successive epochs (1 s apart); the same for
+   ``position_fix`` on those observables (prior: the previous fix, as the simulation and the node do)
+   and for ``Receiver.epoch`` without an ephemeris provider (the receiver node: expansion from the
+   states at the epoch).
 2. ``gnss-sim simulate --synthetic --duration 3600 --rate 1`` (demo world worlds/courtyard.sdf and the
    demo path: raycast visibility, receiver, position fix, RINEX writing) as a factor of real time
    (target >= 200x), timed from outside the process (start-up included) and as the command reports it.
@@ -33,6 +36,7 @@ def bench_epoch(n_epochs: int, n_sats: int = 40) -> dict:
     from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris
     from gnss_sim_ros2.core.frames import az_el_from_ecef
     from gnss_sim_ros2.core.receiver.engine import Receiver, ReceiverConfig
+    from gnss_sim_ros2.core.receiver.outputs import position_fix
     from gnss_sim_ros2.core.time import GnssTime
 
     t0 = GnssTime.from_iso("2022-01-01T00:00:00")
@@ -45,19 +49,34 @@ def bench_epoch(n_epochs: int, n_sats: int = 40) -> dict:
         if np.sum(el > 0.0) < n_sats:
             raise SystemExit(f"only {np.sum(el > 0.0)} satellites above the horizon; cannot bench {n_sats}")
         svs = list(np.asarray(st.sv)[order[:n_sats]])
-        rcv = Receiver(ReceiverConfig(profile=PROFILE_3, systems=SYSTEMS, elevation_mask_deg=0.0), prov, prov.iono)
-        times = []
+        cfg = ReceiverConfig(profile=PROFILE_3, systems=SYSTEMS, elevation_mask_deg=0.0)
+        rcv = Receiver(cfg, prov, prov.iono)
+        rcv_node = Receiver(ReceiverConfig(profile=PROFILE_3, systems=SYSTEMS, elevation_mask_deg=0.0), None,
+                            prov.iono)
+        times, times_fix, times_node = [], [], []
         n_sig = []
+        prior = None
         for i in range(n_epochs):
             t = t0 + float(i)
             s = prov.states(t, svs=svs)
             w0 = time.perf_counter()
             obs = rcv.epoch(t, rx, s)
-            times.append(time.perf_counter() - w0)
+            w1 = time.perf_counter()
+            sol = position_fix(obs, cfg.profile, prior)
+            w2 = time.perf_counter()
+            rcv_node.epoch(t, rx, s)
+            w3 = time.perf_counter()
+            prior = sol.pos_ecef_m if sol.is_fix else prior
+            times.append(w1 - w0)
+            times_fix.append(w2 - w1)
+            times_node.append(w3 - w2)
             n_sig.append(len(obs.sv))
-    times = np.array(times[5:])          # first epochs fill caches
-    return {"median_s": float(np.median(times)), "p90_s": float(np.percentile(times, 90)),
-            "signals": int(np.median(n_sig)), "sats": n_sats, "epochs": len(times)}
+    out = {"signals": int(np.median(n_sig)), "sats": n_sats}
+    for name, v in (("", times), ("fix_", times_fix), ("node_", times_node)):
+        v = np.array(v[5:])          # first epochs fill caches
+        out.update({name + "median_s": float(np.median(v)), name + "p90_s": float(np.percentile(v, 90)),
+                    name + "p99_s": float(np.percentile(v, 99)), "epochs": len(v)})
+    return out
 
 
 def bench_simulate(duration_s: float) -> dict:
@@ -105,6 +124,10 @@ def main(argv=None) -> int:
     print(f"Receiver.epoch, {r['sats']} satellites x 3 signals ({r['signals']} tracked signals): "
           f"median {r['median_s'] * 1e3:.2f} ms, p90 {r['p90_s'] * 1e3:.2f} ms over {r['epochs']} epochs "
           f"({1.0 / r['median_s']:.0f} epochs/s)")
+    print(f"position_fix on those observables: median {r['fix_median_s'] * 1e3:.2f} ms, "
+          f"p90 {r['fix_p90_s'] * 1e3:.2f} ms, p99 {r['fix_p99_s'] * 1e3:.2f} ms")
+    print(f"Receiver.epoch without provider (receiver node, expansion): median {r['node_median_s'] * 1e3:.2f} ms, "
+          f"p90 {r['node_p90_s'] * 1e3:.2f} ms, p99 {r['node_p99_s'] * 1e3:.2f} ms")
     if not a.skip_simulate:
         s = bench_simulate(a.duration)
         print(f"gnss-sim simulate --synthetic (demo world and path), {a.duration:.0f} s at 1 Hz: "

@@ -21,7 +21,10 @@ COMMANDS = {
     "config": ("config", "print the default parameter file (config/gnss_sim.yaml) or check one"),
     "export-world": ("export_world", "export an SDF world's geometry and materials to a scene mesh (PLY + sidecar)"),
     "skyplot": ("skyplot", "line-of-sight state of every satellite from a point of a world (CSV, sky plot PNG)"),
+    "bench": ("bench", "speed against accuracy of the fidelity presets: table, JSON, cost/accuracy plot"),
     "satpos": ("satpos", "satellite positions, velocities and clocks on a time grid (broadcast or SP3) as CSV"),
+    "compare": ("compare", "compare simulated and real observations (RINEX or bag): differences, visibility, "
+                "positions; Markdown report with figures"),
 }
 
 

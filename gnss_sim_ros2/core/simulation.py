@@ -29,7 +29,8 @@ from pathlib import Path
 import numpy as np
 
 from .ephemeris.provider import open_ephemeris
-from .frames import geodetic_to_ecef
+from .ephemeris.states import SatelliteStates
+from .frames import az_el_from_ecef, geodetic_to_ecef
 from .presets import preset as preset_switches
 from .receiver.engine import ATTENUATED, BLOCKED, VISIBLE, Receiver, ReceiverConfig
 from .receiver.outputs import epoch_arrays, header, obs_types_for, position_fix, rinex_name, write_navigation
@@ -68,6 +69,11 @@ class SimulationSetup:
     crop_scene: bool = False
     #: called after every epoch as observer(t, true_ecef_m, obs, sol) (benchmarks, tests)
     observer: object = None
+    #: already loaded scene (core.scene.visibility.Scene) to use instead of world_file/mesh_file
+    scene: object = None
+    #: already opened ephemerides by source name: {"broadcast": (provider, nav_paths), "sp3": ...};
+    #: used instead of opening the files again (benchmarks running one scenario many times)
+    ephemeris: dict = field(default_factory=dict)
 
 
 @dataclass
@@ -193,24 +199,47 @@ def receiver_config(setup: SimulationSetup) -> ReceiverConfig:
 
 
 def run_simulation(setup: SimulationSetup) -> SimulationResult:
+    t_setup0 = time.perf_counter()
+    sw = switches(setup)
+    interval_s = float(setup.interval_s) if setup.interval_s > 0 else float(sw["epoch_interval_s"])
+    if not np.isfinite(interval_s):
+        raise ValueError(f"interval_s = {setup.interval_s!r}: must be a finite number of seconds")
+    if int(setup.batch_epochs) < 1:
+        raise ValueError(f"batch_epochs = {setup.batch_epochs!r}: must be >= 1")
     out = Path(setup.out_dir)
     out.mkdir(parents=True, exist_ok=True)
     for old in list(out.glob("*_MO.rnx")) + list(out.glob("*_MN.rnx")):
         old.unlink()  # exactly one observation and one navigation file per run
-    scene = load_scene(setup.world_file, setup.mesh_file, setup.materials_file)
+    n_epochs = int(np.floor(setup.duration_s / interval_s + 1e-9)) + 1
+    scene = setup.scene if setup.scene is not None else load_scene(setup.world_file, setup.mesh_file,
+                                                                   setup.materials_file)
     path = AntennaPath(setup.trajectory, scene)
-    fresnel = setup.fresnel_rays if setup.fresnel_rays >= 0 else preset_switches(setup.preset)["fresnel_rays"]
+    fresnel = setup.fresnel_rays if setup.fresnel_rays >= 0 else sw["fresnel_rays"]
+    if scene is not None and setup.crop_scene:
+        scene = _cropped_scene(scene, path, n_epochs, interval_s, setup.elevation_mask_deg, fresnel)
+        path = AntennaPath(setup.trajectory, scene)
 
-    provider, nav_paths = open_ephemeris(setup.source, setup.start, setup.duration_s, setup.systems,
-                                         setup.nav_files, setup.sp3_files, setup.clk_files, workdir=out / ".ephemeris")
+    source = orbit_source(setup, sw)
+    if source in setup.ephemeris:
+        provider, nav_paths = setup.ephemeris[source]
+    else:
+        provider, nav_paths = open_ephemeris(source, setup.start, setup.duration_s, setup.systems, setup.nav_files,
+                                             setup.sp3_files, setup.clk_files, workdir=out / ".ephemeris")
+    if source == "sp3" and (setup.nav_files or "broadcast" in setup.ephemeris):
+        brdc, brdc_paths = setup.ephemeris.get("broadcast") or open_ephemeris(
+            "broadcast", setup.start, setup.duration_s, setup.systems, setup.nav_files)
+        provider, nav_paths = PreciseWithBroadcastGroupDelay(provider, brdc, setup.start), brdc_paths
     cfg = receiver_config(setup)
+    if source == "sp3" and "sisre_m" not in setup.receiver:
+        # observations from precise orbits are the truth: the broadcast message's own error is then real
+        # (what a receiver using the navigation file sees), so no synthetic SISRE is drawn on top
+        cfg.sisre_m = {s: 0.0 for s in cfg.sisre_m}
     rx = Receiver(cfg, provider, getattr(provider, "iono", None))
 
-    n_epochs = int(np.floor(setup.duration_s / setup.interval_s + 1e-9)) + 1
     ecef0, _ = path.at(0.0)
     obs_types = obs_types_for(cfg.profile, setup.systems)
-    obs_path = out / rinex_name(setup.marker_name, setup.start, setup.duration_s, setup.interval_s, "MO")
-    nav_path = out / rinex_name(setup.marker_name, setup.start, setup.duration_s, setup.interval_s, "MN")
+    obs_path = out / rinex_name(setup.marker_name, setup.start, setup.duration_s, interval_s, "MO")
+    nav_path = out / rinex_name(setup.marker_name, setup.start, setup.duration_s, interval_s, "MN")
     nav_written = write_navigation(nav_path, provider, setup.systems)
     if nav_written is None and nav_paths:
         shutil.copyfile(nav_paths[0], nav_path)
@@ -220,58 +249,176 @@ def run_simulation(setup: SimulationSetup) -> SimulationResult:
     for sv, ch in zip(st0.sv, st0.glo_channel):
         if sv[0] == "R":
             glo_slots[str(sv)] = int(ch)
-    approx = ecef0 if setup.trajectory.is_static else ecef0
-    hdr = header(obs_types, setup.marker_name, approx, setup.interval_s, glo_slots,
-                 comments=[f"gnss_sim simulate, preset {setup.preset}, source {setup.source}",
+    hdr = header(obs_types, setup.marker_name, ecef0, interval_s, glo_slots,
+                 comments=[f"gnss_sim simulate, preset {setup.preset}, source {source}",
                            f"seed {setup.seed}; noise {'on' if cfg.noise else 'off'}"])
     fix_path = out / "fix.csv"
-    res = SimulationResult(obs_path, nav_written, fix_path, 0, 0, [], [], [], [], [], 0.0, 0.0)
+    res = SimulationResult(obs_path, nav_written, fix_path, 0, 0, [], [], [], [], [], 0.0, 0.0,
+                           interval_s=interval_s, orbit_source=source)
+    svs_all = np.asarray(provider.svs(setup.systems), dtype="<U3")
+    digits = 3 if interval_s < 1 else 0
+    fix_est, fix_true = [], []
     wall0 = time.perf_counter()
+    res.setup_s = wall0 - t_setup0
     prior = None
     with RinexObsWriter(obs_path, hdr) as writer, open(fix_path, "w", newline="") as fcsv:
         w = csv.writer(fcsv)
         w.writerow(["time", "lat_deg", "lon_deg", "h_m", "n_sats", "status"])
-        for i in range(n_epochs):
-            t_rel = i * setup.interval_s
-            t = setup.start + t_rel
-            ecef, world = path.at(t_rel)
-            states = provider.states(t, systems=setup.systems)
-            vis_state = att = None
-            if scene is not None and len(states):
-                v = scene.visibility_ecef(world, states.pos_ecef_m, mask_deg=setup.elevation_mask_deg,
-                                          fresnel_rays=fresnel)
-                vis_state = np.where(v.state < 0, VISIBLE, v.state)
-                att = v.attenuation_db + v.diffraction_db
-            obs = rx.epoch(t, ecef, states, vis_state, att)
-            sol = position_fix(obs, cfg.profile, prior)
-            if sol.is_fix:
-                prior = sol.pos_ecef_m
-                res.fixes += 1
-                res.horizontal_error_m.append(_horizontal_error(sol.pos_ecef_m, ecef))
-                w.writerow([t.isoformat(digits=3 if setup.interval_s < 1 else 0), f"{sol.lat_deg:.9f}",
-                            f"{sol.lon_deg:.9f}", f"{sol.h_m:.4f}", sol.n_used, "fix"])
-            else:
-                w.writerow([t.isoformat(digits=3 if setup.interval_s < 1 else 0), "", "", "", sol.n_used,
-                            "no_fix"])
-            if len(obs.sv):
-                writer.write_epoch(t, epoch_arrays(obs, obs_types))
-            res.epochs += 1
-            above = obs.sat_el_deg >= setup.elevation_mask_deg
-            res.tracked_per_epoch.append(obs.n_tracked_sats)
-            res.visible_per_epoch.append(int(np.sum(above & (obs.sat_vis_state == VISIBLE))))
-            res.blocked_per_epoch.append(int(np.sum(above & (obs.sat_vis_state == BLOCKED))))
-            res.attenuated_per_epoch.append(int(np.sum(above & (obs.sat_vis_state == ATTENUATED))))
-            if setup.progress and (i % max(1, n_epochs // 20) == 0 or i == n_epochs - 1):
-                el = time.perf_counter() - wall0
-                print(f"\r[simulate] epoch {i + 1}/{n_epochs}  {obs.n_tracked_sats} sats tracked  "
-                      f"{(t_rel + setup.interval_s) / max(el, 1e-9):.0f}x real time", end="", file=sys.stderr,
-                      flush=True)
+        for i0 in range(0, n_epochs, int(setup.batch_epochs)):
+            t_rel = np.arange(i0, min(i0 + int(setup.batch_epochs), n_epochs)) * interval_s
+            block = _EpochBlock(setup, provider, svs_all, path, scene, t_rel, interval_s, fresnel, sw["foliage"])
+            for b in range(len(t_rel)):
+                i = i0 + b
+                t, ecef, states, vis_state, att = block.epoch(b)
+                obs = rx.epoch(t, ecef, states, vis_state, att)
+                sol = position_fix(obs, cfg.profile, prior)
+                stamp = t.isoformat(digits=digits)
+                if sol.is_fix:
+                    prior = sol.pos_ecef_m
+                    res.fixes += 1
+                    fix_est.append(sol.pos_ecef_m)
+                    fix_true.append(ecef)
+                    w.writerow([stamp, f"{sol.lat_deg:.9f}", f"{sol.lon_deg:.9f}", f"{sol.h_m:.4f}", sol.n_used,
+                                "fix"])
+                else:
+                    w.writerow([stamp, "", "", "", sol.n_used, "no_fix"])
+                if len(obs.sv):
+                    writer.write_epoch(t, epoch_arrays(obs, obs_types))
+                if setup.observer is not None:
+                    setup.observer(t, ecef, obs, sol)
+                res.epochs += 1
+                above = obs.sat_el_deg >= setup.elevation_mask_deg
+                res.tracked_per_epoch.append(obs.n_tracked_sats)
+                res.visible_per_epoch.append(int(np.sum(above & (obs.sat_vis_state == VISIBLE))))
+                res.blocked_per_epoch.append(int(np.sum(above & (obs.sat_vis_state == BLOCKED))))
+                res.attenuated_per_epoch.append(int(np.sum(above & (obs.sat_vis_state == ATTENUATED))))
+                if setup.progress and (i % max(1, n_epochs // 20) == 0 or i == n_epochs - 1):
+                    el = time.perf_counter() - wall0
+                    print(f"\r[simulate] epoch {i + 1}/{n_epochs}  {obs.n_tracked_sats} sats tracked  "
+                          f"{(t_rel[b] + interval_s) / max(el, 1e-9):.0f}x real time", end="", file=sys.stderr,
+                          flush=True)
     if setup.progress:
         print(file=sys.stderr)
+    if fix_est:
+        res.horizontal_error_m = horizontal_errors_m(np.array(fix_est), np.array(fix_true)).tolist()
     res.wall_s = time.perf_counter() - wall0
-    res.sim_s = n_epochs * setup.interval_s
+    res.sim_s = n_epochs * interval_s
     shutil.rmtree(out / ".ephemeris", ignore_errors=True)
     return res
+
+
+class PreciseWithBroadcastGroupDelay:
+    """SP3 orbits and clocks with the broadcast group delays (TGD/BGD) and navigation header.
+
+    SP3 clocks refer to the ionosphere-free combination (no group delay), while a
+    receiver's single-frequency code carries the broadcast TGD/BGD (IS-GPS-200N
+    20.3.3.3.3.2; Galileo OS SIS ICD 5.1.5): without it each satellite's code
+    would be off by its c * TGD (up to ~3 m).  The group delay of each satellite
+    is taken once from the broadcast record valid at ``t_ref`` (it changes on
+    the scale of months).  ``nav``/``iono`` come from the navigation files, so
+    the written navigation file and the Klobuchar coefficients are the real ones.
+    """
+
+    def __init__(self, precise, broadcast, t_ref):
+        self.precise, self.broadcast = precise, broadcast
+        self.source = "sp3"
+        self.nav = getattr(broadcast, "nav", None)
+        st = broadcast.states(t_ref)
+        self._tgd = dict(zip(np.asarray(st.sv).tolist(), np.asarray(st.tgd_s, dtype=float).tolist()))
+
+    @property
+    def iono(self):
+        return getattr(self.broadcast, "iono", None)
+
+    def svs(self, systems: str = "GRECJI"):
+        return self.precise.svs(systems)
+
+    def _with_tgd(self, st):
+        st.tgd_s = np.array([self._tgd.get(sv, 0.0) for sv in np.asarray(st.sv).tolist()], dtype=float)
+        return st
+
+    def states(self, t, svs=None, systems: str = "GRECJI"):
+        return self._with_tgd(self.precise.states(t, svs=svs, systems=systems))
+
+    def states_at(self, svs, t):
+        return self._with_tgd(self.precise.states_at(svs, t))
+
+
+class _EpochBlock:
+    """Satellite states, elevations and visibility of a block of epochs, computed at once."""
+
+    def __init__(self, setup, provider, svs_all, path, scene, t_rel, interval_s, fresnel, foliage):
+        k, n = len(t_rel), len(svs_all)
+        self.t = setup.start + t_rel                                   # GnssTime (K,)
+        self.ecef, world = path.at_many(t_rel)
+        self.k = k
+        if n == 0:
+            self.states = None
+            return
+        t_rows = GnssTime(np.repeat(np.atleast_1d(self.t.sec), n), np.repeat(np.atleast_1d(self.t.frac), n))
+        st = provider.states_at(np.tile(svs_all, k), t_rows)
+        # rows keep the input order (epoch-major) and drop satellites without a valid record: locate them
+        kk = np.rint((st.t - self.t[0]) / interval_s).astype(np.int64) if len(st) else np.zeros(0, np.int64)
+        order = np.argsort(svs_all)
+        jj = order[np.searchsorted(svs_all[order], np.asarray(st.sv))] if len(st) else np.zeros(0, np.int64)
+        row = np.full((k, n), -1, dtype=np.int64)
+        row[kk, jj] = np.arange(len(st))
+        sat = np.zeros((k, n, 3))                                      # missing: Earth centre (el = -90)
+        sat[kk, jj] = st.pos_ecef_m
+        _, el, _ = az_el_from_ecef(self.ecef[:, None, :], sat)
+        # the receiver drops satellites below 0 deg itself (exact cut); 1 deg margin here
+        self.use = (row >= 0) & (el > -1.0)
+        self.row, self.states = row, st
+        self.vis = self.att = None
+        if scene is not None:
+            v = scene.visibility_ecef(world, sat, mask_deg=setup.elevation_mask_deg, fresnel_rays=fresnel,
+                                      foliage=foliage)
+            self.vis = np.where(v.state < 0, VISIBLE, v.state)
+            self.att = v.attenuation_db + v.diffraction_db
+
+    def epoch(self, b: int):
+        """(t, antenna ECEF, SatelliteStates, visibility state or None, attenuation or None) of epoch b."""
+        t = self.t[b]
+        if self.states is None:
+            return t, self.ecef[b], SatelliteStates.empty(t, "none"), None, None
+        cols = np.flatnonzero(self.use[b])
+        st = self.states.select(self.row[b, cols])
+        st.t = t
+        if self.vis is None:
+            return t, self.ecef[b], st, None, None
+        return t, self.ecef[b], st, self.vis[b, cols], self.att[b, cols]
+
+
+def _cropped_scene(scene, path, n_epochs, interval_s, mask_deg, fresnel):
+    from .scene.visibility import Scene
+
+    t_rel = np.arange(n_epochs) * interval_s
+    if len(t_rel) > 100_000:       # the bounding box only needs the path's vertices and ends
+        t_rel = np.unique(np.concatenate([t_rel[:: max(1, len(t_rel) // 100_000)], t_rel[-1:]]))
+    _, world = path.at_many(t_rel)
+    tr = path.tr
+    if tr.frame == "world":        # every vertex of the path inside the run's time span
+        inside = (tr.t_s >= 0) & (tr.t_s <= t_rel[-1])
+        world = np.vstack([world, tr.pos[inside]]) if not tr.loop else np.vstack([world, tr.pos])
+    # margin: tilt of geodetic up across the path (1 deg per 111 km) + Fresnel sample rays (6 deg)
+    span_m = float(np.max(np.linalg.norm(world[:, :2], axis=1))) if len(world) else 0.0
+    margin = np.degrees(span_m / 6.371e6) + 0.1 + (6.0 if fresnel > 0 else 0.0)
+    cropped, _ = crop_world_mesh(scene.world, world, mask_deg, margin)
+    return Scene(cropped, nthreads=scene.rays.nthreads)
+
+
+def horizontal_errors_m(est_ecef_m, true_ecef_m) -> np.ndarray:
+    """Horizontal distance [m] of estimates (K, 3) from true positions (K, 3), in the local ENU of the truth."""
+    from .frames import ecef_to_geodetic
+
+    est = np.asarray(est_ecef_m, dtype=np.float64).reshape(-1, 3)
+    true = np.asarray(true_ecef_m, dtype=np.float64).reshape(-1, 3)
+    lat, lon, _ = ecef_to_geodetic(true[:, 0], true[:, 1], true[:, 2])
+    la, lo = np.radians(lat), np.radians(lon)
+    d = est - true
+    e = -np.sin(lo) * d[:, 0] + np.cos(lo) * d[:, 1]
+    n = -np.sin(la) * np.cos(lo) * d[:, 0] - np.sin(la) * np.sin(lo) * d[:, 1] + np.cos(la) * d[:, 2]
+    return np.hypot(e, n)
 
 
 def _horizontal_error(est_ecef, true_ecef) -> float:

@@ -28,6 +28,7 @@ receiver -> satellite (satellite velocities rotated like the positions).
 """
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -36,7 +37,7 @@ import numpy as np
 from scipy.stats import chi2 as _chi2
 
 from .constants import C_MPS
-from .frames import az_el_from_ecef, ecef_to_geodetic, enu_rotation
+from .frames import az_el_at, ecef_to_geodetic, enu_rotation
 
 #: order in which systems become the reference clock (the first present)
 SYSTEM_ORDER = "GECRJIS"
@@ -127,21 +128,35 @@ def pseudorange_sigma_m(el_deg, sv=None, cn0_dbhz=None, config: SolverConfig | N
     """Pseudorange standard deviation [m] from elevation (and C/N0) per ``config.weighting``."""
     cfg = config or SolverConfig()
     el = np.asarray(el_deg, dtype=np.float64)
+    var = _variance(el, cn0_dbhz, cfg)
+    if sv is not None:
+        var = var * _system_factor(sv, cfg) ** 2
+    return np.sqrt(var)
+
+
+def _variance(el, cn0_dbhz, cfg: SolverConfig):
     if cfg.weighting == "equal":
-        var = np.full(el.shape, cfg.sigma_a_m**2 + cfg.sigma_b_m**2)
-    elif cfg.weighting == "elevation":
+        return np.full(el.shape, cfg.sigma_a_m**2 + cfg.sigma_b_m**2)
+    if cfg.weighting == "elevation":
         s = np.sin(np.radians(np.clip(el, 1.0, 90.0)))  # clip: no infinite sigma at the horizon
-        var = cfg.sigma_a_m**2 + cfg.sigma_b_m**2 / s**2
-    elif cfg.weighting == "cn0":
+        return cfg.sigma_a_m**2 + cfg.sigma_b_m**2 / s**2
+    if cfg.weighting == "cn0":
         if cn0_dbhz is None:
             raise ValueError("SolverConfig.weighting='cn0' needs cn0_dbhz")
-        var = cfg.sigma_a_m**2 + cfg.cn0_sigma_k_m**2 * 10.0 ** (-np.asarray(cn0_dbhz, dtype=np.float64) / 10.0)
-    else:
-        raise ValueError(f"SolverConfig.weighting={cfg.weighting!r}; expected 'elevation', 'cn0' or 'equal'")
-    if sv is not None:
-        fac = np.array([cfg.system_error_factor.get(s[0], 1.0) for s in np.asarray(sv).tolist()])
-        var = var * fac**2
-    return np.sqrt(var)
+        return cfg.sigma_a_m**2 + cfg.cn0_sigma_k_m**2 * 10.0 ** (-np.asarray(cn0_dbhz, dtype=np.float64) / 10.0)
+    raise ValueError(f"SolverConfig.weighting={cfg.weighting!r}; expected 'elevation', 'cn0' or 'equal'")
+
+
+def _system_factor(sv, cfg: SolverConfig) -> np.ndarray:
+    """sigma factor per satellite from ``cfg.system_error_factor`` (1 for systems not listed)."""
+    return np.array([cfg.system_error_factor.get(s[0], 1.0) for s in np.asarray(sv).tolist()])
+
+
+@functools.lru_cache(maxsize=256)
+def _chi2_threshold(prob_false_alarm: float, dof: int) -> float:
+    """Chi-square quantile 1 - p_fa for ``dof`` degrees of freedom (scipy; cached: the same few values
+    come back every epoch)."""
+    return float(_chi2.ppf(1.0 - prob_false_alarm, dof))
 
 
 def range_rate_from_doppler(doppler_hz, carrier_hz):
@@ -212,6 +227,7 @@ def solve_pvt(sv, sat_pos_ecef_m, pseudorange_m, *, sat_clock_bias_s=None, iono_
     if cfg.weighting == "cn0" and cn0 is None and sig_given is None:
         raise ValueError("solve_pvt: SolverConfig.weighting='cn0' needs cn0_dbhz")
     groups = _clock_group(sv_arr.tolist(), cfg.clock_groups)
+    fac = _system_factor(sv_arr, cfg) if sig_given is None else None
     valid = np.isfinite(y) & np.all(np.isfinite(sat), axis=1)
     if sig_given is not None:
         valid &= np.isfinite(sig_given) & (sig_given > 0)
@@ -221,7 +237,7 @@ def solve_pvt(sv, sat_pos_ecef_m, pseudorange_m, *, sat_clock_bias_s=None, iono_
     notes = []
     x = x0
     while True:
-        res = _solve_position(sv_arr, sat, y, valid, groups, sig_given, cn0, x, cfg)
+        res = _solve_position(sv_arr, sat, y, valid, groups, sig_given, cn0, x, cfg, fac)
         if res["status"] != "fix" or not cfg.check_residuals or res["dof"] <= 0:
             if res["status"] == "fix" and res["dof"] <= 0:
                 notes.append("no redundancy: residual check not possible")
@@ -257,7 +273,7 @@ def solve_pvt(sv, sat_pos_ecef_m, pseudorange_m, *, sat_clock_bias_s=None, iono_
     return sol
 
 
-def _solve_position(sv, sat, y, valid, groups, sig_given, cn0, x, cfg) -> dict:
+def _solve_position(sv, sat, y, valid, groups, sig_given, cn0, x, cfg, fac=None) -> dict:
     n = sv.size
     out = {"status": "no_fix", "reason": "", "pos": np.full(3, np.nan), "clk": {}, "clock_systems": [],
            "used": np.zeros(n, bool), "v": np.full(n, np.nan), "el": np.full(n, np.nan), "az": np.full(n, np.nan),
@@ -274,11 +290,12 @@ def _solve_position(sv, sat, y, valid, groups, sig_given, cn0, x, cfg) -> dict:
     last_step = 0.0 if np.linalg.norm(x) > _NEAR_CENTRE_M else math.inf
     for it in range(1, cfg.max_iterations + 1):
         d = sat - x
-        rho = np.linalg.norm(d, axis=1)
+        rho = np.sqrt(np.einsum("ij,ij->i", d, d))
         e = d / rho[:, None]
-        placed = np.linalg.norm(x) > _NEAR_CENTRE_M and last_step < _PLACED_STEP_M
+        placed = math.sqrt(x @ x) > _NEAR_CENTRE_M and last_step < _PLACED_STEP_M
         if placed:
-            az, el, _ = az_el_from_ecef(x, sat)
+            lat_x, lon_x, _ = ecef_to_geodetic(x[0], x[1], x[2])
+            az, el, _ = az_el_at(x, lat_x, lon_x, sat)
             use = valid & (el >= cfg.elevation_mask_deg)
         else:
             az, el = np.full(n, np.nan), np.full(n, 90.0)
@@ -295,17 +312,23 @@ def _solve_position(sv, sat, y, valid, groups, sig_given, cn0, x, cfg) -> dict:
             out["iter"] = it
             return out
         idx = np.flatnonzero(use)
-        col = np.array([clock_sys.index(g) for g in groups[idx].tolist()])
+        slot = {g: j for j, g in enumerate(clock_sys)}
+        col = np.array([slot[g] for g in groups[idx].tolist()])
         h = np.zeros((idx.size, n_unk))
         h[:, :3] = -e[idx]
         h[np.arange(idx.size), 3 + col] = 1.0
-        sig = sig_given[idx] if sig_given is not None else pseudorange_sigma_m(
-            el[idx], sv[idx], None if cn0 is None else cn0[idx], cfg)
+        if sig_given is not None:
+            sig = sig_given[idx]
+        else:   # pseudorange_sigma_m with the system factors looked up once per solve
+            sig = np.sqrt(_variance(el[idx], None if cn0 is None else cn0[idx], cfg) * fac[idx] ** 2)
         w = 1.0 / sig**2
         hw = h * w[:, None]
         nmat = h.T @ hw
         try:
-            cond = np.linalg.cond(nmat)
+            # 2-norm condition number, as np.linalg.cond (largest / smallest singular value)
+            sv_n = np.linalg.svd(nmat, compute_uv=False)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                cond = sv_n[0] / sv_n[-1]
             if not np.isfinite(cond) or cond > 1e14:
                 raise np.linalg.LinAlgError
             sol = np.linalg.solve(nmat, hw.T @ (y[idx] - rho[idx]))
@@ -315,14 +338,14 @@ def _solve_position(sv, sat, y, valid, groups, sig_given, cn0, x, cfg) -> dict:
             return out
         dx = sol[:3]
         x = x + dx
-        last_step = float(np.linalg.norm(dx))
+        last_step = math.sqrt(dx @ dx)
         same_set = prev_use is not None and np.array_equal(use, prev_use)
         prev_use = use
-        if np.linalg.norm(dx) < cfg.convergence_m and (same_set or not placed or it == 1):
+        if last_step < cfg.convergence_m and (same_set or not placed or it == 1):
             if placed:
                 converged = True
                 break
-        if np.linalg.norm(x) > 1e9 or not np.all(np.isfinite(x)):
+        if math.sqrt(x @ x) > 1e9 or not np.all(np.isfinite(x)):
             out["reason"] = "the iteration diverged"
             out["iter"] = it
             return out
@@ -333,22 +356,24 @@ def _solve_position(sv, sat, y, valid, groups, sig_given, cn0, x, cfg) -> dict:
     # final quantities at the converged position (sat set and clocks from the last step)
     clk = sol[3:]
     d = sat - x
-    rho = np.linalg.norm(d, axis=1)
+    rho = np.sqrt(np.einsum("ij,ij->i", d, d))
     v = np.full(n, np.nan)
     v[idx] = y[idx] - rho[idx] - clk[col]
     cov = np.linalg.inv(nmat)
-    lat, lon, hgt = ecef_to_geodetic(*x)
+    lat, lon, hgt = ecef_to_geodetic(x[0], x[1], x[2])
     rot = enu_rotation(lat, lon)
     dops = _dops(h, rot)
     dof = idx.size - n_unk
     chi2 = float(np.sum(w * v[idx] ** 2))
-    thr = float(_chi2.ppf(1.0 - cfg.chi2_prob_false_alarm, dof)) if dof > 0 else math.nan
+    thr = _chi2_threshold(float(cfg.chi2_prob_false_alarm), int(dof)) if dof > 0 else math.nan
     worst = None
     if dof > 0:
         # standardised residuals: v_i / sqrt((Sigma - H N^-1 H^T)_ii)  (Baarda w-test)
         qv = sig**2 - np.einsum("ij,jk,ik->i", h, cov, h)
         wstat = np.abs(v[idx]) / np.sqrt(np.maximum(qv, 1e-30))
-        worst = int(idx[int(np.argmax(wstat))])
+        # ties (e.g. the two satellites of a clock group that has only two have equal statistics) go to
+        # the first in input order, not to whichever round-off makes larger
+        worst = int(idx[int(np.argmax(wstat >= np.max(wstat) * (1.0 - 1e-9)))])
     used = np.zeros(n, bool)
     used[idx] = True
     out.update(status="fix", pos=x, clk={s: float(c) for s, c in zip(clock_sys, clk)}, clock_systems=clock_sys,

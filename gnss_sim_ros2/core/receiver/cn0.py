@@ -99,13 +99,22 @@ def _lookup(system, code, attr):
     return np.array([getattr(_signals.signal(a, b), attr) for a, b in zip(s.ravel(), c.ravel())]).reshape(s.shape)
 
 
+def power_params(system, code):
+    """(min_power_dbw, min_power_el_deg) of signals ``(system, code)`` from core/signals.py (arrays broadcast),
+    for :func:`cn0_dbhz_from_params` when the same signals come back every epoch."""
+    return _lookup(system, code, "min_power_dbw"), _lookup(system, code, "min_power_el_deg")
+
+
 def received_power_dbw(system, code, range_m, el_deg, sat_radius_m=None, power_margin_db=0.0):
     """Received power at a 0 dBic antenna [dBW] (see module docstring)."""
+    p_min, el_min = power_params(system, code)
+    return _received_power_dbw(p_min, el_min, range_m, el_deg, sat_radius_m, power_margin_db)
+
+
+def _received_power_dbw(p_min, el_min, range_m, el_deg, sat_radius_m, power_margin_db):
     rho = np.asarray(range_m, dtype=np.float64)
     if np.any(rho <= 0):
         raise ValueError("receiver.cn0: parameter 'range_m' must be > 0")
-    p_min = _lookup(system, code, "min_power_dbw")
-    el_min = _lookup(system, code, "min_power_el_deg")
     r_sat = sat_radius_from_range_m(rho, el_deg) if sat_radius_m is None else np.asarray(sat_radius_m)
     rho_edge = slant_range_m(r_sat, el_min)
     return p_min + power_margin_db + 20.0 * np.log10(rho_edge / rho)
@@ -118,7 +127,14 @@ def cn0_dbhz(system, code, range_m, el_deg, attenuation_db=0.0, sat_radius_m=Non
     gain); ``attenuation_db``: obstruction loss (foliage, diffraction) from the
     visibility step; ``sat_radius_m``: orbit radius if known (else derived).
     """
+    p_min, el_min = power_params(system, code)
+    return cn0_dbhz_from_params(p_min, el_min, range_m, el_deg, attenuation_db, sat_radius_m, budget)
+
+
+def cn0_dbhz_from_params(min_power_dbw, min_power_el_deg, range_m, el_deg, attenuation_db=0.0, sat_radius_m=None,
+                         budget: LinkBudget = None):
+    """:func:`cn0_dbhz` with the signals' table values given (from :func:`power_params`)."""
     b = DEFAULT_BUDGET if budget is None else budget
-    p = received_power_dbw(system, code, range_m, el_deg, sat_radius_m, b.power_margin_db)
+    p = _received_power_dbw(min_power_dbw, min_power_el_deg, range_m, el_deg, sat_radius_m, b.power_margin_db)
     return (p + b.antenna_gain(el_deg) - b.noise_density_dbwhz - b.implementation_loss_db
             - np.asarray(attenuation_db, dtype=np.float64))

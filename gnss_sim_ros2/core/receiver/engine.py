@@ -45,7 +45,7 @@ from .. import constants as k
 from .. import propagation as prop
 from .. import signals as sig
 from ..ephemeris.states import SatelliteStates
-from ..frames import az_el_from_ecef, ecef_to_geodetic
+from ..frames import az_el_at, ecef_to_geodetic
 from ..time import GnssTime
 from . import cn0 as cn0_model
 from . import noise as noise_model
@@ -175,15 +175,24 @@ class Receiver:
         self._mp_rng = np.random.default_rng(rng.integers(2**63))
         self.iono_alpha, self.iono_beta = _klobuchar_coeffs(iono_coeffs)
         self._t_prev: GnssTime | None = None
-        self._mp_state: dict[tuple[str, str], float] = {}
+        #: multipath state per (sv, code): slot in _mp_x (NaN until the key is first seen)
+        self._mp_index: dict[tuple[str, str], int] = {}
+        self._mp_x = np.full(256, np.nan)
         self._world_terms: dict = {}
         self._geo_key = None
         self._geo = (0.0, 0.0, 0.0)
         self._signal_cache: dict = {}
+        self._keep_cache: dict = {}
+        self._doy_key = None
+        self._doy0 = 0.0
 
     # ------------------------------------------------------------------
     def _signal_rows(self, svs: np.ndarray, glo_channel: np.ndarray):
-        key = (tuple(svs), tuple(glo_channel))
+        """Per-signal rows of a satellite set: (sat_i, codes, freq, chip, systems) (cached)."""
+        return self._rows_of(svs, glo_channel).signal_rows
+
+    def _rows_of(self, svs: np.ndarray, glo_channel: np.ndarray) -> _SignalRows:
+        key = (_array_key(svs), _array_key(glo_channel))
         hit = self._signal_cache.get(key)
         if hit is not None:
             return hit
@@ -196,12 +205,51 @@ class Receiver:
                 systems.append(s)
                 freq.append(sig.frequency_hz(s, code, int(glo_channel[i]) if s == "R" else 0))
                 chip.append(sig.signal(s, code).chip_length_m)
-        out = (np.array(sat_i, dtype=np.int64), np.array(codes, dtype="<U2"), np.array(freq, dtype=float),
-               np.array(chip, dtype=float), np.array(systems, dtype="<U1"))
+        rows = _SignalRows()
+        rows.signal_rows = (np.array(sat_i, dtype=np.int64), np.array(codes, dtype="<U2"), np.array(freq, dtype=float),
+                            np.array(chip, dtype=float), np.array(systems, dtype="<U1"))
+        sat_i, codes, freq, chip, systems = rows.signal_rows
+        rows.lam = k.C_MPS / freq
+        rows.gd_factor = _group_delay_factor(systems, codes, freq)
+        rows.p_min, rows.el_min = cn0_model.power_params(systems, codes) if len(codes) else (np.zeros(0), np.zeros(0))
+        rows.omega = np.array([OMEGA_BY_SYSTEM.get(s[0], k.OMEGA_E_GPS_RADPS) for s in svs], dtype=float)
+        rows.sv_j = np.asarray(svs)[sat_i]
+        rows.sisre_sigma = np.array([self.cfg.sisre_m.get(sv[0], 0.0) for sv in svs], dtype=float)
+        rows.sisre_terms = self._stacked_terms([("sat", str(sv)) for sv in svs]) if len(svs) else None
+        # multipath states: one slot per (sv, code), kept for the receiver's lifetime
+        mp_idx = np.empty(len(sat_i), dtype=np.int64)
+        for j, mp_key in enumerate(zip(rows.sv_j.tolist(), codes.tolist())):
+            i = self._mp_index.get(mp_key)
+            if i is None:
+                i = self._mp_index[mp_key] = len(self._mp_index)
+            mp_idx[j] = i
+        rows.mp_idx = mp_idx
+        if len(self._mp_index) > self._mp_x.size:
+            grown = np.full(max(2 * self._mp_x.size, len(self._mp_index)), np.nan)
+            grown[: self._mp_x.size] = self._mp_x
+            self._mp_x = grown
         if len(self._signal_cache) > 64:
             self._signal_cache.clear()
-        self._signal_cache[key] = out
-        return out
+        self._signal_cache[key] = rows
+        return rows
+
+    def _keep_mask(self, sv_all: np.ndarray) -> np.ndarray:
+        """Rows of the states whose system is received (configured systems with a profile); cached."""
+        key = _array_key(sv_all)
+        hit = self._keep_cache.get(key)
+        if hit is None:
+            cfg = self.cfg
+            hit = np.array([sv[0] in cfg.systems and sv[0] in cfg.profile for sv in sv_all.tolist()], dtype=bool)
+            if len(self._keep_cache) > 64:
+                self._keep_cache.clear()
+            self._keep_cache[key] = hit
+        return hit
+
+    def _geodetic(self, rx: np.ndarray):
+        key = (rx[0], rx[1], rx[2])
+        if self._geo_key != key:    # geodetic antenna position: computed again only when it moves
+            self._geo_key, self._geo = key, ecef_to_geodetic(*rx)
+        return self._geo
 
     def epoch(self, t: GnssTime, antenna_ecef_m, states: SatelliteStates, vis_state=None, attenuation_db=None,
               antenna_vel_ecef_mps=None) -> EpochObservations:
@@ -221,12 +269,13 @@ class Receiver:
             bias, drift = self.clock.bias_s, self.clock.steered_drift_sps
         self._t_prev = t
         t_true = t - bias
+        lat, lon, h = self._geodetic(rx)
 
-        keep = np.array([sv[0] in cfg.systems and sv[0] in cfg.profile for sv in states.sv], dtype=bool)
+        keep = self._keep_mask(np.asarray(states.sv)).copy()
         n_all = len(states)
         vis = np.zeros(n_all, dtype=np.int64) if vis_state is None else np.asarray(vis_state, dtype=np.int64)
         att = np.zeros(n_all) if attenuation_db is None else np.asarray(attenuation_db, dtype=float)
-        az, el, _ = az_el_from_ecef(rx, states.pos_ecef_m)
+        az, el, _ = az_el_at(rx, lat, lon, states.pos_ecef_m)
         keep &= el > 0.0
         st = states.select(keep)
         az, el, vis, att = az[keep], el[keep], vis[keep], att[keep]
@@ -234,37 +283,32 @@ class Receiver:
         n = len(svs)
 
         # geometry at the transmit time, seen at the true reception time
-        omega = np.array([OMEGA_BY_SYSTEM.get(s[0], k.OMEGA_E_GPS_RADPS) for s in svs])
-        sol = self._light_time(rx, rx_vel, t_true, bias, st, omega) if n else None
-        sat_i, codes, freq, chip, systems = self._signal_rows(svs, np.asarray(st.glo_channel))
+        rows = self._rows_of(svs, np.asarray(st.glo_channel))
+        sat_i, codes, freq, chip, systems = rows.signal_rows
         m = len(sat_i)
         if n == 0 or m == 0:
             return self._empty(t, bias, drift, svs, az, el, vis, att)
-        lam = k.C_MPS / freq
+        sol = self._light_time(rx, rx_vel, t_true, bias, st, rows.omega)
+        lam = rows.lam
         rho = sol.range_m[sat_i]
         rho_dot = sol.range_rate_mps[sat_i]
         el_j = el[sat_i]
-        az_j = az[sat_i]
 
         # satellite clock at transmit time (SP3 convention polynomial + relativistic - group delay)
         tau = sol.tau_s
         clk_poly = st.clock_bias_s - st.clock_drift_sps * (bias + tau)
         rel = -2.0 * np.einsum("ij,ij->i", sol.sat_pos_ecef_m, sol.sat_vel_ecef_mps) / k.C_MPS**2
-        dts = (clk_poly + rel)[sat_i] - _group_delay_factor(systems, codes, freq) * st.tgd_s[sat_i]
+        dts = (clk_poly + rel)[sat_i] - rows.gd_factor * st.tgd_s[sat_i]
         ddts = st.clock_drift_sps[sat_i]
 
-        # atmosphere
-        key = (rx[0], rx[1], rx[2])
-        if self._geo_key != key:    # geodetic antenna position: computed again only when it moves
-            self._geo_key, self._geo = key, ecef_to_geodetic(*rx)
-        lat, lon, h = self._geo
+        # atmosphere (per satellite; the ionosphere scaled to each signal's frequency)
         if cfg.ionosphere == "klobuchar":
-            l1_delay = prop.klobuchar_l1_delay_s(t_true, lat, lon, az_j, el_j, self.iono_alpha, self.iono_beta)
-            iono_model = prop.iono_code_delay_m(l1_delay, freq)
+            l1_delay = prop.klobuchar_l1_delay_s(t_true, lat, lon, az, el, self.iono_alpha, self.iono_beta)
+            iono_model = prop.iono_code_delay_m(l1_delay[sat_i], freq)
         else:
             iono_model = np.zeros(m)
         if cfg.troposphere == "saastamoinen":
-            tropo = prop.tropo_slant_delay_m(np.maximum(el_j, 1.0), lat, h, prop.day_of_year(t))
+            tropo = prop.tropo_slant_delay_m(np.maximum(el, 1.0), lat, h, self._day_of_year(t))[sat_i]
         else:
             tropo = np.zeros(m)
         if cfg.noise and cfg.iono_error_frac != 0:
@@ -273,14 +317,15 @@ class Receiver:
             iono_true = iono_model
 
         # signal strength and tracking
-        cn0 = cn0_model.cn0_dbhz(systems, codes, rho, el_j, att[sat_i], budget=cfg.link_budget)
+        cn0 = cn0_model.cn0_dbhz_from_params(rows.p_min, rows.el_min, rho, el_j, att[sat_i], budget=cfg.link_budget)
         if cfg.noise and cfg.cn0_noise_db > 0:
             cn0_meas = cn0 + cfg.cn0_noise_db * self.rng_noise.standard_normal(m)
         else:
             cn0_meas = cn0
-        line_ok = (vis[sat_i] == VISIBLE) | (vis[sat_i] == ATTENUATED)
+        vis_j = vis[sat_i]
+        line_ok = (vis_j == VISIBLE) | (vis_j == ATTENUATED)
         line_ok &= el_j >= cfg.elevation_mask_deg
-        sv_j = svs[sat_i]
+        sv_j = rows.sv_j
         trk = self.tracker.update(t, sv_j, codes, cn0, visible=line_ok)
 
         # noise
@@ -290,31 +335,42 @@ class Receiver:
             dop_sig = noise_model.doppler_sigma_hz(cn0)
             r = self.rng_noise.standard_normal((3, m))
             e_p, e_l, e_d = code_sig * r[0], ph_sig * r[1], dop_sig * r[2]
-            mp = self._multipath(sv_j, codes, el_j, dt_s)
+            mp = self._multipath_rows(rows.mp_idx, el_j, dt_s)
         else:
             e_p = e_l = e_d = mp = np.zeros(m)
 
         common = rho + k.C_MPS * (bias - dts) + tropo
         if cfg.noise:
-            common = common + self._sisre(t_true, svs)[sat_i]
+            common = common + (rows.sisre_sigma * self._world_process_terms(t_true, rows.sisre_terms))[sat_i]
         pr = common + iono_true + mp + e_p
         phase = (common - iono_true + e_l) / lam + trk.ambiguity_cyc
         dop = -(rho_dot + k.C_MPS * (drift - ddts)) / lam + e_d
 
         tr = trk.tracked
+        sat_tr = sat_i[tr]
         return EpochObservations(
             t=t, clock_bias_s=bias, clock_drift_sps=drift,
             sat_sv=svs, sat_az_deg=az, sat_el_deg=el, sat_vis_state=vis, sat_attenuation_db=att,
             sv=sv_j[tr], code=codes[tr], frequency_hz=freq[tr], pseudorange_m=pr[tr], carrier_phase_cyc=phase[tr],
             doppler_hz=dop[tr], cn0_dbhz=cn0_meas[tr], lli=trk.lli[tr], lock_time_s=trk.lock_time_s[tr],
-            sat_pos_ecef_m=sol.sat_pos_ecef_m[sat_i][tr], sat_vel_ecef_mps=sol.sat_vel_ecef_mps[sat_i][tr],
+            sat_pos_ecef_m=sol.sat_pos_ecef_m[sat_tr], sat_vel_ecef_mps=sol.sat_vel_ecef_mps[sat_tr],
             sat_clock_s=dts[tr], sat_clock_drift_sps=ddts[tr], iono_model_m=iono_model[tr],
             tropo_model_m=tropo[tr], el_deg=el_j[tr], true_range_m=rho[tr],
         )
 
+    def _day_of_year(self, t: GnssTime) -> float:
+        """prop.day_of_year(t), from a cached value at the start of t's GPS day (no datetime per epoch)."""
+        sec = int(np.asarray(t.sec))
+        day0 = sec - sec % 86400
+        if self._doy_key != day0:
+            self._doy_key, self._doy0 = day0, prop.day_of_year(GnssTime(day0, 0.0))
+        return self._doy0 + ((sec - day0) + float(np.asarray(t.frac))) / 86400.0
+
     # ------------------------------------------------------------------
     def _light_time(self, rx, rx_vel, t_true, bias, st, omega):
         cfg = self.cfg
+        # the satellites' states at the epoch tag moved back to the true reception time (second order)
+        pos = st.pos_ecef_m - st.vel_ecef_mps * bias + 0.5 * st.acc_ecef_mps2 * bias**2
         if cfg.transmit_time == "recompute" and self.provider is not None:
             svs = list(st.sv)
 
@@ -322,28 +378,21 @@ class Receiver:
                 s = self.provider.states_at(svs, t_tx)
                 if len(s) != len(svs):
                     raise _NoState
-                return s.pos_ecef_m, s.vel_ecef_mps
+                return s.pos_ecef_m, s.vel_ecef_mps, s.acc_ecef_mps2
 
+            # one ephemeris evaluation near the transmit time, light time iterated on its Taylor series
+            # (propagation.transmit_time_refined; the same solution as re-evaluating at every iteration)
+            tau_guess = np.sqrt(np.einsum("ij,ij->i", pos - rx, pos - rx)) / k.C_MPS
             try:
-                return prop.transmit_time_solution(rx, t_true, at, cfg.light_time_iterations, rx_vel, omega,
-                                                   n_sats=len(svs))
+                return prop.transmit_time_refined(rx, t_true, at, tau_guess, rx_vel, omega)
             except _NoState:
                 pass
-        # second-order expansion of the states at the epoch tag back to the true reception time, then t_tx
-        pos = st.pos_ecef_m - st.vel_ecef_mps * bias + 0.5 * st.acc_ecef_mps2 * bias**2
         vel = st.vel_ecef_mps - st.acc_ecef_mps2 * bias
         return prop.transmit_time_from_states(rx, pos, vel, st.acc_ecef_mps2, t_true, cfg.light_time_iterations,
                                               rx_vel, omega)
 
-    def _world_process(self, t: GnssTime, keys) -> np.ndarray:
-        """Smooth zero-mean unit-variance processes of GPS time, one per key, from ``world_seed`` only.
-
-        x(t) = sqrt(2/K) sum_k sin(2 pi t / P_k + phi_k), K = 6 terms, integer periods
-        P_k log-uniform in the key's band, phases uniform: the same values at any
-        epoch rate and for every receiver with the same ``world_seed``.
-        """
-        sec = int(np.asarray(t.sec))
-        frac = float(np.asarray(t.frac))
+    def _stacked_terms(self, keys):
+        """(periods (K, 6) int, phases (K, 6)) of the world processes of ``keys`` (see _world_process)."""
         per, pha = [], []
         for key in keys:
             terms = self._world_terms.get(key)
@@ -356,9 +405,23 @@ class Receiver:
                 self._world_terms[key] = terms
             per.append(terms[0])
             pha.append(terms[1])
-        per = np.array(per)
-        arg = 2.0 * np.pi * ((sec % per) + frac) / per + np.array(pha)
+        return np.array(per), np.array(pha)
+
+    def _world_process_terms(self, t: GnssTime, terms) -> np.ndarray:
+        sec = int(np.asarray(t.sec))
+        frac = float(np.asarray(t.frac))
+        per, pha = terms
+        arg = 2.0 * np.pi * ((sec % per) + frac) / per + pha
         return np.sqrt(2.0 / WORLD_TERMS) * np.sin(arg).sum(axis=-1)
+
+    def _world_process(self, t: GnssTime, keys) -> np.ndarray:
+        """Smooth zero-mean unit-variance processes of GPS time, one per key, from ``world_seed`` only.
+
+        x(t) = sqrt(2/K) sum_k sin(2 pi t / P_k + phi_k), K = 6 terms, integer periods
+        P_k log-uniform in the key's band, phases uniform: the same values at any
+        epoch rate and for every receiver with the same ``world_seed``.
+        """
+        return self._world_process_terms(t, self._stacked_terms(keys))
 
     def _sisre(self, t: GnssTime, svs) -> np.ndarray:
         """Line-of-sight broadcast orbit + clock error [m] per satellite (module doc)."""
@@ -368,17 +431,28 @@ class Receiver:
         return sig * self._world_process(t, [("sat", str(sv)) for sv in svs])
 
     def _multipath(self, sv_j, codes, el_j, dt_s):
+        """Code multipath/residual [m] of signals (sv_j, codes) (module doc), first-order Gauss-Markov."""
+        idx = np.empty(len(sv_j), dtype=np.int64)
+        for j, mp_key in enumerate(zip(np.asarray(sv_j).tolist(), np.asarray(codes).tolist())):
+            i = self._mp_index.get(mp_key)
+            if i is None:
+                i = self._mp_index[mp_key] = len(self._mp_index)
+            idx[j] = i
+        if len(self._mp_index) > self._mp_x.size:
+            grown = np.full(max(2 * self._mp_x.size, len(self._mp_index)), np.nan)
+            grown[: self._mp_x.size] = self._mp_x
+            self._mp_x = grown
+        return self._multipath_rows(idx, el_j, dt_s)
+
+    def _multipath_rows(self, idx, el_j, dt_s):
         cfg = self.cfg
         sigma = cfg.mp_zenith_m + cfg.mp_low_m * np.exp(-np.maximum(el_j, 0.0) / 15.0)
         phi = np.exp(-dt_s / cfg.mp_tau_s) if dt_s > 0 else 0.0
-        w = self._mp_rng.standard_normal(len(sv_j))
-        out = np.empty(len(sv_j))
-        for i, key in enumerate(zip(sv_j, codes)):
-            prev = self._mp_state.get(key)
-            x = w[i] if prev is None else phi * prev + np.sqrt(1 - phi * phi) * w[i]
-            self._mp_state[key] = x
-            out[i] = sigma[i] * x
-        return out
+        w = self._mp_rng.standard_normal(len(idx))
+        prev = self._mp_x[idx]
+        x = np.where(np.isnan(prev), w, phi * prev + np.sqrt(1 - phi * phi) * w)
+        self._mp_x[idx] = x
+        return sigma * x
 
     def _empty(self, t, bias, drift, svs, az, el, vis, att):
         z = np.zeros(0)
@@ -403,6 +477,27 @@ WORLD_TERMS = 6
 
 class _NoState(Exception):
     pass
+
+
+class _SignalRows:
+    """What the receiver derives once per set of satellites (Receiver._rows_of)."""
+
+    signal_rows: tuple          # (sat_i, codes, freq, chip, systems)
+    lam: np.ndarray
+    gd_factor: np.ndarray
+    p_min: np.ndarray
+    el_min: np.ndarray
+    omega: np.ndarray
+    sv_j: np.ndarray
+    sisre_sigma: np.ndarray
+    sisre_terms: tuple | None
+    mp_idx: np.ndarray
+
+
+def _array_key(a) -> tuple:
+    """Hashable key of an array's contents (dtype, shape, bytes)."""
+    a = np.ascontiguousarray(a)
+    return (a.dtype.str, a.shape, a.tobytes())
 
 
 def _group_delay_factor(systems, codes, freq):

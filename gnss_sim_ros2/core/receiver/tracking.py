@@ -85,6 +85,7 @@ class Tracker:
         self.config = config or TrackingConfig()
         self.rng = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
         self._index: dict[tuple[str, str], int] = {}
+        self._rows_cache: dict = {}
         self._cap = 0
         self._n = 0
         self._t0 = None
@@ -108,8 +109,13 @@ class Tracker:
         self._cap = cap
 
     def _rows(self, sv, code):
+        """Slots of the keys (sv, code); the index array of a key set seen before comes from a cache."""
+        ck = (sv.dtype.str, code.dtype.str, sv.tobytes(), code.tobytes())
+        hit = self._rows_cache.get(ck)
+        if hit is not None:
+            return hit
         idx = np.empty(len(sv), dtype=np.int64)
-        for j, key in enumerate(zip(sv, code)):
+        for j, key in enumerate(zip(sv.tolist(), code.tolist())):
             i = self._index.get(key)
             if i is None:
                 if self._n == self._cap:
@@ -119,6 +125,11 @@ class Tracker:
                 self._pilot[i] = (key[0][:1], key[1]) in PILOT_CODES
                 self._n += 1
             idx[j] = i
+        if len(np.unique(idx)) != len(idx):
+            raise ValueError("Tracker.update: duplicate (sv, code) keys in one epoch")
+        if len(self._rows_cache) > 64:
+            self._rows_cache.clear()
+        self._rows_cache[ck] = idx
         return idx
 
     def _seconds(self, t):
@@ -152,9 +163,7 @@ class Tracker:
         self._t_prev = ts
         c = self.config
 
-        idx = self._rows(sv, code)
-        if len(np.unique(idx)) != n:
-            raise ValueError("Tracker.update: duplicate (sv, code) keys in one epoch")
+        idx = self._rows(sv, code)     # raises on duplicate keys
         # keys absent from this epoch lose lock
         absent = np.ones(self._n, bool)
         absent[idx] = False

@@ -16,6 +16,11 @@ are (origin, unit direction) with ``t`` in metres, never far end points.
   volume has one exit more than entries, which the sum handles.  Each hit is
   weighted by its triangle's attenuation [dB/m], so overlapping volumes of
   different classes add up.
+
+Batched queries (``*_buffer`` methods) take a C-contiguous float32 (K, 6) ray
+buffer (origin shifted by ``center_m``, unit direction), which is handed to
+Open3D without a copy (``Tensor.from_numpy``); :meth:`RayScene.rays_buffer` and
+:meth:`RayScene.rays_buffer_indexed` build one with the origins filled.
 """
 from __future__ import annotations
 
@@ -69,19 +74,75 @@ class RayScene:
         r[:, 3:] = d
         return o3d.core.Tensor.from_numpy(r)
 
+    def _origins_f32(self, origins_m) -> np.ndarray:
+        return (np.asarray(origins_m, dtype=np.float64).reshape(-1, 3) - self.center_m).astype(np.float32)
+
     def rays_buffer(self, origins_m, n_per_origin: int) -> np.ndarray:
         """(M, n, 6) float32 buffer whose origins are filled (shifted by the scene centre); fill [..., 3:]."""
-        o = np.asarray(origins_m, dtype=np.float64).reshape(-1, 3) - self.center_m
+        o = self._origins_f32(origins_m)
         r = np.empty((len(o), n_per_origin, 6), dtype=np.float32)
-        r[..., :3] = o[:, None, :]
+        for k in range(3):          # one coordinate at a time: numpy's inner loop then runs along n, not along 3
+            r[..., k] = o[:, k, None]
+        return r
+
+    def rays_buffer_indexed(self, origins_m, origin_index) -> np.ndarray:
+        """(K, 6) float32 buffer with ray k starting at ``origins_m[origin_index[k]]``; fill [:, 3:]."""
+        o = self._origins_f32(origins_m)
+        idx = np.asarray(origin_index, dtype=np.intp).reshape(-1)
+        r = np.empty((len(idx), 6), dtype=np.float32)
+        for k in range(3):
+            np.take(o[:, k], idx, out=r[:, k])
+        return r
+
+    @staticmethod
+    def _as_buffer(rays) -> np.ndarray:
+        r = np.ascontiguousarray(rays, dtype=np.float32)
+        if r.ndim != 2 or r.shape[1] != 6:
+            raise ValueError(f"RayScene: rays buffer must be (K, 6) float32, got shape {r.shape}")
         return r
 
     def occluded_buffer(self, rays: np.ndarray, tnear_m: float = 0.0) -> np.ndarray:
         """Like :meth:`occluded` for a float32 (K, 6) buffer from :meth:`rays_buffer` (no copy)."""
         if self._opaque is None or len(rays) == 0:
             return np.zeros(len(rays), dtype=bool)
-        t = o3d.core.Tensor.from_numpy(np.ascontiguousarray(rays, dtype=np.float32))
+        t = o3d.core.Tensor.from_numpy(self._as_buffer(rays))
         return self._opaque.test_occlusions(t, tnear=tnear_m, nthreads=self.nthreads).numpy()
+
+    def touches_penetrable_buffer(self, rays: np.ndarray, tnear_m: float = 0.0) -> np.ndarray:
+        """Like :meth:`touches_penetrable` for a float32 (K, 6) buffer (no copy)."""
+        if self._pen is None or len(rays) == 0:
+            return np.zeros(len(rays), dtype=bool)
+        t = o3d.core.Tensor.from_numpy(self._as_buffer(rays))
+        return self._pen.test_occlusions(t, tnear=tnear_m, nthreads=self.nthreads).numpy()
+
+    def penetration_buffer(self, rays: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`penetration` for a float32 (K, 6) buffer, sparse: (indices of the rays that touch
+        penetrable volumes, their attenuation_db, their path_length_m); every other ray has 0 and 0."""
+        if self._pen is None or len(rays) == 0:
+            return np.zeros(0, dtype=np.intp), np.zeros(0), np.zeros(0)
+        r = self._as_buffer(rays)
+        return self._penetration(r, r[:, 3:])
+
+    def _penetration(self, rays: np.ndarray, dirs: np.ndarray):
+        """(sel, db, length) for the rays of the float32 buffer ``rays`` that touch foliage.
+
+        ``dirs`` (K, 3): the directions that decide entry / exit (the caller's, before float32)."""
+        touched = self._pen.test_occlusions(o3d.core.Tensor.from_numpy(rays), nthreads=self.nthreads).numpy()
+        sel = np.flatnonzero(touched)
+        if len(sel) == 0:
+            return sel, np.zeros(0), np.zeros(0)
+        lx = self._pen.list_intersections(o3d.core.Tensor.from_numpy(np.take(rays, sel, axis=0)),
+                                          nthreads=self.nthreads)
+        ray_ids = lx["ray_ids"].numpy().astype(np.int64)
+        prim = lx["primitive_ids"].numpy().astype(np.int64)
+        t_hit = lx["t_hit"].numpy().astype(np.float64)
+        # exit (+t) when the ray leaves through the face (d . n > 0), entry (-t) otherwise
+        d_hit = np.asarray(dirs)[sel[ray_ids]].astype(np.float64, copy=False)
+        sign = np.sign(np.einsum("ij,ij->i", d_hit, self._pen_normals[prim]))
+        w = sign * t_hit
+        length_sel = np.bincount(ray_ids, weights=w, minlength=len(sel))
+        db_sel = np.bincount(ray_ids, weights=w * self._pen_att[prim], minlength=len(sel))
+        return sel, np.maximum(db_sel, 0.0), np.maximum(length_sel, 0.0)
 
     def occluded(self, origins_m, dirs, tnear_m: float = 0.0, tfar_m: float = np.inf) -> np.ndarray:
         """(K,) bool: does the ray hit an opaque triangle within [tnear, tfar]?"""
@@ -125,19 +186,7 @@ class RayScene:
         if self._pen is None or n == 0:
             return db, length
         o, d = np.broadcast_arrays(o, d)
-        touched = self._pen.test_occlusions(self._rays(o, d), nthreads=self.nthreads).numpy()
-        if not np.any(touched):
-            return db, length
-        sel = np.flatnonzero(touched)
-        lx = self._pen.list_intersections(self._rays(o[sel], d[sel]), nthreads=self.nthreads)
-        ray_ids = lx["ray_ids"].numpy().astype(np.int64)
-        prim = lx["primitive_ids"].numpy().astype(np.int64)
-        t_hit = lx["t_hit"].numpy().astype(np.float64)
-        # exit (+t) when the ray leaves through the face (d . n > 0), entry (-t) otherwise
-        sign = np.sign(np.einsum("ij,ij->i", d[sel][ray_ids], self._pen_normals[prim]))
-        w = sign * t_hit
-        length_sel = np.bincount(ray_ids, weights=w, minlength=len(sel))
-        db_sel = np.bincount(ray_ids, weights=w * self._pen_att[prim], minlength=len(sel))
-        length[sel] = np.maximum(length_sel, 0.0)
-        db[sel] = np.maximum(db_sel, 0.0)
+        sel, db_sel, length_sel = self._penetration(self._rays(o, d).numpy(), d)
+        db[sel] = db_sel
+        length[sel] = length_sel
         return db, length

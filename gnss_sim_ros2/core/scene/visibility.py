@@ -60,6 +60,7 @@ STATE_NAMES = {STATE_BELOW_MASK: "below_mask", STATE_VISIBLE: "visible", STATE_B
 
 #: GPS L1 wavelength [m] (C_MPS / F_L1_HZ)
 L1_WAVELENGTH_M = C_MPS / F_L1_HZ
+_RAD_PER_DEG_F32 = np.float32(math.pi / 180.0)
 
 
 @dataclass
@@ -107,11 +108,14 @@ def _perp_basis(d):
     return u, v
 
 
-def _geodetic_lat_lon_deg(ecef):
-    """WGS 84 geodetic latitude/longitude [deg] of ECEF points (M, 3): Bowring's formula, one step.
+def _enu_rows_at_ecef(ecef):
+    """(M, 3, 3): rows east, north, up in ECEF at the WGS 84 geodetic position of ECEF points (M, 3).
 
-    (B. R. Bowring, Survey Review 23(181), 1976.)  Error below 1e-9 deg for heights within +-10 km,
-    far below what a direction needs, and vectorised without the iteration of a general converter.
+    Geodetic latitude by Bowring's formula, one step (B. R. Bowring, Survey Review 23(181), 1976):
+    tan(theta) = z a / (p b),  tan(lat) = (z + e'^2 b sin^3 theta) / (p - e^2 a cos^3 theta).  Error below
+    1e-9 deg for heights within +-10 km, far below what a direction needs, and vectorised without the
+    iteration of a general converter.  The sines and cosines come from the tangent's two terms,
+    no angle is formed; on the polar axis (p = 0) longitude 0 is taken.
     """
     from ..constants import WGS84_A_M, WGS84_F
 
@@ -120,10 +124,22 @@ def _geodetic_lat_lon_deg(ecef):
     e2 = WGS84_F * (2.0 - WGS84_F)
     ep2 = e2 / (1.0 - e2)
     x, y, z = ecef[:, 0], ecef[:, 1], ecef[:, 2]
-    p = np.hypot(x, y)
-    theta = np.arctan2(z * a, p * b)
-    lat = np.arctan2(z + ep2 * b * np.sin(theta) ** 3, p - e2 * a * np.cos(theta) ** 3)
-    return np.degrees(lat), np.degrees(np.arctan2(y, x))
+    p = np.sqrt(x * x + y * y)
+    za, pb = z * a, p * b
+    r = np.sqrt(za * za + pb * pb)
+    s_t, c_t = za / r, pb / r                                   # sin, cos theta
+    num = z + ep2 * b * (s_t * s_t * s_t)
+    den = p - e2 * a * (c_t * c_t * c_t)
+    h = np.sqrt(num * num + den * den)
+    sl, cl = num / h, den / h
+    off_axis = p > 0
+    so = np.divide(y, p, out=np.zeros_like(p), where=off_axis)
+    co = np.divide(x, p, out=np.ones_like(p), where=off_axis)
+    rows = np.empty((len(p), 3, 3))
+    rows[:, 0, 0], rows[:, 0, 1], rows[:, 0, 2] = -so, co, 0.0
+    rows[:, 1, 0], rows[:, 1, 1], rows[:, 1, 2] = -sl * co, -sl * so, cl
+    rows[:, 2, 0], rows[:, 2, 1], rows[:, 2, 2] = cl * co, cl * so, sl
+    return rows
 
 
 def _local_enu_rows(lat_deg, lon_deg):
@@ -169,10 +185,10 @@ class Scene:
         a = np.asarray(antenna_world_m, dtype=np.float64).reshape(-1, 3)
         if self.spherical is None:
             return np.broadcast_to(np.eye(3), (len(a), 3, 3)).copy()
-        ecef = self.spherical.world_to_ecef(a)
-        lat, lon = _geodetic_lat_lon_deg(ecef)
-        rows = _local_enu_rows(lat, lon)                                        # enu_A = rows @ ecef
-        return np.einsum("ij,mkj->mik", self.spherical.rotation_world_from_ecef(), rows)
+        rows = _enu_rows_at_ecef(self.spherical.world_to_ecef(a))             # enu_A = rows @ ecef
+        # R = W @ rows.T with W = world <- ECEF: one (3M, 3) @ (3, 3) product, then per-antenna transpose
+        w = self.spherical.rotation_world_from_ecef()
+        return np.ascontiguousarray((rows.reshape(-1, 3) @ w.T).reshape(-1, 3, 3).transpose(0, 2, 1))
 
     def antenna_ecef(self, antenna_world_m) -> np.ndarray:
         if self.spherical is None:
@@ -210,64 +226,86 @@ class Scene:
             d = d / norm
             az = np.degrees(np.arctan2(d[..., 0], d[..., 1])) % 360.0
             el = np.degrees(np.arcsin(np.clip(d[..., 2], -1.0, 1.0)))
-            e_c, n_c, u_c = (d[..., k].astype(np.float32) for k in range(3))
         else:
             if az_deg is None or el_deg is None:
                 raise ValueError("visibility: give sat_dirs_enu or az_deg and el_deg")
             az, el = np.broadcast_arrays(np.asarray(az_deg, np.float64), np.asarray(el_deg, np.float64))
             if az.ndim == 1:
                 az, el = np.broadcast_to(az, (m, az.shape[0])), np.broadcast_to(el, (m, el.shape[0]))
-            az_r = np.radians(az, dtype=np.float32)
-            el_r = np.radians(el, dtype=np.float32)
-            ce = np.cos(el_r)
-            e_c, n_c, u_c = ce * np.sin(az_r), ce * np.cos(az_r), np.sin(el_r)
         if az.shape[0] != m:
             raise ValueError(f"directions for {az.shape[0]} antenna positions, positions for {m}")
         n = az.shape[1]
         shape = (m, n)
         att_db = np.zeros(shape)
         path = np.zeros(shape)
-        frac = np.zeros(shape)
         diff = np.zeros(shape)
         cast = el >= mask_deg
         all_cast = bool(cast.all())
+        # the mask cuts first: directions and rays only for the cast satellites, (M, N) when all are cast,
+        # else (K,) in row-major order (flat indices ``flat``, antenna ``ant``); float32 throughout
+        if all_cast:
+            flat, ant = slice(None), None
+        else:
+            flat = np.flatnonzero(cast)
+            ant = flat // n
+        if sat_dirs_enu is not None:
+            dc = d if all_cast else d[cast]
+            e_c, n_c, u_c = (dc[..., k].astype(np.float32) for k in range(3))
+        else:
+            az_r = (az if all_cast else az[cast]).astype(np.float32)
+            el_r = (el if all_cast else el[cast]).astype(np.float32)
+            # x * float32(pi / 180): the same float32 numbers as np.radians(az, dtype=np.float32), SIMD
+            np.multiply(az_r, _RAD_PER_DEG_F32, out=az_r)
+            np.multiply(el_r, _RAD_PER_DEG_F32, out=el_r)
+            ce = np.cos(el_r)
+            e_c = np.sin(az_r)
+            e_c *= ce
+            n_c = np.cos(az_r, out=az_r)
+            n_c *= ce
+            u_c = np.sin(el_r, out=el_r)
         # rays: origins at the antennas (shifted by the scene centre), directions local ENU -> world (float32)
-        R = self.world_from_local_enu(a).astype(np.float32)                   # (M, 3, 3)
-        rays = self.rays.rays_buffer(a, n)
-        for k in range(3):
-            rays[..., 3 + k] = e_c * R[:, None, k, 0] + n_c * R[:, None, k, 1] + u_c * R[:, None, k, 2]
+        rays = self.rays.rays_buffer(a, n) if all_cast else self.rays.rays_buffer_indexed(a, ant)
+        if self.spherical is None:                       # no geodetic origin: world = local ENU everywhere
+            rays[..., 3], rays[..., 4], rays[..., 5] = e_c, n_c, u_c
+        else:
+            R = self.world_from_local_enu(a).astype(np.float32)               # (M, 3, 3)
+            coef = R[:, None] if all_cast else np.take(R, ant, axis=0)        # (M, 1, 3, 3) or (K, 3, 3)
+            for k in range(3):
+                rays[..., 3 + k] = e_c * coef[..., k, 0] + n_c * coef[..., k, 1] + u_c * coef[..., k, 2]
         rays = rays.reshape(-1, 6)
-        flat = slice(None) if all_cast else np.flatnonzero(cast.ravel())
-        if not all_cast:
-            rays = rays[flat]
         if fresnel_rays > 0:
-            o = a[np.repeat(np.arange(m), n)][flat]
+            o = np.repeat(a, n, axis=0) if all_cast else a[ant]
             dw = rays[:, 3:].astype(np.float64)
             t0 = self.rays.hit_distance(o, dw, tnear_m=tnear_m)
             blocked = np.isfinite(t0)
             f = self._fresnel_fraction(o, dw, t0, int(fresnel_rays), float(wavelength_m),
                                        float(fresnel_probe_m), tnear_m)
+            frac = np.zeros(shape)
             frac.reshape(-1)[flat] = f
             diff.reshape(-1)[flat] = knife_edge_loss_db(f)
         else:
             blocked = self.rays.occluded_buffer(rays, tnear_m=tnear_m)
-            frac.reshape(-1)[flat] = blocked
-        st = np.where(blocked, STATE_BLOCKED, STATE_VISIBLE).astype(np.int8)
+            if all_cast:
+                frac = blocked.astype(np.float64).reshape(shape)
+            else:
+                frac = np.zeros(shape)
+                frac.reshape(-1)[flat] = blocked
+        st = blocked.astype(np.int8)                     # STATE_BLOCKED = 1, STATE_VISIBLE = 0
         if self.rays.has_penetrable and len(st):
+            # foliage only along the rays that are not blocked: a contiguous float32 copy of those
             clear = np.flatnonzero(~blocked)
-            r_clear = rays[clear]
-            o = r_clear[:, :3].astype(np.float64) + self.rays.center_m
+            r_clear = rays if len(clear) == len(rays) else np.take(rays, clear, axis=0)
             idx = clear if all_cast else flat[clear]
             if foliage == "touch":
-                touched = self.rays.touches_penetrable(o, r_clear[:, 3:].astype(np.float64))
-                att_db.reshape(-1)[idx] = np.where(touched, float(foliage_touch_db), 0.0)
-                path.reshape(-1)[idx] = np.where(touched, np.nan, 0.0)
+                touched = self.rays.touches_penetrable_buffer(r_clear)
+                att_db.reshape(-1)[idx[touched]] = float(foliage_touch_db)
+                path.reshape(-1)[idx[touched]] = np.nan
                 st[clear[touched]] = STATE_ATTENUATED
             else:
-                db, ln = self.rays.penetration(o, r_clear[:, 3:].astype(np.float64))
-                att_db.reshape(-1)[idx] = db
-                path.reshape(-1)[idx] = ln
-                st[clear[ln > 0]] = STATE_ATTENUATED
+                sel, db, ln = self.rays.penetration_buffer(r_clear)            # only the rays touching foliage
+                att_db.reshape(-1)[idx[sel]] = db
+                path.reshape(-1)[idx[sel]] = ln
+                st[clear[sel[ln > 0]]] = STATE_ATTENUATED
         if all_cast:
             state = st.reshape(shape)
         else:

@@ -1,0 +1,416 @@
+"""``gnss-sim bench``: speed against accuracy of the fidelity presets (core/presets.py).
+
+Runs the same scenarios under every preset, in this process (run_simulation),
+prints a table and optionally writes JSON (``--json FILE``) and a cost/accuracy
+plot (``--plot FILE.png``).
+
+Scenarios
+---------
+* ``demo``: the courtyard world (worlds/courtyard.sdf) with the demo path
+  looped, the synthetic GRECJI constellation, 2025-06-01T10:00:00 GPS,
+  600 s (``--quick``: 300 s), each preset at its own epoch interval
+  (presets ``epoch_interval_s``: fast 10 s, balanced/accurate 1 s).
+* ``opec``: the OPEC station (NETR9, 2022-01-01, open sky) when the real data
+  is present (GNSS_SIM_SHARED_DATA or ../shared/data beside the repository):
+  static antenna at the marker, broadcast GPS+Galileo navigation (and the
+  CODE SP3 for the ``orbit: precise`` switch), 30 s epochs as the real file,
+  03:39:30 h (``--quick``: the first hour).
+
+Figures per preset (JSON ``presets[i]``)
+----------------------------------------
+* ``realtime_factor``: simulated seconds per wall-clock second of the epoch
+  loop of the demo scenario (run_simulation's ``wall_s``: ephemeris/scene
+  loading excluded, reported as ``setup_s``); the best (shortest) of
+  ``repeats`` runs, because on a shared machine other processes only ever
+  add time.  ``seconds_per_epoch``: that wall time per epoch.
+* ``pseudorange_rms_m``: against the real receiver when the OPEC data is
+  present (simulated minus real GPS C1C per satellite and epoch, one receiver
+  clock offset per epoch removed as the median over satellites, |d| > 30 m
+  dropped as gross; default noise on, seed 1), else against the ``accurate``
+  preset (simulated pseudoranges of the signals both runs track at their
+  common epochs, noise off in both runs so that only model differences
+  remain).
+* ``visible_set_jaccard``: mean over epochs of |A & B| / |A | B| of the sets
+  of tracked satellites: against the real receiver (GPS+Galileo satellites
+  above 10 deg by the simulated geometry; the real set = satellites with a
+  code observation) when present, else against ``accurate`` (noise off).
+* ``fix_horizontal_rms_m``: RMS horizontal error of the simulated receiver's
+  position fix against the true antenna position (OPEC marker when present,
+  else the demo path), default noise.
+* ``against``: what the three figures above are measured against.
+Nested: ``demo`` and ``opec`` blocks with every figure of each comparison.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+PRESET_ORDER = ("fast", "balanced", "accurate")
+DEMO_START = "2025-06-01T10:00:00"
+OPEC_START = "2022-01-01T00:00:00"
+OPEC_ECEF_M = (3149785.9652, 598260.8822, 5495348.4927)
+OPEC_REAL_OBS = "OPEC00NOR_S_20220010000_0340_30S_MO.rnx"
+#: first code of each system in the real OPEC file (GPS C/A; Galileo E1 B+C)
+OPEC_CODE = {"G": "C1C", "E": "C1X"}
+GROSS_M = 30.0
+REAL_MASK_DEG = 10.0
+
+
+def add_arguments(p):
+    p.add_argument("--quick", action="store_true", help="shorter scenarios (under two minutes)")
+    p.add_argument("--json", metavar="FILE", nargs="?", const="-",
+                   help="write the figures as JSON to FILE (no FILE: to standard output, the table to stderr)")
+    p.add_argument("--plot", metavar="FILE.png", help="plot of cost against accuracy (PNG)")
+    p.add_argument("--repeats", type=int, default=None, help="timed runs per preset, best kept (3)")
+    p.add_argument("--no-real", action="store_true", help="skip the OPEC scenario even when its data is present")
+    p.add_argument("--presets", default=",".join(PRESET_ORDER), help="comma-separated presets (all)")
+    p.add_argument("--epochs", type=int, default=None, help=argparse.SUPPRESS)   # tiny runs for tests
+
+
+def shared_data_dir() -> Path:
+    """GNSS_SIM_SHARED_DATA, else ../shared/data beside the repository (as test/conftest.py)."""
+    repo = Path(__file__).resolve().parents[2]
+    return Path(os.environ.get("GNSS_SIM_SHARED_DATA", repo.parent / "shared" / "data"))
+
+
+# ============================================================================ collection
+class Recorder:
+    """Observer for run_simulation: what the comparisons need from each epoch."""
+
+    def __init__(self, systems: str):
+        self.systems = systems
+        self.epochs: dict[int, dict] = {}
+
+    def __call__(self, t, true_ecef, obs, sol):
+        key = int(np.asarray(t.sec)) * 1_000_000 + int(round(float(np.asarray(t.frac)) * 1e6))
+        sv = obs.sv.tolist()
+        self.epochs[key] = {
+            "tracked": {s for s in sv if s[0] in self.systems},
+            "pr": {(s, c): p for s, c, p in zip(sv, obs.code.tolist(), obs.pseudorange_m.tolist())},
+            "el": dict(zip(obs.sat_sv.tolist(), obs.sat_el_deg.tolist())),
+            "fix": None if not sol.is_fix else np.asarray(sol.pos_ecef_m, dtype=float),
+            "true": np.asarray(true_ecef, dtype=float),
+        }
+
+
+def _rms(x) -> float | None:
+    x = np.asarray(x, dtype=float)
+    x = x[np.isfinite(x)]
+    return float(np.sqrt(np.mean(x * x))) if x.size else None
+
+
+def _jaccard(a: set, b: set) -> float:
+    u = a | b
+    return 1.0 if not u else len(a & b) / len(u)
+
+
+def compare_runs(run: Recorder, ref: Recorder) -> dict:
+    """Pseudoranges, tracked sets and fixes of ``run`` against ``ref`` at their common epochs."""
+    from gnss_sim_ros2.core.simulation import horizontal_errors_m
+
+    common = sorted(set(run.epochs) & set(ref.epochs))
+    d, jac, fa, fb = [], [], [], []
+    for key in common:
+        a, b = run.epochs[key], ref.epochs[key]
+        d.extend(a["pr"][k] - b["pr"][k] for k in a["pr"].keys() & b["pr"].keys())
+        jac.append(_jaccard(a["tracked"], b["tracked"]))
+        if a["fix"] is not None and b["fix"] is not None:
+            fa.append(a["fix"])
+            fb.append(b["fix"])
+    fix_diff = horizontal_errors_m(np.array(fa), np.array(fb)) if fa else np.zeros(0)
+    return {"epochs": len(common), "signals": len(d), "pseudorange_rms_m": _rms(d),
+            "pseudorange_max_abs_m": float(np.max(np.abs(d))) if d else None,
+            "visible_set_jaccard": float(np.mean(jac)) if jac else None,
+            "fix_difference_horizontal_rms_m": _rms(fix_diff)}
+
+
+def fix_error(run: Recorder) -> dict:
+    from gnss_sim_ros2.core.simulation import horizontal_errors_m
+
+    est = [e["fix"] for e in run.epochs.values() if e["fix"] is not None]
+    true = [e["true"] for e in run.epochs.values() if e["fix"] is not None]
+    h = horizontal_errors_m(np.array(est), np.array(true)) if est else np.zeros(0)
+    return {"fix_horizontal_rms_m": _rms(h), "fix_horizontal_p95_m": float(np.percentile(h, 95)) if h.size else None,
+            "fix_availability": len(est) / max(len(run.epochs), 1)}
+
+
+# ============================================================================ real data
+class RealObs:
+    """Code observations of the real OPEC receiver: keys (GPS seconds * 1e6) -> {sv: code [m]}."""
+
+    def __init__(self, path: Path, systems: str):
+        import georinex as gr
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            ds = gr.load(path, use=set(systems), meas=sorted({OPEC_CODE[s] for s in systems}))
+        t0 = np.datetime64("1980-01-06T00:00:00", "us")
+        secs = ((ds.time.values.astype("datetime64[us]") - t0) / np.timedelta64(1, "s")).astype(np.int64)
+        svs = [str(v) for v in ds.sv.values]
+        cols = {s: np.asarray(ds[OPEC_CODE[s]].values, dtype=float) if OPEC_CODE[s] in ds else None for s in systems}
+        self.epochs: dict[int, dict[str, float]] = {}
+        for i, sec in enumerate(secs):
+            row = {}
+            for j, sv in enumerate(svs):
+                col = cols.get(sv[0])
+                if col is not None and np.isfinite(col[i, j]):
+                    row[sv] = float(col[i, j])
+            self.epochs[int(sec) * 1_000_000] = row
+
+
+def compare_real(run: Recorder, real: RealObs) -> dict:
+    """Simulated minus real GPS C1C (one clock offset per epoch removed) and tracked sets above 10 deg."""
+    common = sorted(set(run.epochs) & set(real.epochs))
+    d, jac = [], []
+    for key in common:
+        a, r = run.epochs[key], real.epochs[key]
+        sim_c1c = {s: p for (s, c), p in a["pr"].items() if s[0] == "G" and c == "1C"}
+        both = sorted(sim_c1c.keys() & {s for s in r if s[0] == "G"})
+        if len(both) >= 2:
+            x = np.array([sim_c1c[s] - r[s] for s in both])
+            x = x - np.median(x)
+            d.extend(x[np.abs(x) <= GROSS_M].tolist())
+        high = {s for s, e in a["el"].items() if e >= REAL_MASK_DEG and s[0] in run.systems}
+        jac.append(_jaccard(a["tracked"] & high, set(r) & high))
+    return {"epochs": len(common), "samples": len(d), "pseudorange_rms_m": _rms(d),
+            "visible_set_jaccard": float(np.mean(jac)) if jac else None}
+
+
+# ============================================================================ scenarios
+def _demo_setup(out: Path, duration_s: float, scene, ephemeris):
+    from gnss_sim_ros2.core.simulation import SimulationSetup
+    from gnss_sim_ros2.core.time import GnssTime
+    from gnss_sim_ros2.core.trajectory import demo_trajectory
+
+    return SimulationSetup(start=GnssTime.from_iso(DEMO_START), duration_s=duration_s, interval_s=0.0, out_dir=out,
+                           trajectory=demo_trajectory(loop=True), systems="GRECJI", source="synthetic",
+                           scene=scene, ephemeris=ephemeris)
+
+
+def _opec_setup(out: Path, duration_s: float, data: Path, ephemeris):
+    from gnss_sim_ros2.core.simulation import SimulationSetup
+    from gnss_sim_ros2.core.time import GnssTime
+    from gnss_sim_ros2.core.trajectory import Trajectory
+
+    d = data / "opec-2022-001"
+    return SimulationSetup(start=GnssTime.from_iso(OPEC_START), duration_s=duration_s, interval_s=30.0, out_dir=out,
+                           trajectory=Trajectory.static(OPEC_ECEF_M, "ecef"), systems="GE", source="broadcast",
+                           nav_files=[str(d / f"OPEC00NOR_S_20220010000_01D_{s}N.rnx") for s in "GE"],
+                           sp3_files=[str(d / "COD0MGXFIN_20220010000_01D_05M_ORB.SP3")], ephemeris=ephemeris,
+                           marker_name="OPEC")
+
+
+def _run(setup, preset: str, noise: bool | None, record: bool, tag: str):
+    import dataclasses
+
+    from gnss_sim_ros2.core.simulation import run_simulation
+
+    rec = Recorder(setup.systems) if record else None
+    sw = {} if noise is None else {"noise": bool(noise)}
+    s = dataclasses.replace(setup, preset=preset, switches=sw, observer=rec, out_dir=Path(setup.out_dir) / tag)
+    res = run_simulation(s)
+    return res, rec
+
+
+def bench_scenario(name: str, setup, presets, repeats: int, real: RealObs | None, log) -> dict:
+    """Timed runs (default noise) and noise-free runs of every preset; comparisons."""
+    out = {"presets": {}}
+    free: dict[str, Recorder] = {}
+    for p in presets:
+        walls, first = [], None
+        for r in range(repeats):
+            res, rec = _run(setup, p, None, record=(r == 0), tag=f"{p}_{r}")
+            walls.append(res.wall_s)
+            if r == 0:
+                first = (res, rec)
+        res, rec = first
+        best = min(walls)
+        entry = {"epochs": res.epochs, "interval_s": res.interval_s, "simulated_s": res.sim_s,
+                 "orbit_source": res.orbit_source, "wall_s_runs": [round(w, 4) for w in walls],
+                 "wall_s_best": best, "wall_s_median": float(np.median(walls)),
+                 "realtime_factor": res.sim_s / best, "seconds_per_epoch": best / max(res.epochs, 1),
+                 "setup_s_first_run": res.setup_s, "satellites_tracked_mean": float(np.mean(res.tracked_per_epoch))}
+        entry.update(fix_error(rec))
+        if real is not None:
+            entry["vs_real"] = compare_real(rec, real)
+        _, free[p] = _run(setup, p, False, record=True, tag=f"{p}_noisefree")
+        entry["noise_free"] = fix_error(free[p])
+        out["presets"][p] = entry
+        log(f"[bench] {name:5s} {p:9s} {res.epochs:5d} epochs @ {res.interval_s:g} s: best {best:.3f} s "
+            f"({entry['realtime_factor']:.0f}x real time, {1e3 * entry['seconds_per_epoch']:.2f} ms/epoch)")
+    if "accurate" in free:
+        for p in presets:
+            out["presets"][p]["vs_accurate"] = compare_runs(free[p], free["accurate"])
+    return out
+
+
+# ============================================================================ command
+def run_bench(quick: bool = False, presets=PRESET_ORDER, repeats: int | None = None, epochs: int | None = None,
+              use_real: bool = True, workdir: Path | None = None, log=print) -> dict:
+    from gnss_sim_ros2.commands.simulate import default_world
+    from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris
+    from gnss_sim_ros2.core.simulation import load_scene
+    from gnss_sim_ros2.core.time import GnssTime
+
+    for p in presets:
+        if p not in PRESET_ORDER:
+            raise ValueError(f"--presets: unknown preset {p!r} (use {', '.join(PRESET_ORDER)})")
+    repeats = repeats if repeats is not None else (1 if epochs else 3)
+    if repeats < 1:
+        raise ValueError("--repeats must be >= 1")
+    if workdir is None:
+        with tempfile.TemporaryDirectory(prefix="gnss_sim_bench_") as tmp:
+            return run_bench(quick, presets, repeats, epochs, use_real, Path(tmp), log)
+    work = Path(workdir)
+    report: dict = {"quick": bool(quick), "repeats": repeats, "timing": "best (shortest) of the repeated runs; "
+                    "epoch loop only (run_simulation wall_s), setup excluded", "scenarios": {}}
+
+    # demo: courtyard world, looped demo path, synthetic constellation
+    demo_s = (10.0 * (epochs - 1) if epochs else (300.0 if quick else 600.0))
+    t0 = time.perf_counter()
+    scene = load_scene(str(default_world()))
+    eph = {"synthetic": open_ephemeris("synthetic", GnssTime.from_iso(DEMO_START), demo_s, "GRECJI",
+                                       workdir=work / "ephemeris")}
+    log(f"[bench] demo scenario loaded in {time.perf_counter() - t0:.1f} s")
+    demo = bench_scenario("demo", _demo_setup(work / "demo", demo_s, scene, eph), presets, repeats, None, log)
+    demo.update({"description": "worlds/courtyard.sdf, demo path looped, synthetic GRECJI constellation, "
+                                f"{DEMO_START} GPS, {demo_s:g} s, epoch interval from each preset",
+                 "duration_s": demo_s, "setup_s": time.perf_counter() - t0})
+    report["scenarios"]["demo"] = demo
+
+    data = shared_data_dir()
+    opec = None
+    if use_real and (data / "opec-2022-001" / OPEC_REAL_OBS).is_file():
+        opec_s = 30.0 * (epochs - 1) if epochs else (3570.0 if quick else 13170.0)
+        t0 = time.perf_counter()
+        base = _opec_setup(work / "opec", opec_s, data, {})
+        start = GnssTime.from_iso(OPEC_START)
+        base.ephemeris["broadcast"] = open_ephemeris("broadcast", start, opec_s, "GE", base.nav_files)
+        base.ephemeris["sp3"] = open_ephemeris("sp3", start, opec_s, "GE", sp3_files=base.sp3_files)
+        real = RealObs(data / "opec-2022-001" / OPEC_REAL_OBS, "GE")
+        log(f"[bench] OPEC scenario loaded in {time.perf_counter() - t0:.1f} s")
+        opec = bench_scenario("opec", base, presets, repeats, real, log)
+        opec.update({"description": "OPEC (NETR9) 2022-01-01, static at the marker, broadcast GPS+Galileo "
+                                    "(SP3 for orbit: precise), 30 s epochs, against the real receiver's file",
+                     "duration_s": opec_s, "real_file": OPEC_REAL_OBS})
+        report["scenarios"]["opec"] = opec
+    else:
+        report["scenarios"]["opec"] = {"skipped": f"no real data at {data / 'opec-2022-001'}"
+                                       if use_real else "--no-real"}
+
+    from gnss_sim_ros2.core.presets import preset as preset_switches
+
+    rows = []
+    for p in presets:
+        d = demo["presets"][p]
+        e = {"name": p, "switches": preset_switches(p),
+             "realtime_factor": d["realtime_factor"], "seconds_per_epoch": d["seconds_per_epoch"],
+             "epoch_interval_s": d["interval_s"], "demo": d}
+        if opec is not None:
+            o = opec["presets"][p]
+            e.update({"against": "real receiver OPEC 2022-001 (pseudorange, tracked set); true marker (fix)",
+                      "pseudorange_rms_m": o["vs_real"]["pseudorange_rms_m"],
+                      "visible_set_jaccard": o["vs_real"]["visible_set_jaccard"],
+                      "fix_horizontal_rms_m": o["fix_horizontal_rms_m"],
+                      "vs_real": o["vs_real"], "vs_accurate": d.get("vs_accurate"), "opec": o})
+        else:
+            va = d.get("vs_accurate") or {}
+            e.update({"against": "accurate preset, noise off (pseudorange, tracked set); true demo path (fix)",
+                      "pseudorange_rms_m": va.get("pseudorange_rms_m"),
+                      "visible_set_jaccard": va.get("visible_set_jaccard"),
+                      "fix_horizontal_rms_m": d["fix_horizontal_rms_m"], "vs_accurate": d.get("vs_accurate")})
+        rows.append(e)
+    report["presets"] = rows
+    return report
+
+
+def _f(v, fmt):
+    return "-" if v is None else format(v, fmt)
+
+
+def table(report: dict) -> str:
+    opec = "presets" in report["scenarios"].get("opec", {})
+    head = ["preset", "interval s", "ms/epoch", "x real time", "PR RMS vs acc m", "Jaccard vs acc", "fix H RMS m"]
+    if opec:
+        head += ["PR RMS vs real m", "Jaccard vs real", "OPEC fix H RMS m", "OPEC x real time"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for e in report["presets"]:
+        d = e["demo"]
+        va = d.get("vs_accurate") or {}
+        row = [e["name"], _f(d["interval_s"], "g"), _f(1e3 * d["seconds_per_epoch"], ".2f"),
+               _f(d["realtime_factor"], ".0f"), _f(va.get("pseudorange_rms_m"), ".2e"),
+               _f(va.get("visible_set_jaccard"), ".3f"), _f(d["fix_horizontal_rms_m"], ".2f")]
+        if opec:
+            o = report["scenarios"]["opec"]["presets"][e["name"]]
+            row += [_f(o["vs_real"]["pseudorange_rms_m"], ".3f"), _f(o["vs_real"]["visible_set_jaccard"], ".3f"),
+                    _f(o["fix_horizontal_rms_m"], ".2f"), _f(o["realtime_factor"], ".0f")]
+        lines.append("| " + " | ".join(row) + " |")
+    return "\n".join(lines)
+
+
+def plot(report: dict, path) -> Path:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = report["presets"]
+    cost = [1.0 / e["realtime_factor"] for e in rows]
+    opec = "presets" in report["scenarios"].get("opec", {})
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4))
+    panels = [("pseudorange_rms_m", "pseudorange RMS [m]"), ("visible_set_jaccard", "tracked-set Jaccard")]
+    for ax, (key, label) in zip(axes, panels):
+        y = [e[key] if e[key] is not None else np.nan for e in rows]
+        ax.plot(cost, y, "o-", color="tab:blue")
+        for c, v, e in zip(cost, y, rows):
+            ax.annotate(e["name"], (c, v), textcoords="offset points", xytext=(6, 4))
+        ax.set_xscale("log")
+        ax.set_xlabel("wall seconds per simulated second (demo scenario)")
+        ax.set_ylabel(label + (" vs real OPEC receiver" if opec else " vs accurate"))
+        ax.grid(True, which="both", alpha=0.3)
+    fig.suptitle("gnss-sim presets: cost against accuracy" + (" (OPEC 2022-001)" if opec else ""))
+    fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+def run(args) -> int:
+    try:
+        presets = tuple(p.strip() for p in args.presets.split(",") if p.strip())
+        if args.epochs is not None and args.epochs < 2:
+            raise ValueError("--epochs must be >= 2")
+        report = run_bench(args.quick, presets, args.repeats, args.epochs, not args.no_real,
+                           log=lambda m: print(m, file=sys.stderr, flush=True))
+    except ValueError as exc:
+        print(f"gnss-sim bench: error: {exc}", file=sys.stderr)
+        return 2
+    text = sys.stderr if args.json == "-" else sys.stdout
+    print(table(report), file=text)
+    if args.json == "-":
+        print(json.dumps(report, indent=1, default=_json_default))
+    elif args.json:
+        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.json).write_text(json.dumps(report, indent=1, default=_json_default))
+        print(f"wrote {args.json}", file=text)
+    if args.plot:
+        print(f"wrote {plot(report, args.plot)}", file=text)
+    return 0
+
+
+def _json_default(o):
+    if isinstance(o, (np.floating, np.integer)):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    return str(o)
