@@ -21,8 +21,9 @@ Figures per preset (JSON ``presets[i]``)
 * ``realtime_factor``: simulated seconds per wall-clock second of the epoch
   loop of the demo scenario (run_simulation's ``wall_s``: ephemeris/scene
   loading excluded, reported as ``setup_s``); the best (shortest) of
-  ``repeats`` runs, because on a shared machine other processes only ever
-  add time.  ``seconds_per_epoch``: that wall time per epoch.
+  ``repeats`` runs (default 3; runs shorter than MIN_TIMED_S in total are
+  repeated up to MAX_RUNS times), because on a shared machine other processes
+  only ever add time.  ``seconds_per_epoch``: that wall time per epoch.
 * ``pseudorange_rms_m``: against the real receiver when the OPEC data is
   present (simulated minus real GPS C1C per satellite and epoch, one receiver
   clock offset per epoch removed as the median over satellites, |d| > 30 m
@@ -61,6 +62,9 @@ OPEC_REAL_OBS = "OPEC00NOR_S_20220010000_0340_30S_MO.rnx"
 #: first code of each system in the real OPEC file (GPS C/A; Galileo E1 B+C)
 OPEC_CODE = {"G": "C1C", "E": "C1X"}
 GROSS_M = 30.0
+#: timed runs of one preset are repeated (best kept) until they add up to this [s], at most MAX_RUNS runs
+MIN_TIMED_S = 2.0
+MAX_RUNS = 20
 REAL_MASK_DEG = 10.0
 
 
@@ -226,11 +230,15 @@ def bench_scenario(name: str, setup, presets, repeats: int, real: RealObs | None
     free: dict[str, Recorder] = {}
     for p in presets:
         walls, first = [], None
-        for r in range(repeats):
-            res, rec = _run(setup, p, None, record=(r == 0), tag=f"{p}_{r}")
+        r = 0
+        # at least `repeats` runs; cheap runs are repeated until they add up to MIN_TIMED_S (at most
+        # MAX_RUNS): the best of many short runs is what survives bursts of load from other processes
+        while r < repeats or (repeats > 1 and sum(walls) < MIN_TIMED_S and r < MAX_RUNS):
+            res, rec = _run(setup, p, None, record=(r == 0), tag=f"{p}_{r % 2}")
             walls.append(res.wall_s)
             if r == 0:
                 first = (res, rec)
+            r += 1
         res, rec = first
         best = min(walls)
         entry = {"epochs": res.epochs, "interval_s": res.interval_s, "simulated_s": res.sim_s,
@@ -357,26 +365,35 @@ def table(report: dict) -> str:
 
 
 def plot(report: dict, path) -> Path:
+    """Two panels over the cost (wall seconds per simulated second of the demo scenario, log scale):
+    the headline pseudorange RMS (vs real when present) and the demo's tracked-set Jaccard vs accurate."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import NullFormatter
 
     rows = report["presets"]
     cost = [1.0 / e["realtime_factor"] for e in rows]
     opec = "presets" in report["scenarios"].get("opec", {})
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4))
-    panels = [("pseudorange_rms_m", "pseudorange RMS [m]"), ("visible_set_jaccard", "tracked-set Jaccard")]
-    for ax, (key, label) in zip(axes, panels):
-        y = [e[key] if e[key] is not None else np.nan for e in rows]
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    jac = [(e["demo"].get("vs_accurate") or {}).get("visible_set_jaccard") for e in rows]
+    panels = [([e["pseudorange_rms_m"] for e in rows],
+               "pseudorange RMS [m] " + ("vs real OPEC receiver (GPS C1C)" if opec else "vs accurate (noise off)")),
+              (jac, "tracked-set Jaccard vs accurate\n(demo courtyard, noise off)")]
+    for ax, (y, label) in zip(axes, panels):
+        y = [v if v is not None else np.nan for v in y]
         ax.plot(cost, y, "o-", color="tab:blue")
-        for c, v, e in zip(cost, y, rows):
-            ax.annotate(e["name"], (c, v), textcoords="offset points", xytext=(6, 4))
+        for k, (c, v, e) in enumerate(zip(cost, y, rows)):
+            ax.annotate(f"{e['name']}\n{e['realtime_factor']:.0f}x", (c, v), textcoords="offset points",
+                        xytext=(6, 6 if k % 2 == 0 else -22), fontsize=9)
         ax.set_xscale("log")
-        ax.set_xlabel("wall seconds per simulated second (demo scenario)")
-        ax.set_ylabel(label + (" vs real OPEC receiver" if opec else " vs accurate"))
+        ax.xaxis.set_minor_formatter(NullFormatter())
+        ax.set_xlim(min(cost) / 2.0, max(cost) * 3.0)
+        ax.set_xlabel("wall seconds per simulated second (demo scenario, log)")
+        ax.set_ylabel(label)
         ax.grid(True, which="both", alpha=0.3)
-    fig.suptitle("gnss-sim presets: cost against accuracy" + (" (OPEC 2022-001)" if opec else ""))
+    fig.suptitle("gnss-sim presets: cost against accuracy")
     fig.tight_layout()
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -20,6 +20,7 @@ the *reception* instant unless stated; geodetic latitude/longitude in degrees.
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -405,23 +406,41 @@ def niell_mapping(el_deg, lat_deg, h_m, doy):
     lat = np.asarray(lat_deg, dtype=np.float64)
     y = (np.asarray(doy, dtype=np.float64) - 28.0) / 365.25 + np.where(lat < 0.0, 0.5, 0.0)
     cosy = np.cos(2.0 * np.pi * y)
-    alat = np.abs(lat)
-
-    def interp(row):
-        return np.interp(alat, _NMF_LAT, row)   # clamps outside 15..75 like RTKLIB interpc()
-
-    ah = [interp(_NMF_HYD_AVG[i]) - interp(_NMF_HYD_AMP[i]) * cosy for i in range(3)]
-    aw = [interp(_NMF_WET[i]) for i in range(3)]
+    if lat.ndim == 0:      # one receiver position: the latitude interpolation is cached
+        avg, amp, wet = _nmf_rows(float(np.abs(lat)))
+    else:
+        avg, amp, wet = _nmf_interp(np.abs(lat))
+    ah = [avg[i] - amp[i] * cosy for i in range(3)]
+    aw = list(wet)
     s = np.sin(el)
     dm = (1.0 / s - _mapf(s, *_NMF_HT)) * np.asarray(h_m, dtype=np.float64) / 1e3
     return _mapf(s, *ah) + dm, _mapf(s, *aw)
 
 
+def _nmf_interp(alat):
+    """Niell table rows interpolated at |latitude| ``alat`` (clamped outside 15..75 like RTKLIB interpc())."""
+    return tuple(tuple(np.interp(alat, _NMF_LAT, table[i]) for i in range(3))
+                 for table in (_NMF_HYD_AVG, _NMF_HYD_AMP, _NMF_WET))
+
+
+@functools.lru_cache(maxsize=64)
+def _nmf_rows(alat: float):
+    return _nmf_interp(np.float64(alat))
+
+
 def tropo_slant_delay_m(el_deg, lat_deg, h_m, doy, humidity=TROPO_HUMIDITY_DEFAULT):
     """Slant tropospheric delay [m] (same on code and carrier): ZHD m_h + ZWD m_w."""
-    zhd, zwd = saastamoinen_zenith_m(lat_deg, h_m, humidity)
+    if np.ndim(lat_deg) == 0 and np.ndim(h_m) == 0 and np.ndim(humidity) == 0:   # one receiver: cached
+        zhd, zwd = _zenith_cached(float(lat_deg), float(h_m), float(humidity))
+    else:
+        zhd, zwd = saastamoinen_zenith_m(lat_deg, h_m, humidity)
     mh, mw = niell_mapping(el_deg, lat_deg, h_m, doy)
     return zhd * mh + zwd * mw
+
+
+@functools.lru_cache(maxsize=64)
+def _zenith_cached(lat_deg: float, h_m: float, humidity: float):
+    return saastamoinen_zenith_m(np.float64(lat_deg), np.float64(h_m), humidity)
 
 
 def day_of_year(t: GnssTime):

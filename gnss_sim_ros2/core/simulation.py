@@ -228,7 +228,7 @@ def run_simulation(setup: SimulationSetup) -> SimulationResult:
     if source == "sp3" and (setup.nav_files or "broadcast" in setup.ephemeris):
         brdc, brdc_paths = setup.ephemeris.get("broadcast") or open_ephemeris(
             "broadcast", setup.start, setup.duration_s, setup.systems, setup.nav_files)
-        provider, nav_paths = PreciseWithBroadcastGroupDelay(provider, brdc, setup.start), brdc_paths
+        provider, nav_paths = PreciseWithBroadcastGroupDelay(provider, brdc, setup.start, setup.duration_s), brdc_paths
     cfg = receiver_config(setup)
     if source == "sp3" and "sisre_m" not in setup.receiver:
         # observations from precise orbits are the truth: the broadcast message's own error is then real
@@ -319,22 +319,35 @@ class PreciseWithBroadcastGroupDelay:
     the written navigation file and the Klobuchar coefficients are the real ones.
     """
 
-    def __init__(self, precise, broadcast, t_ref):
+    def __init__(self, precise, broadcast, t_ref, span_s: float = 0.0):
         self.precise, self.broadcast = precise, broadcast
         self.source = "sp3"
         self.nav = getattr(broadcast, "nav", None)
-        st = broadcast.states(t_ref)
-        self._tgd = dict(zip(np.asarray(st.sv).tolist(), np.asarray(st.tgd_s, dtype=float).tolist()))
+        self._tgd = {}
+        healthy = set()
+        # SP3 files carry no health flags: serve only satellites the broadcast message declares healthy at
+        # some time of the span (sampled hourly; station navigation files have gaps of hours)
+        for k in range(int(np.ceil(max(span_s, 0.0) / 3600.0)) + 1):
+            st = broadcast.states(t_ref + min(3600.0 * k, max(span_s, 0.0)))
+            for sv, tgd in zip(np.asarray(st.sv).tolist(), np.asarray(st.tgd_s, dtype=float).tolist()):
+                self._tgd.setdefault(sv, tgd)
+                healthy.add(sv)
+        self._healthy = healthy
 
     @property
     def iono(self):
         return getattr(self.broadcast, "iono", None)
 
     def svs(self, systems: str = "GRECJI"):
-        return self.precise.svs(systems)
+        return [sv for sv in self.precise.svs(systems) if sv in self._healthy]
 
     def _with_tgd(self, st):
-        st.tgd_s = np.array([self._tgd.get(sv, 0.0) for sv in np.asarray(st.sv).tolist()], dtype=float)
+        names = np.asarray(st.sv).tolist()
+        keep = np.array([sv in self._healthy for sv in names], dtype=bool)
+        if not keep.all():
+            st = st.select(keep)
+            names = np.asarray(st.sv).tolist()
+        st.tgd_s = np.array([self._tgd.get(sv, 0.0) for sv in names], dtype=float)
         return st
 
     def states(self, t, svs=None, systems: str = "GRECJI"):

@@ -37,7 +37,7 @@ import numpy as np
 from scipy.stats import chi2 as _chi2
 
 from .constants import C_MPS
-from .frames import az_el_at, ecef_to_geodetic, enu_rotation
+from .frames import ecef_to_geodetic, enu_rotation
 
 #: order in which systems become the reference clock (the first present)
 SYSTEM_ORDER = "GECRJIS"
@@ -191,6 +191,34 @@ def _clock_group(sv_list, groups: Mapping[str, str]) -> np.ndarray:
     return np.array([groups.get(s[0], s[0]) for s in sv_list])
 
 
+_DEFAULT_CONFIG: list = []
+_SAT_TABLE_CACHE: dict = {}
+
+
+def _default_config() -> SolverConfig:
+    """A shared SolverConfig() for calls without one (never handed out, so never changed)."""
+    if not _DEFAULT_CONFIG:
+        _DEFAULT_CONFIG.append(SolverConfig())
+    return _DEFAULT_CONFIG[0]
+
+
+def _satellite_table(sv_arr: np.ndarray, cfg: SolverConfig):
+    """(clock group, sigma factor) per satellite, ids checked; cached per satellite list and config values
+    (the same satellites come back epoch after epoch)."""
+    key = (sv_arr.dtype.str, sv_arr.tobytes(), tuple(cfg.clock_groups.items()),
+           tuple(cfg.system_error_factor.items()))
+    hit = _SAT_TABLE_CACHE.get(key)
+    if hit is None:
+        bad_ids = [s for s in sv_arr.tolist() if len(s) != 3 or s[0] not in SYSTEM_ORDER]
+        if bad_ids:
+            raise ValueError(f"solve_pvt: sv has ids that are not RINEX satellite ids: {bad_ids[:5]}")
+        hit = (_clock_group(sv_arr.tolist(), cfg.clock_groups), _system_factor(sv_arr, cfg))
+        if len(_SAT_TABLE_CACHE) > 128:
+            _SAT_TABLE_CACHE.clear()
+        _SAT_TABLE_CACHE[key] = hit
+    return hit
+
+
 def solve_pvt(sv, sat_pos_ecef_m, pseudorange_m, *, sat_clock_bias_s=None, iono_delay_m=None,
               tropo_delay_m=None, sigma_m=None, cn0_dbhz=None, prior_ecef_m=None,
               sat_vel_ecef_mps=None, range_rate_mps=None, sat_clock_drift_sps=None,
@@ -206,14 +234,12 @@ def solve_pvt(sv, sat_pos_ecef_m, pseudorange_m, *, sat_clock_bias_s=None, iono_
     the Earth centre).  Velocity: ``sat_vel_ecef_mps`` (N, 3),
     ``range_rate_mps`` (N,) and optionally ``sat_clock_drift_sps`` (N,).
     """
-    cfg = config or SolverConfig()
+    cfg = config or _default_config()
     sv_arr = np.asarray(sv).astype(str)
     if sv_arr.ndim != 1:
         raise ValueError(f"solve_pvt: sv must be 1-D, got shape {sv_arr.shape}")
     n = sv_arr.size
-    bad_ids = [s for s in sv_arr.tolist() if len(s) != 3 or s[0] not in SYSTEM_ORDER]
-    if bad_ids:
-        raise ValueError(f"solve_pvt: sv has ids that are not RINEX satellite ids: {bad_ids[:5]}")
+    groups, fac_all = _satellite_table(sv_arr, cfg)
     sat = _as_array("sat_pos_ecef_m", sat_pos_ecef_m, n, (3,))
     y = _as_array("pseudorange_m", pseudorange_m, n).copy()
     if sat_clock_bias_s is not None:
@@ -226,8 +252,7 @@ def solve_pvt(sv, sat_pos_ecef_m, pseudorange_m, *, sat_clock_bias_s=None, iono_
     cn0 = None if cn0_dbhz is None else _as_array("cn0_dbhz", cn0_dbhz, n)
     if cfg.weighting == "cn0" and cn0 is None and sig_given is None:
         raise ValueError("solve_pvt: SolverConfig.weighting='cn0' needs cn0_dbhz")
-    groups = _clock_group(sv_arr.tolist(), cfg.clock_groups)
-    fac = _system_factor(sv_arr, cfg) if sig_given is None else None
+    fac = fac_all if sig_given is None else None
     valid = np.isfinite(y) & np.all(np.isfinite(sat), axis=1)
     if sig_given is not None:
         valid &= np.isfinite(sig_given) & (sig_given > 0)
@@ -288,21 +313,28 @@ def _solve_position(sv, sat, y, valid, groups, sig_given, cn0, x, cfg, fac=None)
     # the elevation mask and weights start once the position is roughly known: a start
     # point away from the Earth centre (a prior) or a Gauss-Newton step below 1 km
     last_step = 0.0 if np.linalg.norm(x) > _NEAR_CENTRE_M else math.inf
+    fac2 = None if fac is None else fac**2
+    elevation_weights = sig_given is None and cfg.weighting == "elevation"
+    mask_deg = cfg.elevation_mask_deg
+    enu = None
     for it in range(1, cfg.max_iterations + 1):
         d = sat - x
         rho = np.sqrt(np.einsum("ij,ij->i", d, d))
         e = d / rho[:, None]
         placed = math.sqrt(x @ x) > _NEAR_CENTRE_M and last_step < _PLACED_STEP_M
         if placed:
+            # elevation in the ENU frame at the current position (as frames.az_el_from_ecef)
             lat_x, lon_x, _ = ecef_to_geodetic(x[0], x[1], x[2])
-            az, el, _ = az_el_at(x, lat_x, lon_x, sat)
-            use = valid & (el >= cfg.elevation_mask_deg)
+            enu = d @ enu_rotation(lat_x, lon_x).T
+            el = np.degrees(np.arcsin(np.clip(enu[:, 2] / rho, -1.0, 1.0)))
+            use = valid & (el >= mask_deg)
         else:
-            az, el = np.full(n, np.nan), np.full(n, 90.0)
+            enu, el = None, np.full(n, 90.0)
             use = valid.copy()
         clock_sys = sorted(set(groups[use].tolist()), key=SYSTEM_ORDER.index)
         n_unk = 3 + len(clock_sys)
-        n_use = int(use.sum())
+        idx = np.flatnonzero(use)
+        n_use = idx.size
         if n_use < n_unk:
             n_valid = int(valid.sum())
             masked = f"{n_valid - n_use} below the {cfg.elevation_mask_deg:g} deg mask, " if placed else ""
@@ -311,19 +343,21 @@ def _solve_position(sv, sat, y, valid, groups, sig_given, cn0, x, cfg, fac=None)
                              f"{'s' if len(clock_sys) != 1 else ''}: {'/'.join(clock_sys) or '-'})")
             out["iter"] = it
             return out
-        idx = np.flatnonzero(use)
         slot = {g: j for j, g in enumerate(clock_sys)}
-        col = np.array([slot[g] for g in groups[idx].tolist()])
-        h = np.zeros((idx.size, n_unk))
+        col = np.array([slot[g] for g in groups[idx].tolist()], dtype=np.int64)
+        h = np.zeros((n_use, n_unk))
         h[:, :3] = -e[idx]
-        h[np.arange(idx.size), 3 + col] = 1.0
+        h[np.arange(n_use), 3 + col] = 1.0
         if sig_given is not None:
-            sig = sig_given[idx]
-        else:   # pseudorange_sigma_m with the system factors looked up once per solve
-            sig = np.sqrt(_variance(el[idx], None if cn0 is None else cn0[idx], cfg) * fac[idx] ** 2)
-        w = 1.0 / sig**2
-        hw = h * w[:, None]
-        nmat = h.T @ hw
+            var = sig_given[idx] ** 2
+        elif elevation_weights:   # pseudorange_sigma_m, inline, system factors looked up once per solve
+            sin_el = np.sin(np.radians(np.clip(el[idx], 1.0, 90.0)))
+            var = (cfg.sigma_a_m**2 + cfg.sigma_b_m**2 / sin_el**2) * fac2[idx]
+        else:
+            var = _variance(el[idx], None if cn0 is None else cn0[idx], cfg) * fac2[idx]
+        w = 1.0 / var
+        hwt = h.T * w
+        nmat = hwt @ h
         try:
             # 2-norm condition number, as np.linalg.cond (largest / smallest singular value)
             sv_n = np.linalg.svd(nmat, compute_uv=False)
@@ -331,7 +365,8 @@ def _solve_position(sv, sat, y, valid, groups, sig_given, cn0, x, cfg, fac=None)
                 cond = sv_n[0] / sv_n[-1]
             if not np.isfinite(cond) or cond > 1e14:
                 raise np.linalg.LinAlgError
-            sol = np.linalg.solve(nmat, hw.T @ (y[idx] - rho[idx]))
+            cov = np.linalg.inv(nmat)       # the covariance at the end, the step now
+            sol = cov @ (hwt @ (y[idx] - rho[idx]))
         except np.linalg.LinAlgError:
             out["reason"] = f"singular geometry with {idx.size} satellites (normal matrix not invertible)"
             out["iter"] = it
@@ -345,7 +380,8 @@ def _solve_position(sv, sat, y, valid, groups, sig_given, cn0, x, cfg, fac=None)
             if placed:
                 converged = True
                 break
-        if math.sqrt(x @ x) > 1e9 or not np.all(np.isfinite(x)):
+        xs = math.sqrt(x @ x)
+        if not xs <= 1e9:      # also NaN
             out["reason"] = "the iteration diverged"
             out["iter"] = it
             return out
@@ -358,28 +394,39 @@ def _solve_position(sv, sat, y, valid, groups, sig_given, cn0, x, cfg, fac=None)
     d = sat - x
     rho = np.sqrt(np.einsum("ij,ij->i", d, d))
     v = np.full(n, np.nan)
-    v[idx] = y[idx] - rho[idx] - clk[col]
-    cov = np.linalg.inv(nmat)
+    v_idx = y[idx] - rho[idx] - clk[col]
+    v[idx] = v_idx
     lat, lon, hgt = ecef_to_geodetic(x[0], x[1], x[2])
     rot = enu_rotation(lat, lon)
     dops = _dops(h, rot)
     dof = idx.size - n_unk
-    chi2 = float(np.sum(w * v[idx] ** 2))
+    chi2 = float(w @ (v_idx * v_idx))
     thr = _chi2_threshold(float(cfg.chi2_prob_false_alarm), int(dof)) if dof > 0 else math.nan
     worst = None
     if dof > 0:
         # standardised residuals: v_i / sqrt((Sigma - H N^-1 H^T)_ii)  (Baarda w-test)
-        qv = sig**2 - np.einsum("ij,jk,ik->i", h, cov, h)
-        wstat = np.abs(v[idx]) / np.sqrt(np.maximum(qv, 1e-30))
-        # ties (e.g. the two satellites of a clock group that has only two have equal statistics) go to
-        # the first in input order, not to whichever round-off makes larger
-        worst = int(idx[int(np.argmax(wstat >= np.max(wstat) * (1.0 - 1e-9)))])
+        qv = var - np.einsum("ij,ij->i", h @ cov, h)
+        wstat = np.abs(v_idx) / np.sqrt(np.maximum(qv, 1e-30))
+        # a satellite without redundancy (alone in its clock group: its residual is zero whatever its
+        # error) cannot be tested: its statistic would be round-off / round-off
+        wstat[qv <= 1e-9 * var] = 0.0
+        # ties (the two satellites of a clock group that has only two have equal statistics) go to the
+        # first in input order, not to whichever round-off makes larger
+        worst = int(idx[int(np.argmax(wstat >= np.max(wstat) * (1.0 - 1e-6)))])
     used = np.zeros(n, bool)
     used[idx] = True
     out.update(status="fix", pos=x, clk={s: float(c) for s, c in zip(clock_sys, clk)}, clock_systems=clock_sys,
-               used=used, v=v, el=el, az=az, cov=cov, dops=dops, gdop=dops[0], chi2=chi2, chi2_threshold=thr,
+               used=used, v=v, el=el, az=_azimuth(enu, n), cov=cov, dops=dops,
+               gdop=dops[0], chi2=chi2, chi2_threshold=thr,
                dof=dof, worst=worst, rot=rot, lla=(float(lat), float(lon), float(hgt)), e=e)
     return out
+
+
+def _azimuth(enu, n):
+    """Azimuth [deg, 0..360) from ENU vectors (NaN when there are none: position not yet placed)."""
+    if enu is None:
+        return np.full(n, np.nan)
+    return np.degrees(np.arctan2(enu[:, 0], enu[:, 1])) % 360.0
 
 
 def _make_solution(sv, res, excluded, reason, n) -> PvtSolution:
@@ -421,7 +468,7 @@ def _solve_velocity_into(sol: PvtSolution, sat, sat_vel, rate, sat_drift, cfg) -
         sol.vel_reason = f"too few range rates: {idx.size} of the used satellites, need 4 (3 velocity + 1 drift)"
         return
     d = sat[idx] - sol.pos_ecef_m
-    e = d / np.linalg.norm(d, axis=1)[:, None]
+    e = d / np.sqrt(np.einsum("ij,ij->i", d, d))[:, None]
     # rate = e.(v_sat - v_rx) + drift_rx - c ddt_sat  ->  rate - e.v_sat + c ddt_sat = -e.v_rx + drift_rx
     yv = rate[idx] - np.einsum("ij,ij->i", e, sat_vel[idx])
     if sat_drift is not None:
@@ -429,10 +476,11 @@ def _solve_velocity_into(sol: PvtSolution, sat, sat_vel, rate, sat_drift, cfg) -
     h = np.hstack([-e, np.ones((idx.size, 1))])
     s = np.sin(np.radians(np.clip(sol.el_deg[idx], 1.0, 90.0)))
     w = 1.0 / (cfg.rate_sigma_a_mps**2 + cfg.rate_sigma_b_mps**2 / s**2)
-    nmat = h.T @ (h * w[:, None])
+    hwt = h.T * w
+    nmat = hwt @ h
     try:
-        xv = np.linalg.solve(nmat, (h * w[:, None]).T @ yv)
         cov = np.linalg.inv(nmat)
+        xv = cov @ (hwt @ yv)
     except np.linalg.LinAlgError:
         sol.vel_status, sol.vel_reason = "no_fix", "singular geometry for the velocity"
         return

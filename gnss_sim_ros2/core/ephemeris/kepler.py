@@ -112,7 +112,7 @@ def _solve_kepler(M, e):
     for _ in range(20):
         dE = (E - e * np.sin(E) - M) / (1.0 - e * np.cos(E))
         E = E - dE
-        if np.all(np.abs(dE) < 1e-14):
+        if np.abs(dE).max(initial=0.0) < 1e-14:     # (NaN never passes, as with np.all)
             break
     return E
 
@@ -168,8 +168,8 @@ def kepler_from_params(P: np.ndarray, tk, dtc, any_geo: bool = True, acceleratio
         vx[g] = ca * vx1 + sa * vy1 + wg * (-sa * x1 + ca * y1)
         vy[g] = -sa * vx1 + ca * vy1 + wg * (-ca * x1 - sa * y1)
         vz[g] = vz1
-    pos = np.stack([x, y, z], axis=-1)
-    vel = np.stack([vx, vy, vz], axis=-1)
+    pos = _rows3(x, y, z)
+    vel = _rows3(vx, vy, vz)
     out = {"pos_ecef_m": pos, "vel_ecef_mps": vel, "E": E}
     if acceleration:
         out["acc_ecef_mps2"] = gravity_j2_ecef(pos, vel, gm, we)
@@ -196,7 +196,15 @@ def gravity_j2_ecef(pos_ecef_m, vel_ecef_mps, gm, we, a_e_m=K.WGS84_A_M, j2=K.J2
     ax = -mu_r3 * x * (1.0 + k * (1.0 - zz)) + we * we * x + 2.0 * we * vel_ecef_mps[..., 1]
     ay = -mu_r3 * y * (1.0 + k * (1.0 - zz)) + we * we * y - 2.0 * we * vel_ecef_mps[..., 0]
     az = -mu_r3 * z * (1.0 + k * (3.0 - zz))
-    return np.stack([ax, ay, az], axis=-1)
+    return _rows3(ax, ay, az)
+
+
+def _rows3(x, y, z):
+    """(N, 3) array from three (N,) columns (np.stack(..., axis=-1) without its overhead)."""
+    x = np.asarray(x)
+    out = np.empty(np.shape(x) + (3,))
+    out[..., 0], out[..., 1], out[..., 2] = x, y, z
+    return out
 
 
 def kepler_states(rec: np.ndarray, t: GnssTime, acceleration: bool = True) -> dict:

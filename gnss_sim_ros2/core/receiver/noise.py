@@ -36,6 +36,10 @@ def _ratio(cn0_dbhz):
 
 
 def _positive(name, v):
+    if type(v) is float or type(v) is int:      # the common scalar case without numpy's overhead
+        if not v > 0:
+            raise ValueError(f"receiver.noise: parameter {name!r} = {v!r} must be > 0")
+        return
     if np.any(np.asarray(v) <= 0):
         raise ValueError(f"receiver.noise: parameter {name!r} = {v!r} must be > 0")
 

@@ -26,32 +26,52 @@ def obs_types_for(profile: dict[str, list[str]], systems: str) -> dict[str, list
 
 def epoch_arrays(obs: EpochObservations, obs_types: dict[str, list[str]]) -> EpochArrays:
     """One RINEX epoch (rows = satellites with a tracked signal) from the receiver's observables."""
-    svs = list(dict.fromkeys(obs.sv.tolist()))
+    sv_list = obs.sv.tolist()
+    svs = list(dict.fromkeys(sv_list))
     row = {sv: i for i, sv in enumerate(svs)}
     width = max((len(v) for v in obs_types.values()), default=0)
     value = np.full((len(svs), width), np.nan)
     lli = np.full((len(svs), width), -1, dtype=np.int64)
     ssi = np.full((len(svs), width), -1, dtype=np.int64)
-    col = {s: {c: j for j, c in enumerate(codes)} for s, codes in obs_types.items()}
-    ssi_j = ssi_from_cn0(obs.cn0_dbhz)
-    for j in range(len(obs.sv)):
-        sv = obs.sv[j]
-        cols = col[sv[0]]
-        code = obs.code[j]
-        i = row[sv]
-        for kind, v in (("C", obs.pseudorange_m[j]), ("L", obs.carrier_phase_cyc[j]), ("D", obs.doppler_hz[j]),
-                        ("S", obs.cn0_dbhz[j])):
-            c = cols.get(kind + code)
-            if c is None:
-                continue
-            value[i, c] = v
+    cols_of = _columns_of(obs_types)
+    m = len(sv_list)
+    if m:
+        no_cols = (-1,) * len(OBS_KINDS)
+        cols = np.array([cols_of.get((sv[0], code), no_cols) for sv, code in zip(sv_list, obs.code.tolist())],
+                        dtype=np.int64).reshape(m, len(OBS_KINDS))
+        rows = np.array([row[sv] for sv in sv_list], dtype=np.int64)
+        ssi_j = ssi_from_cn0(obs.cn0_dbhz)
+        for kind, v in zip(OBS_KINDS, (obs.pseudorange_m, obs.carrier_phase_cyc, obs.doppler_hz, obs.cn0_dbhz)):
+            c = cols[:, OBS_KINDS.index(kind)]
+            ok = c >= 0
+            r, c = rows[ok], c[ok]
+            value[r, c] = np.asarray(v)[ok]
             if kind in "CL":
-                ssi[i, c] = ssi_j[j]
+                ssi[r, c] = ssi_j[ok]
             if kind == "L":
-                lli[i, c] = int(obs.lli[j])
+                lli[r, c] = np.asarray(obs.lli)[ok].astype(np.int64)
     # shorter systems' code lists padded to the common width with names not in the header (never filled)
     codes = {s: list(v) + [f"X{i}Z" for i in range(width - len(v))] for s, v in obs_types.items()}
     return EpochArrays(sv=svs, codes=codes, value=value, lli=lli, ssi=ssi)
+
+
+_COLUMNS_CACHE: dict = {}
+
+
+def _columns_of(obs_types: dict[str, list[str]]) -> dict:
+    """{(system, code): columns of its C, L, D, S observations (-1: not in the header)} (cached)."""
+    key = tuple((s, tuple(codes)) for s, codes in obs_types.items())
+    hit = _COLUMNS_CACHE.get(key)
+    if hit is None:
+        hit = {}
+        for s, codes in obs_types.items():
+            col = {c: j for j, c in enumerate(codes)}
+            for code in dict.fromkeys(c[1:] for c in codes):
+                hit[(s, code)] = tuple(col.get(kind + code, -1) for kind in OBS_KINDS)
+        if len(_COLUMNS_CACHE) > 16:
+            _COLUMNS_CACHE.clear()
+        _COLUMNS_CACHE[key] = hit
+    return hit
 
 
 def header(obs_types, marker_name: str, approx_pos_ecef_m, interval_s: float, glonass_slots: dict,
@@ -83,8 +103,12 @@ def rinex_name(marker: str, start: GnssTime, duration_s: float | None, interval_
 
 def spp_rows(obs: EpochObservations, profile: dict[str, list[str]]) -> np.ndarray:
     """Row index of the signal each satellite's position fix uses: its system's first profile code."""
-    first = {s: codes[0] for s, codes in profile.items() if codes}
-    pick = np.array([first.get(sv[0]) == c for sv, c in zip(obs.sv, obs.code)], dtype=bool)
+    systems = np.asarray(obs.sv).astype("<U1")    # the system letter: first character of each id
+    code = np.asarray(obs.code)
+    pick = np.zeros(systems.shape, dtype=bool)
+    for s, codes in profile.items():
+        if codes:
+            pick |= (systems == s) & (code == codes[0])
     return np.flatnonzero(pick)
 
 

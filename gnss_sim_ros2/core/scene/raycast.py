@@ -20,12 +20,22 @@ are (origin, unit direction) with ``t`` in metres, never far end points.
 Batched queries (``*_buffer`` methods) take a C-contiguous float32 (K, 6) ray
 buffer (origin shifted by ``center_m``, unit direction), which is handed to
 Open3D without a copy (``Tensor.from_numpy``); :meth:`RayScene.rays_buffer` and
-:meth:`RayScene.rays_buffer_indexed` build one with the origins filled.
+:meth:`RayScene.rays_buffer_ragged` build one with the origins filled.  With
+``scratch=True`` the buffer is a per-thread array kept from call to call: a
+fresh multi-megabyte array per call costs more in page faults (the allocator
+hands large blocks back to the system and takes them again) than the numpy
+work that fills it.
 """
 from __future__ import annotations
 
+import math
+import threading
+
 import numpy as np
 import open3d as o3d
+
+#: scratch arrays above this many elements are not kept between calls (64 MB of float32)
+SCRATCH_MAX_ELEMENTS = 1 << 24
 
 
 def _tensor(a, dtype):
@@ -42,6 +52,7 @@ class RayScene:
         if v.ndim != 2 or v.shape[1] != 3 or f.ndim != 2 or f.shape[1] != 3 or att.shape != (len(f),):
             raise ValueError("RayScene: vertices_m (V, 3), triangles (T, 3), attenuation_db_per_m (T,) expected")
         self.nthreads = int(nthreads)
+        self._local = threading.local()         # per-thread scratch arrays, see scratch()
         self.center_m = 0.5 * (v.min(axis=0) + v.max(axis=0)) if len(v) else np.zeros(3)
         vc = v - self.center_m
         opaque = ~np.isfinite(att)
@@ -74,24 +85,43 @@ class RayScene:
         r[:, 3:] = d
         return o3d.core.Tensor.from_numpy(r)
 
+    def scratch(self, name: str, shape: tuple, dtype=np.float32) -> np.ndarray:
+        """An uninitialised array kept per thread and per ``name`` and reused by the next request of the same
+        name in this thread (so: for one query at a time; never hand it out).  Above SCRATCH_MAX_ELEMENTS
+        a fresh array each time."""
+        size = math.prod(shape)
+        if size > SCRATCH_MAX_ELEMENTS:
+            return np.empty(shape, dtype)
+        store = getattr(self._local, "arrays", None)
+        if store is None:
+            store = self._local.arrays = {}
+        buf = store.get(name)
+        if buf is None or buf.dtype != dtype or buf.size < size:
+            buf = store[name] = np.empty(size, dtype)
+        return buf[:size].reshape(shape)
+
     def _origins_f32(self, origins_m) -> np.ndarray:
         return (np.asarray(origins_m, dtype=np.float64).reshape(-1, 3) - self.center_m).astype(np.float32)
 
-    def rays_buffer(self, origins_m, n_per_origin: int) -> np.ndarray:
-        """(M, n, 6) float32 buffer whose origins are filled (shifted by the scene centre); fill [..., 3:]."""
+    def rays_buffer(self, origins_m, n_per_origin: int, scratch: bool = False) -> np.ndarray:
+        """(M, n, 6) float32 buffer whose origins are filled (shifted by the scene centre); fill [..., 3:].
+
+        ``scratch``: the per-thread reused array (see :meth:`scratch`) instead of a new one."""
         o = self._origins_f32(origins_m)
-        r = np.empty((len(o), n_per_origin, 6), dtype=np.float32)
+        shape = (len(o), n_per_origin, 6)
+        r = self.scratch("rays", shape) if scratch else np.empty(shape, dtype=np.float32)
         for k in range(3):          # one coordinate at a time: numpy's inner loop then runs along n, not along 3
             r[..., k] = o[:, k, None]
         return r
 
-    def rays_buffer_indexed(self, origins_m, origin_index) -> np.ndarray:
-        """(K, 6) float32 buffer with ray k starting at ``origins_m[origin_index[k]]``; fill [:, 3:]."""
+    def rays_buffer_ragged(self, origins_m, counts, scratch: bool = False) -> np.ndarray:
+        """(sum(counts), 6) float32 buffer, origin i filled in ``counts[i]`` consecutive rows; fill [:, 3:]."""
         o = self._origins_f32(origins_m)
-        idx = np.asarray(origin_index, dtype=np.intp).reshape(-1)
-        r = np.empty((len(idx), 6), dtype=np.float32)
+        counts = np.asarray(counts, dtype=np.intp).reshape(-1)
+        shape = (int(counts.sum()), 6)
+        r = self.scratch("rays", shape) if scratch else np.empty(shape, dtype=np.float32)
         for k in range(3):
-            np.take(o[:, k], idx, out=r[:, k])
+            r[:, k] = o[0, k] if len(o) == 1 else np.repeat(o[:, k], counts)
         return r
 
     @staticmethod

@@ -186,9 +186,9 @@ class Scene:
         if self.spherical is None:
             return np.broadcast_to(np.eye(3), (len(a), 3, 3)).copy()
         rows = _enu_rows_at_ecef(self.spherical.world_to_ecef(a))             # enu_A = rows @ ecef
-        # R = W @ rows.T with W = world <- ECEF: one (3M, 3) @ (3, 3) product, then per-antenna transpose
+        # R = W @ rows.T with W = world <- ECEF: one (3M, 3) @ (3, 3) product, then a per-antenna transposed view
         w = self.spherical.rotation_world_from_ecef()
-        return np.ascontiguousarray((rows.reshape(-1, 3) @ w.T).reshape(-1, 3, 3).transpose(0, 2, 1))
+        return (rows.reshape(-1, 3) @ w.T).reshape(-1, 3, 3).transpose(0, 2, 1)
 
     def antenna_ecef(self, antenna_world_m) -> np.ndarray:
         if self.spherical is None:
@@ -242,39 +242,60 @@ class Scene:
         cast = el >= mask_deg
         all_cast = bool(cast.all())
         # the mask cuts first: directions and rays only for the cast satellites, (M, N) when all are cast,
-        # else (K,) in row-major order (flat indices ``flat``, antenna ``ant``); float32 throughout
+        # else (K,) in row-major order (flat indices ``flat``, ``per_ant`` of them per antenna); float32
         if all_cast:
-            flat, ant = slice(None), None
+            flat = slice(None)
         else:
             flat = np.flatnonzero(cast)
-            ant = flat // n
+            per_ant = np.count_nonzero(cast, axis=1)
+        # float32 work arrays are per-thread scratch (RayScene.scratch): no fresh pages on every call
+        scr = self.rays.scratch
+        dims = shape if all_cast else (len(flat),)
         if sat_dirs_enu is not None:
-            dc = d if all_cast else d[cast]
-            e_c, n_c, u_c = (dc[..., k].astype(np.float32) for k in range(3))
+            e_c, n_c, u_c = (scr(name, dims) for name in ("e", "n", "u"))
+            for k, dst in enumerate((e_c, n_c, u_c)):
+                np.copyto(dst, d[..., k] if all_cast else d[..., k].take(flat), casting="same_kind")
         else:
-            az_r = (az if all_cast else az[cast]).astype(np.float32)
-            el_r = (el if all_cast else el[cast]).astype(np.float32)
+            az_r, el_r, ce, e_c = (scr(name, dims) for name in ("az", "el", "ce", "e"))
+            np.copyto(az_r, az if all_cast else az.take(flat), casting="same_kind")
+            np.copyto(el_r, el if all_cast else el.take(flat), casting="same_kind")
             # x * float32(pi / 180): the same float32 numbers as np.radians(az, dtype=np.float32), SIMD
             np.multiply(az_r, _RAD_PER_DEG_F32, out=az_r)
             np.multiply(el_r, _RAD_PER_DEG_F32, out=el_r)
-            ce = np.cos(el_r)
-            e_c = np.sin(az_r)
+            np.cos(el_r, out=ce)
+            np.sin(az_r, out=e_c)
             e_c *= ce
             n_c = np.cos(az_r, out=az_r)
             n_c *= ce
             u_c = np.sin(el_r, out=el_r)
         # rays: origins at the antennas (shifted by the scene centre), directions local ENU -> world (float32)
-        rays = self.rays.rays_buffer(a, n) if all_cast else self.rays.rays_buffer_indexed(a, ant)
+        if all_cast:
+            rays = self.rays.rays_buffer(a, n, scratch=True)
+        else:
+            rays = self.rays.rays_buffer_ragged(a, per_ant, scratch=True)
         if self.spherical is None:                       # no geodetic origin: world = local ENU everywhere
             rays[..., 3], rays[..., 4], rays[..., 5] = e_c, n_c, u_c
         else:
             R = self.world_from_local_enu(a).astype(np.float32)               # (M, 3, 3)
-            coef = R[:, None] if all_cast else np.take(R, ant, axis=0)        # (M, 1, 3, 3) or (K, 3, 3)
-            for k in range(3):
-                rays[..., 3 + k] = e_c * coef[..., k, 0] + n_c * coef[..., k, 1] + u_c * coef[..., k, 2]
+            # R[m, k, j] per ray: (M, 1) broadcast over the satellites, a scalar for one antenna, or repeated
+            # per cast satellite (K,)
+            if all_cast:
+                coef = [[R[:, k, j, None] for j in range(3)] for k in range(3)]
+            elif m == 1:
+                coef = R[0]
+            else:
+                ant = np.repeat(np.arange(m), per_ant)                        # antenna of each cast ray
+                coef = [[np.take(R[:, k, j], ant, mode="clip", out=scr(f"R{k}{j}", dims)) for j in range(3)]
+                        for k in range(3)]
+            acc, tmp = scr("acc", dims), scr("tmp", dims)
+            for k in range(3):                           # e c0 + n c1 + u c2, in that order, in place
+                np.multiply(e_c, coef[k][0], out=acc)
+                acc += np.multiply(n_c, coef[k][1], out=tmp)
+                acc += np.multiply(u_c, coef[k][2], out=tmp)
+                rays[..., 3 + k] = acc
         rays = rays.reshape(-1, 6)
         if fresnel_rays > 0:
-            o = np.repeat(a, n, axis=0) if all_cast else a[ant]
+            o = np.repeat(a, n if all_cast else per_ant, axis=0)
             dw = rays[:, 3:].astype(np.float64)
             t0 = self.rays.hit_distance(o, dw, tnear_m=tnear_m)
             blocked = np.isfinite(t0)
@@ -294,7 +315,9 @@ class Scene:
         if self.rays.has_penetrable and len(st):
             # foliage only along the rays that are not blocked: a contiguous float32 copy of those
             clear = np.flatnonzero(~blocked)
-            r_clear = rays if len(clear) == len(rays) else np.take(rays, clear, axis=0)
+            # (mode="clip": the indices are valid, and np.take buffers ``out`` in the default mode)
+            r_clear = rays if len(clear) == len(rays) else np.take(rays, clear, axis=0, mode="clip",
+                                                                   out=scr("clear", (len(clear), 6)))
             idx = clear if all_cast else flat[clear]
             if foliage == "touch":
                 touched = self.rays.touches_penetrable_buffer(r_clear)
@@ -355,7 +378,7 @@ class Scene:
         d_ecef = sat - rx[:, None, :]
         lat, lon, _ = frames.ecef_to_geodetic(rx[:, 0], rx[:, 1], rx[:, 2])
         rows = _local_enu_rows(np.atleast_1d(lat), np.atleast_1d(lon))
-        d_enu = np.einsum("mij,mnj->mni", rows, d_ecef)
+        d_enu = np.matmul(d_ecef, rows.transpose(0, 2, 1))                     # (M, N, 3): rows @ d per antenna
         res = self.visibility(a2, d_enu, **kwargs)
         if single:
             res = VisibilityResult(*(np.asarray(getattr(res, f))[0] for f in res.__dataclass_fields__))
