@@ -132,6 +132,7 @@ def az_el_at(rx_ecef_m, lat_deg, lon_deg, sat_ecef_m):
     u = cl * co * d[..., 0] + cl * so * d[..., 1] + sl * d[..., 2]
     rng = np.sqrt(e * e + n * n + u * u)
     az = np.degrees(np.arctan2(e, n)) % 360.0
+    az = az - 360.0 * (az >= 360.0)  # (-tiny) % 360 rounds to 360.0; keeps scalars scalar
     el = np.degrees(np.arcsin(np.clip(u / rng, -1.0, 1.0)))
     return az, el, rng
 

@@ -203,9 +203,12 @@ def transmit_time_refined(rx_ecef_m, t_rx, states_at_callable, tau_guess_s, rx_v
     for _ in range(int(max_evaluations)):
         pos0, vel0, acc0 = _unpack_state_acc(states_at_callable(_shift(t_rx, -tau0)), n)
         tau = tau0
-        for _ in range(_REFINE_MAX_UPDATES):
-            dt = (tau - tau0)[:, None]
-            p = pos0 - vel0 * dt + 0.5 * acc0 * dt * dt
+        for j in range(_REFINE_MAX_UPDATES):
+            if j == 0:
+                p = pos0            # the satellite where it was evaluated
+            else:
+                dt = (tau - tau0)[:, None]
+                p = pos0 - vel0 * dt + 0.5 * acc0 * dt * dt
             new = _norm_rows(_rotate(omega * tau, p) - rx) / k.C_MPS
             change = np.max(np.abs(new - tau), initial=0.0)
             tau = new
@@ -240,9 +243,12 @@ def _unpack_state_acc(st, n):
 def _shift(t, dt_s):
     """t + dt_s for a GnssTime or float t; dt_s an array (N,)."""
     if isinstance(t, GnssTime):
-        base = t if np.ndim(t.sec) else GnssTime(np.full(np.shape(dt_s), t.sec, dtype=np.int64),
-                                                 np.full(np.shape(dt_s), t.frac))
-        return base + np.asarray(dt_s)
+        d = np.asarray(dt_s, dtype=np.float64)
+        if np.ndim(t.sec):
+            return t + d
+        # scalar t: GnssTime.__add__ on t broadcast to the shape of dt_s, without building that broadcast
+        whole = np.floor(d)
+        return GnssTime(t.sec + whole.astype(np.int64), t.frac + (d - whole))
     return np.asarray(t, dtype=np.float64) + np.asarray(dt_s)
 
 
@@ -319,9 +325,8 @@ def klobuchar_l1_delay_s(t, lat_deg, lon_deg, az_deg, el_deg, alpha, beta):
     phi_m = phi_i + 0.064 * np.cos((lam_i - 1.617) * np.pi)     # geomagnetic latitude
     tloc = np.mod(4.32e4 * lam_i + _seconds_of_day(t), 86400.0)  # local time [s]
     f = 1.0 + 16.0 * (0.53 - e) ** 3                         # obliquity factor
-    pw = np.stack([np.ones_like(phi_m), phi_m, phi_m**2, phi_m**3], axis=-1)
-    amp = np.maximum(pw @ alpha, 0.0)
-    per = np.maximum(pw @ beta, 72000.0)
+    amp = np.maximum(alpha[0] + phi_m * (alpha[1] + phi_m * (alpha[2] + phi_m * alpha[3])), 0.0)
+    per = np.maximum(beta[0] + phi_m * (beta[1] + phi_m * (beta[2] + phi_m * beta[3])), 72000.0)
     x = 2.0 * np.pi * (tloc - KLOBUCHAR_PEAK_S) / per
     day = np.where(np.abs(x) < 1.57, amp * (1.0 - x**2 / 2.0 + x**4 / 24.0), 0.0)
     return f * (KLOBUCHAR_NIGHT_S + day)

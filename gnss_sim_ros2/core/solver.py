@@ -34,6 +34,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.linalg import lapack as _lapack
 from scipy.stats import chi2 as _chi2
 
 from .constants import C_MPS
@@ -176,7 +177,7 @@ def _as_array(name, x, n, shape_tail=()):
 def _dops(h_geom: np.ndarray, rot_enu: np.ndarray):
     """GDOP, PDOP, HDOP, VDOP, TDOP from the unweighted design matrix (columns x, y, z, clocks)."""
     try:
-        q = np.linalg.inv(h_geom.T @ h_geom)
+        q = _spd_inverse(h_geom.T @ h_geom)
     except np.linalg.LinAlgError:
         return (math.inf,) * 5
     q_enu = rot_enu @ q[:3, :3] @ rot_enu.T
@@ -185,6 +186,31 @@ def _dops(h_geom: np.ndarray, rot_enu: np.ndarray):
     pdop = math.sqrt(max(np.trace(q[:3, :3]), 0.0))
     tdop = math.sqrt(max(q[3, 3], 0.0))
     return math.sqrt(pdop**2 + tdop**2), pdop, hdop, vdop, tdop
+
+
+def _condition_number(a: np.ndarray) -> float:
+    """2-norm condition number (largest / smallest singular value, as np.linalg.cond) of a small square
+    matrix; inf when singular, NaN for non-finite input.  LAPACK dgesdd directly: np.linalg.cond's
+    Python overhead is larger than the decomposition of a 4x4..9x9 normal matrix."""
+    if not np.all(np.isfinite(a)):
+        return math.nan
+    out = _lapack.dgesdd(a, compute_uv=0)        # (u, s, vt, info); u, vt empty
+    s, info = out[1], out[-1]
+    if info != 0:
+        raise np.linalg.LinAlgError("SVD did not converge")
+    return math.inf if s[-1] == 0.0 else float(s[0] / s[-1])
+
+
+def _spd_inverse(a: np.ndarray) -> np.ndarray:
+    """Inverse of a symmetric positive definite matrix (LAPACK Cholesky dpotrf + dpotri); LinAlgError when
+    it is not positive definite (singular normal matrix)."""
+    c, info = _lapack.dpotrf(a, lower=0, clean=1)
+    if info != 0:
+        raise np.linalg.LinAlgError("normal matrix not positive definite")
+    inv, info = _lapack.dpotri(c, lower=0)
+    if info != 0:
+        raise np.linalg.LinAlgError("normal matrix singular")
+    return inv + np.triu(inv, 1).T      # dpotri fills the upper triangle (the lower one is zero: clean=1)
 
 
 def _clock_group(sv_list, groups: Mapping[str, str]) -> np.ndarray:
@@ -294,29 +320,33 @@ def solve_pvt(sv, sat_pos_ecef_m, pseudorange_m, *, sat_clock_bias_s=None, iono_
         _solve_velocity_into(sol, sat, _as_array("sat_vel_ecef_mps", sat_vel_ecef_mps, n, (3,)),
                              _as_array("range_rate_mps", range_rate_mps, n),
                              None if sat_clock_drift_sps is None
-                             else _as_array("sat_clock_drift_sps", sat_clock_drift_sps, n), cfg)
+                             else _as_array("sat_clock_drift_sps", sat_clock_drift_sps, n), cfg,
+                             los=res.get("e_final"), rot=res.get("rot"))
     return sol
+
+
+def _no_fix(n, reason="", it=0) -> dict:
+    return {"status": "no_fix", "reason": reason, "pos": np.full(3, np.nan), "clk": {}, "clock_systems": [],
+            "used": np.zeros(n, bool), "v": np.full(n, np.nan), "el": np.full(n, np.nan), "az": np.full(n, np.nan),
+            "cov": None, "dops": (math.nan,) * 5, "gdop": math.nan, "chi2": math.nan, "chi2_threshold": math.nan,
+            "dof": 0, "iter": it, "worst": None}
 
 
 def _solve_position(sv, sat, y, valid, groups, sig_given, cn0, x, cfg, fac=None) -> dict:
     n = sv.size
-    out = {"status": "no_fix", "reason": "", "pos": np.full(3, np.nan), "clk": {}, "clock_systems": [],
-           "used": np.zeros(n, bool), "v": np.full(n, np.nan), "el": np.full(n, np.nan), "az": np.full(n, np.nan),
-           "cov": None, "dops": (math.nan,) * 5, "gdop": math.nan, "chi2": math.nan, "chi2_threshold": math.nan,
-           "dof": 0, "iter": 0, "worst": None}
-    if valid.sum() == 0:
-        out["reason"] = "no satellite with a finite pseudorange and position"
-        return out
+    if not valid.any():
+        return _no_fix(n, "no satellite with a finite pseudorange and position")
     x = np.asarray(x, dtype=np.float64).copy()
     prev_use = None
     converged = False
     # the elevation mask and weights start once the position is roughly known: a start
     # point away from the Earth centre (a prior) or a Gauss-Newton step below 1 km
-    last_step = 0.0 if np.linalg.norm(x) > _NEAR_CENTRE_M else math.inf
+    last_step = 0.0 if math.sqrt(x @ x) > _NEAR_CENTRE_M else math.inf
     fac2 = None if fac is None else fac**2
     elevation_weights = sig_given is None and cfg.weighting == "elevation"
     mask_deg = cfg.elevation_mask_deg
     enu = None
+    h = idx = col = None       # design-matrix layout, set when the satellite set changes (first iteration)
     for it in range(1, cfg.max_iterations + 1):
         d = sat - x
         rho = np.sqrt(np.einsum("ij,ij->i", d, d))
@@ -331,23 +361,25 @@ def _solve_position(sv, sat, y, valid, groups, sig_given, cn0, x, cfg, fac=None)
         else:
             enu, el = None, np.full(n, 90.0)
             use = valid.copy()
-        clock_sys = sorted(set(groups[use].tolist()), key=SYSTEM_ORDER.index)
-        n_unk = 3 + len(clock_sys)
-        idx = np.flatnonzero(use)
-        n_use = idx.size
-        if n_use < n_unk:
-            n_valid = int(valid.sum())
-            masked = f"{n_valid - n_use} below the {cfg.elevation_mask_deg:g} deg mask, " if placed else ""
-            out["reason"] = (f"too few satellites: {n_use} usable ({masked}{n - n_valid} without data or excluded), "
-                             f"need {n_unk} (3 position + {len(clock_sys)} clock"
-                             f"{'s' if len(clock_sys) != 1 else ''}: {'/'.join(clock_sys) or '-'})")
-            out["iter"] = it
-            return out
-        slot = {g: j for j, g in enumerate(clock_sys)}
-        col = np.array([slot[g] for g in groups[idx].tolist()], dtype=np.int64)
-        h = np.zeros((n_use, n_unk))
-        h[:, :3] = -e[idx]
-        h[np.arange(n_use), 3 + col] = 1.0
+        same_set = prev_use is not None and np.array_equal(use, prev_use)
+        if same_set:      # same satellites as the last iteration: same clocks, same design-matrix layout
+            h[:, :3] = -e[idx]
+        else:
+            clock_sys = sorted(set(groups[use].tolist()), key=SYSTEM_ORDER.index)
+            n_unk = 3 + len(clock_sys)
+            idx = np.flatnonzero(use)
+            n_use = idx.size
+            if n_use < n_unk:
+                n_valid = int(valid.sum())
+                masked = f"{n_valid - n_use} below the {cfg.elevation_mask_deg:g} deg mask, " if placed else ""
+                return _no_fix(n, f"too few satellites: {n_use} usable ({masked}{n - n_valid} without data or "
+                                  f"excluded), need {n_unk} (3 position + {len(clock_sys)} clock"
+                                  f"{'s' if len(clock_sys) != 1 else ''}: {'/'.join(clock_sys) or '-'})", it)
+            slot = {g: j for j, g in enumerate(clock_sys)}
+            col = np.array([slot[g] for g in groups[idx].tolist()], dtype=np.int64)
+            h = np.zeros((n_use, n_unk))
+            h[:, :3] = -e[idx]
+            h[np.arange(n_use), 3 + col] = 1.0
         if sig_given is not None:
             var = sig_given[idx] ** 2
         elif elevation_weights:   # pseudorange_sigma_m, inline, system factors looked up once per solve
@@ -359,40 +391,29 @@ def _solve_position(sv, sat, y, valid, groups, sig_given, cn0, x, cfg, fac=None)
         hwt = h.T * w
         nmat = hwt @ h
         try:
-            # 2-norm condition number, as np.linalg.cond (largest / smallest singular value)
-            sv_n = np.linalg.svd(nmat, compute_uv=False)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                cond = sv_n[0] / sv_n[-1]
-            if not np.isfinite(cond) or cond > 1e14:
+            if not _condition_number(nmat) <= 1e14:      # also NaN
                 raise np.linalg.LinAlgError
-            cov = np.linalg.inv(nmat)       # the covariance at the end, the step now
+            cov = _spd_inverse(nmat)       # the covariance at the end, the step now
             sol = cov @ (hwt @ (y[idx] - rho[idx]))
         except np.linalg.LinAlgError:
-            out["reason"] = f"singular geometry with {idx.size} satellites (normal matrix not invertible)"
-            out["iter"] = it
-            return out
+            return _no_fix(n, f"singular geometry with {idx.size} satellites (normal matrix not invertible)", it)
         dx = sol[:3]
         x = x + dx
         last_step = math.sqrt(dx @ dx)
-        same_set = prev_use is not None and np.array_equal(use, prev_use)
         prev_use = use
         if last_step < cfg.convergence_m and (same_set or not placed or it == 1):
             if placed:
                 converged = True
                 break
-        xs = math.sqrt(x @ x)
-        if not xs <= 1e9:      # also NaN
-            out["reason"] = "the iteration diverged"
-            out["iter"] = it
-            return out
-    out["iter"] = it
+        if not math.sqrt(x @ x) <= 1e9:      # also NaN
+            return _no_fix(n, "the iteration diverged", it)
     if not converged:
-        out["reason"] = f"no convergence in {cfg.max_iterations} iterations (last step {np.linalg.norm(dx):.3g} m)"
-        return out
+        return _no_fix(n, f"no convergence in {cfg.max_iterations} iterations (last step {last_step:.3g} m)", it)
     # final quantities at the converged position (sat set and clocks from the last step)
     clk = sol[3:]
     d = sat - x
     rho = np.sqrt(np.einsum("ij,ij->i", d, d))
+    e_final = d / rho[:, None]      # line of sight at the solution (for the velocity)
     v = np.full(n, np.nan)
     v_idx = y[idx] - rho[idx] - clk[col]
     v[idx] = v_idx
@@ -415,11 +436,10 @@ def _solve_position(sv, sat, y, valid, groups, sig_given, cn0, x, cfg, fac=None)
         worst = int(idx[int(np.argmax(wstat >= np.max(wstat) * (1.0 - 1e-6)))])
     used = np.zeros(n, bool)
     used[idx] = True
-    out.update(status="fix", pos=x, clk={s: float(c) for s, c in zip(clock_sys, clk)}, clock_systems=clock_sys,
-               used=used, v=v, el=el, az=_azimuth(enu, n), cov=cov, dops=dops,
-               gdop=dops[0], chi2=chi2, chi2_threshold=thr,
-               dof=dof, worst=worst, rot=rot, lla=(float(lat), float(lon), float(hgt)), e=e)
-    return out
+    return {"status": "fix", "reason": "", "pos": x, "clk": {s: float(c) for s, c in zip(clock_sys, clk)},
+            "clock_systems": clock_sys, "used": used, "v": v, "el": el, "az": _azimuth(enu, n), "cov": cov,
+            "dops": dops, "gdop": dops[0], "chi2": chi2, "chi2_threshold": thr, "dof": dof, "iter": it,
+            "worst": worst, "rot": rot, "lla": (float(lat), float(lon), float(hgt)), "e": e, "e_final": e_final}
 
 
 def _azimuth(enu, n):
@@ -455,7 +475,9 @@ def _make_solution(sv, res, excluded, reason, n) -> PvtSolution:
     )
 
 
-def _solve_velocity_into(sol: PvtSolution, sat, sat_vel, rate, sat_drift, cfg) -> None:
+def _solve_velocity_into(sol: PvtSolution, sat, sat_vel, rate, sat_drift, cfg, los=None, rot=None) -> None:
+    """Velocity and drift into ``sol``; ``los``: unit vectors receiver -> satellite (N, 3) at sol.pos_ecef_m
+    and ``rot``: ENU rotation there, when the position solution has them already."""
     if not sol.is_fix:
         sol.vel_status, sol.vel_reason = "no_fix", "no position fix"
         return
@@ -467,24 +489,30 @@ def _solve_velocity_into(sol: PvtSolution, sat, sat_vel, rate, sat_drift, cfg) -
         sol.vel_status = "no_fix"
         sol.vel_reason = f"too few range rates: {idx.size} of the used satellites, need 4 (3 velocity + 1 drift)"
         return
-    d = sat[idx] - sol.pos_ecef_m
-    e = d / np.sqrt(np.einsum("ij,ij->i", d, d))[:, None]
+    if los is None:
+        d = sat[idx] - sol.pos_ecef_m
+        e = d / np.sqrt(np.einsum("ij,ij->i", d, d))[:, None]
+    else:
+        e = los[idx]
     # rate = e.(v_sat - v_rx) + drift_rx - c ddt_sat  ->  rate - e.v_sat + c ddt_sat = -e.v_rx + drift_rx
     yv = rate[idx] - np.einsum("ij,ij->i", e, sat_vel[idx])
     if sat_drift is not None:
         yv = yv + C_MPS * sat_drift[idx]
-    h = np.hstack([-e, np.ones((idx.size, 1))])
+    h = np.empty((idx.size, 4))
+    h[:, :3] = -e
+    h[:, 3] = 1.0
     s = np.sin(np.radians(np.clip(sol.el_deg[idx], 1.0, 90.0)))
     w = 1.0 / (cfg.rate_sigma_a_mps**2 + cfg.rate_sigma_b_mps**2 / s**2)
     hwt = h.T * w
     nmat = hwt @ h
     try:
-        cov = np.linalg.inv(nmat)
+        cov = _spd_inverse(nmat)
         xv = cov @ (hwt @ yv)
     except np.linalg.LinAlgError:
         sol.vel_status, sol.vel_reason = "no_fix", "singular geometry for the velocity"
         return
-    rot = enu_rotation(sol.lat_deg, sol.lon_deg)
+    if rot is None:
+        rot = enu_rotation(sol.lat_deg, sol.lon_deg)
     resid = np.full(sol.sv.size, np.nan)
     resid[idx] = yv - h @ xv
     sol.vel_ecef_mps = xv[:3]

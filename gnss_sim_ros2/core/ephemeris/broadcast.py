@@ -99,6 +99,7 @@ class BroadcastEphemeris:
         else:
             self._glo = None
         self._sys_cache: dict[str, np.ndarray] = {}
+        self._sv_rows_cache: dict[bytes, tuple] = {}
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -184,12 +185,25 @@ class BroadcastEphemeris:
         n = svs.size
         t_sec = np.broadcast_to(np.asarray(t.sec, dtype=np.int64), (n,))
         t_frac = np.broadcast_to(np.asarray(t.frac, dtype=np.float64), (n,))
-        known = np.array([s in self._sv_pos for s in svs.tolist()], dtype=bool)
-        sv_idx = np.array([self._sv_pos.get(s, 0) for s in svs.tolist()], dtype=np.int64)
+        known, sv_idx = self._sv_rows(svs)
         rec = np.where(known, self._timeline.lookup(sv_idx, self._timeline.t_us(t_sec, t_frac)), -1)
         ok = rec >= 0
         tt = GnssTime(t_sec[ok].copy(), t_frac[ok].copy())
         return self._evaluate(rec[ok], sv_idx[ok], tt, t_sec[ok], t_frac[ok])
+
+    def _sv_rows(self, svs: np.ndarray):
+        """(known (N,) bool, satellite index (N,)) of ids; cached per list (the receiver asks for the same
+        satellites epoch after epoch)."""
+        key = svs.tobytes()
+        hit = self._sv_rows_cache.get(key)
+        if hit is None:
+            names = svs.tolist()
+            hit = (np.array([s in self._sv_pos for s in names], dtype=bool),
+                   np.array([self._sv_pos.get(s, 0) for s in names], dtype=np.int64))
+            if len(self._sv_rows_cache) > 256:
+                self._sv_rows_cache.clear()
+            self._sv_rows_cache[key] = hit
+        return hit
 
     def _evaluate(self, rec, sv_idx, t_out, t_sec, t_frac) -> SatelliteStates:
         n = rec.size

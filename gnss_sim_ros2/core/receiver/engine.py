@@ -183,6 +183,7 @@ class Receiver:
         self._geo = (0.0, 0.0, 0.0)
         self._signal_cache: dict = {}
         self._keep_cache: dict = {}
+        self._iono_terms = None
         self._doy_key = None
         self._doy0 = 0.0
 
@@ -312,7 +313,10 @@ class Receiver:
         else:
             tropo = np.zeros(m)
         if cfg.noise and cfg.iono_error_frac != 0:
-            iono_true = iono_model * (1.0 + cfg.iono_error_frac * self._world_process(t_true, [("iono",)])[0])
+            if self._iono_terms is None:
+                self._iono_terms = self._stacked_terms([("iono",)])
+            g_iono = self._world_process_terms(t_true, self._iono_terms)[0]
+            iono_true = iono_model * (1.0 + cfg.iono_error_frac * g_iono)
         else:
             iono_true = iono_model
 

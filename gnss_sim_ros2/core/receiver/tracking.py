@@ -46,6 +46,12 @@ PILOT_CODES = frozenset(
 )
 
 
+def _as_rows(a, dtype, n):
+    """``a`` as an (n,) array of ``dtype`` (np.broadcast_to of a scalar; arrays of that shape as they are)."""
+    a = np.asarray(a, dtype=dtype)
+    return a if a.shape == (n,) else np.broadcast_to(a, (n,))
+
+
 @dataclass
 class TrackingConfig:
     acquisition_cn0_dbhz: float = 33.0
@@ -86,6 +92,8 @@ class Tracker:
         self.rng = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
         self._index: dict[tuple[str, str], int] = {}
         self._rows_cache: dict = {}
+        self._idx_prev = None
+        self._n_prev = -1
         self._cap = 0
         self._n = 0
         self._t0 = None
@@ -149,8 +157,8 @@ class Tracker:
         n = sv.shape[0]
         if code.shape != (n,):
             raise ValueError(f"Tracker.update: 'code' has shape {code.shape}, expected ({n},) like 'sv'")
-        cn0 = np.broadcast_to(np.asarray(cn0_dbhz, dtype=np.float64), (n,))
-        vis = np.broadcast_to(np.asarray(visible, dtype=bool), (n,))
+        cn0 = _as_rows(cn0_dbhz, np.float64, n)
+        vis = _as_rows(visible, bool, n)
         forced = np.zeros(n, bool) if force_slip is None else np.broadcast_to(np.asarray(force_slip, bool), (n,))
         if np.any(~np.isfinite(cn0) & vis):
             raise ValueError("Tracker.update: 'cn0_dbhz' has non-finite values for visible rows")
@@ -164,11 +172,14 @@ class Tracker:
         c = self.config
 
         idx = self._rows(sv, code)     # raises on duplicate keys
-        # keys absent from this epoch lose lock
-        absent = np.ones(self._n, bool)
-        absent[idx] = False
-        self._tracked[: self._n][absent] = False
-        self._cand_since[: self._n][absent] = np.nan
+        # keys absent from this epoch lose lock (nothing to do when the keys are the previous epoch's: their
+        # absent keys were cleared then, and only present keys change)
+        if idx is not self._idx_prev or self._n != self._n_prev:
+            absent = np.ones(self._n, bool)
+            absent[idx] = False
+            self._tracked[: self._n][absent] = False
+            self._cand_since[: self._n][absent] = np.nan
+            self._idx_prev, self._n_prev = idx, self._n
 
         was = self._tracked[idx]
         ok_track = vis & (cn0 >= c.tracking_cn0_dbhz)
