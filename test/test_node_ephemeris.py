@@ -12,16 +12,17 @@ from gnss_sim_ros2.core.time import GnssTime
 from gnss_sim_ros2.nodes.ephemeris_node import EphemerisNode
 
 
-def _node(ros, **params):  # noqa: F811
+def _node(ros, tmp_path, **params):  # noqa: F811
+    params.setdefault("output_dir", str(tmp_path))  # the navigation file goes there, never into the work tree
     overrides = [Parameter("use_sim_time", value=True)] + [Parameter(k, value=v) for k, v in params.items()]
     return ros.add(EphemerisNode(parameter_overrides=overrides, context=ros.context))
 
 
-def test_states_every_epoch_on_sim_time(ros, opec_dir):  # noqa: F811
+def test_states_every_epoch_on_sim_time(ros, opec_dir, tmp_path):  # noqa: F811
     from gnss_sim_msgs.msg import SatelliteStates
 
     nav = str(opec_dir / "OPEC00NOR_S_20220010000_01D_GN.rnx")
-    node = _node(ros, source="broadcast", nav_files=[nav], systems="G", start_time="2022-01-01T01:00:00",
+    node = _node(ros, tmp_path, source="broadcast", nav_files=[nav], systems="G", start_time="2022-01-01T01:00:00",
                  rate_hz=2.0, duration_s=60.0)
     got = []
     ros.helper.create_subscription(SatelliteStates, "satellite_states", got.append, 100)
@@ -58,8 +59,8 @@ def test_states_every_epoch_on_sim_time(ros, opec_dir):  # noqa: F811
     ({"systems": "GXZ"}, "parameter 'systems'"),
     ({"rate_hz": -1.0}, "rate_hz"),
 ])
-def test_bad_parameters_refuse_configure(ros, params, message):  # noqa: F811
-    node = _node(ros, **params)
+def test_bad_parameters_refuse_configure(ros, params, message, tmp_path):  # noqa: F811
+    node = _node(ros, tmp_path, **params)
     node.trigger_configure()
     assert node._state_machine.current_state[1] == "unconfigured"
     assert message in node.last_error

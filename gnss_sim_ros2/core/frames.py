@@ -133,7 +133,7 @@ def az_el_at(rx_ecef_m, lat_deg, lon_deg, sat_ecef_m):
     rng = np.sqrt(e * e + n * n + u * u)
     az = np.degrees(np.arctan2(e, n)) % 360.0
     az = az - 360.0 * (az >= 360.0)  # (-tiny) % 360 rounds to 360.0; keeps scalars scalar
-    el = np.degrees(np.arcsin(np.clip(u / rng, -1.0, 1.0)))
+    el = np.degrees(np.arcsin(np.minimum(np.maximum(u / rng, -1.0), 1.0)))   # np.clip, cheaper
     return az, el, rng
 
 

@@ -320,7 +320,7 @@ def klobuchar_l1_delay_s(t, lat_deg, lon_deg, az_deg, el_deg, alpha, beta):
     a_rad = np.radians(az_deg)
     e = np.asarray(el_deg, dtype=np.float64) / 180.0
     psi = 0.0137 / (e + 0.11) - 0.022                      # Earth's central angle [semicircles]
-    phi_i = np.clip(phi_u + psi * np.cos(a_rad), -0.416, 0.416)  # sub-ionospheric latitude
+    phi_i = np.minimum(np.maximum(phi_u + psi * np.cos(a_rad), -0.416), 0.416)  # sub-ionospheric latitude
     lam_i = lam_u + psi * np.sin(a_rad) / np.cos(phi_i * np.pi)  # sub-ionospheric longitude
     phi_m = phi_i + 0.064 * np.cos((lam_i - 1.617) * np.pi)     # geomagnetic latitude
     tloc = np.mod(4.32e4 * lam_i + _seconds_of_day(t), 86400.0)  # local time [s]

@@ -356,12 +356,12 @@ def _solve_position(sv, sat, y, valid, groups, sig_given, cn0, x, cfg, fac=None)
             # elevation in the ENU frame at the current position (as frames.az_el_from_ecef)
             lat_x, lon_x, _ = ecef_to_geodetic(x[0], x[1], x[2])
             enu = d @ enu_rotation(lat_x, lon_x).T
-            el = np.degrees(np.arcsin(np.clip(enu[:, 2] / rho, -1.0, 1.0)))
+            el = np.degrees(np.arcsin(np.minimum(np.maximum(enu[:, 2] / rho, -1.0), 1.0)))
             use = valid & (el >= mask_deg)
         else:
             enu, el = None, np.full(n, 90.0)
             use = valid.copy()
-        same_set = prev_use is not None and np.array_equal(use, prev_use)
+        same_set = prev_use is not None and bool((use == prev_use).all())
         if same_set:      # same satellites as the last iteration: same clocks, same design-matrix layout
             h[:, :3] = -e[idx]
         else:
@@ -383,7 +383,7 @@ def _solve_position(sv, sat, y, valid, groups, sig_given, cn0, x, cfg, fac=None)
         if sig_given is not None:
             var = sig_given[idx] ** 2
         elif elevation_weights:   # pseudorange_sigma_m, inline, system factors looked up once per solve
-            sin_el = np.sin(np.radians(np.clip(el[idx], 1.0, 90.0)))
+            sin_el = np.sin(np.radians(np.minimum(np.maximum(el[idx], 1.0), 90.0)))
             var = (cfg.sigma_a_m**2 + cfg.sigma_b_m**2 / sin_el**2) * fac2[idx]
         else:
             var = _variance(el[idx], None if cn0 is None else cn0[idx], cfg) * fac2[idx]
@@ -446,12 +446,13 @@ def _azimuth(enu, n):
     """Azimuth [deg, 0..360) from ENU vectors (NaN when there are none: position not yet placed)."""
     if enu is None:
         return np.full(n, np.nan)
-    return np.degrees(np.arctan2(enu[:, 0], enu[:, 1])) % 360.0
+    az = np.degrees(np.arctan2(enu[:, 0], enu[:, 1])) % 360.0
+    return az - 360.0 * (az >= 360.0)      # (-tiny) % 360 rounds to 360.0 (as frames.az_el_at)
 
 
 def _make_solution(sv, res, excluded, reason, n) -> PvtSolution:
     fix = res["status"] == "fix"
-    nan3 = np.full((3, 3), np.nan)
+    nan3 = None if fix else np.full((3, 3), np.nan)
     if fix:
         cov = res["cov"]
         rot = res["rot"]
@@ -501,7 +502,7 @@ def _solve_velocity_into(sol: PvtSolution, sat, sat_vel, rate, sat_drift, cfg, l
     h = np.empty((idx.size, 4))
     h[:, :3] = -e
     h[:, 3] = 1.0
-    s = np.sin(np.radians(np.clip(sol.el_deg[idx], 1.0, 90.0)))
+    s = np.sin(np.radians(np.minimum(np.maximum(sol.el_deg[idx], 1.0), 90.0)))
     w = 1.0 / (cfg.rate_sigma_a_mps**2 + cfg.rate_sigma_b_mps**2 / s**2)
     hwt = h.T * w
     nmat = hwt @ h

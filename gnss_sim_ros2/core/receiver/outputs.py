@@ -103,13 +103,25 @@ def rinex_name(marker: str, start: GnssTime, duration_s: float | None, interval_
 
 def spp_rows(obs: EpochObservations, profile: dict[str, list[str]]) -> np.ndarray:
     """Row index of the signal each satellite's position fix uses: its system's first profile code."""
-    systems = np.asarray(obs.sv).astype("<U1")    # the system letter: first character of each id
+    sv = np.asarray(obs.sv)
     code = np.asarray(obs.code)
-    pick = np.zeros(systems.shape, dtype=bool)
-    for s, codes in profile.items():
-        if codes:
-            pick |= (systems == s) & (code == codes[0])
-    return np.flatnonzero(pick)
+    key = (sv.dtype.str, sv.tobytes(), code.dtype.str, code.tobytes(),
+           tuple((s, codes[0]) for s, codes in profile.items() if codes))
+    hit = _SPP_ROWS_CACHE.get(key)
+    if hit is None:
+        systems = sv.astype("<U1")    # the system letter: first character of each id
+        pick = np.zeros(systems.shape, dtype=bool)
+        for s, first in key[-1]:
+            pick |= (systems == s) & (code == first)
+        hit = np.flatnonzero(pick)
+        if len(_SPP_ROWS_CACHE) > 256:
+            _SPP_ROWS_CACHE.clear()
+        _SPP_ROWS_CACHE[key] = hit
+    return hit.copy()
+
+
+#: spp_rows per (signals, profile): the tracked set changes rarely from one epoch to the next
+_SPP_ROWS_CACHE: dict = {}
 
 
 def position_fix(obs: EpochObservations, profile: dict[str, list[str]], prior_ecef_m=None,
