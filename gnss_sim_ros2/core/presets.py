@@ -13,20 +13,22 @@ effects are measured by ``gnss-sim bench`` (README trade table) and
   file).  Effect: the satellite positions/clocks the observations are built
   from are the truth instead of the broadcast prediction (SISRE ~0.7 m GPS);
   without broadcast group delays (SP3 clocks are ionosphere-free).
-- ``transmit_time``: "recompute" evaluates the ephemeris again at the
-  transmit time of each satellite (``light_time_iterations`` extra ephemeris
-  calls per epoch, ~0.4 ms each); "expansion" moves the epoch's states back
-  with a second-order Taylor series (no extra calls; range error < 1 mm for
-  the 0.07-0.09 s light time).
-- ``light_time_iterations``: 1 leaves ~1 mm of range error, 2 ~1e-6 m, 3 is
-  converged to float precision.  Cost: a few vector operations per iteration
-  (expansion) or one ephemeris evaluation (recompute).
+- ``transmit_time``: "recompute" evaluates the ephemeris again at a guessed
+  transmit time of each satellite and iterates the light time on that state's
+  Taylor series (propagation.transmit_time_refined: one extra ephemeris call
+  per epoch, ~0.4 ms, a second only when the guess is off by > 0.1 ms; ranges
+  equal to re-evaluating at every iteration within 1e-6 m); "expansion" moves
+  the epoch's states back with a second-order Taylor series (no extra call;
+  range error < 1 mm for the 0.07-0.09 s light time).
+- ``light_time_iterations``: iterations of the "expansion" mode: 1 leaves
+  ~1 mm of range error, 2 ~1e-6 m, 3 is converged to float precision.  Cost: a
+  few vector operations per iteration.  ("recompute" iterates to convergence.)
 - ``ionosphere`` / ``troposphere``: "klobuchar" / "saastamoinen" or "none".
   "none" removes the delays (2-30 m) from the observations *and* the
   receiver's own corrections: the position fix is unchanged but the
   pseudoranges no longer look like a real receiver's.  Cost ~0.1 ms each.
 - ``noise``: thermal noise, multipath, clock wander, ionosphere residual,
-  SISRE.  Cost ~0.5 ms (the per-signal multipath recursion is a Python loop).
+  SISRE.  Cost ~0.1 ms (vectorised per signal).
   On in every preset: the errors are what a receiver simulator is for; the
   benchmark turns it off only to isolate model differences.
 - ``fresnel_rays``: rays over the first Fresnel zone per satellite for soft
