@@ -17,6 +17,7 @@ import numpy as np
 import pymap3d
 import pytest
 from scipy.optimize import brentq
+from test_propagation import CircularOrbits, _rz  # the same independent reference orbits
 
 from gnss_sim_ros2.core import propagation as prop
 from gnss_sim_ros2.core.receiver.engine import OMEGA_BY_SYSTEM, Receiver, ReceiverConfig
@@ -31,43 +32,7 @@ GM = 3.986005e14
 RX = np.array([3149785.9652, 598260.8822, 5495348.4927])  # OPEC marker
 
 
-def _rz(theta):
-    c, s = np.cos(theta), np.sin(theta)
-    return np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
-class Circular:
-    """Circular Keplerian orbits, exact in the inertial frame; ECEF = R3(we t) ECI; rotating-frame derivatives."""
-
-    def __init__(self, radius_m, incl_deg, raan_deg, u0_deg):
-        self.r = np.asarray(radius_m, float)
-        self.n = np.sqrt(GM / self.r**3)
-        self.i, self.o, self.u0 = np.radians(incl_deg), np.radians(raan_deg), np.radians(u0_deg)
-
-    def eci(self, t):
-        u = self.u0 + self.n * np.asarray(t, float)
-        co, so, ci, si = np.cos(self.o), np.sin(self.o), np.cos(self.i), np.sin(self.i)
-        xo, yo = self.r * np.cos(u), self.r * np.sin(u)
-        vxo, vyo = -self.r * self.n * np.sin(u), self.r * self.n * np.cos(u)
-        pos = np.stack([co * xo - so * ci * yo, so * xo + co * ci * yo, si * yo], -1)
-        vel = np.stack([co * vxo - so * ci * vyo, so * vxo + co * ci * vyo, si * vyo], -1)
-        return pos, vel, -(self.n**2)[..., None] * pos
-
-    def ecef(self, t):
-        t = np.asarray(t, float)
-        p, v, a = self.eci(t)
-        w = np.array([0.0, 0.0, WE])
-        out = []
-        for j in range(p.shape[0]):
-            r = _rz(WE * t[j])
-            pe = r @ p[j]
-            ve = r @ v[j] - np.cross(w, pe)
-            ae = r @ a[j] - 2.0 * np.cross(w, ve) - np.cross(w, np.cross(w, pe))
-            out.append((pe, ve, ae))
-        return tuple(np.array([o[k] for o in out]) for k in range(3))
-
-
-ORB = Circular(np.full(4, 26560e3), [55, 55, 55, 64.8], [0, 40, 80, 20], [60, 80, 45, 70])
+ORB = CircularOrbits(np.full(4, 26560e3), [55, 55, 55, 64.8], [0, 40, 80, 20], [60, 80, 45, 70])
 
 
 def _inertial_tau(j, t_rx):

@@ -18,6 +18,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from gnss_sim_ros2.commands import parse_triple
+
 
 def add_arguments(p):
     p.add_argument("--sim", required=True, metavar="FILE", help="simulated observations: RINEX file or bag folder")
@@ -34,21 +36,11 @@ def add_arguments(p):
     p.add_argument("--out", required=True, metavar="DIR", help="output folder (report.md + PNG figures)")
 
 
-def _truth(text: str):
-    try:
-        vals = [float(v) for v in text.split(",")]
-        if len(vals) != 3:
-            raise ValueError
-    except ValueError:
-        raise ValueError(f"--truth needs three comma-separated ECEF coordinates [m], got {text!r}") from None
-    return vals
-
-
 def run(args) -> int:
     from gnss_sim_ros2.core.compare import compare, write_report
 
     try:
-        truth = _truth(args.truth) if args.truth else None
+        truth = parse_triple(args.truth, "--truth (ECEF X,Y,Z [m])") if args.truth else None
         cmp = compare(args.sim, args.real, nav_paths=args.nav, truth_ecef_m=truth, truth_csv=args.truth_csv,
                       mask_deg=args.mask_deg, solver=args.solver, workdir=Path(args.out))
         report = write_report(cmp, args.out)

@@ -10,6 +10,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from gnss_sim_ros2.commands import parse_triple
+
 
 def add_arguments(p):
     p.add_argument("--config", help="gnss_sim parameter file (ROS 2 format, see config/gnss_sim.yaml)")
@@ -41,16 +43,6 @@ def add_arguments(p):
     p.add_argument("--out", required=True, metavar="DIR", help="output folder")
 
 
-def _triple(text: str, what: str):
-    try:
-        vals = [float(v) for v in text.split(",")]
-        if len(vals) != 3:
-            raise ValueError
-    except ValueError:
-        raise ValueError(f"{what} needs three comma-separated numbers, got {text!r}") from None
-    return vals
-
-
 def setup_from_args(args):
     from gnss_sim_ros2.core.simulation import SimulationSetup
     from gnss_sim_ros2.core.time import GnssTime
@@ -72,9 +64,9 @@ def setup_from_args(args):
     world = args.world if args.world is not None else (vis["world_file"] if not args.mesh else "")
     mesh = args.mesh if args.mesh is not None else (vis["mesh_file"] if not args.world else "")
     if args.position_ecef:
-        tr = Trajectory.static(_triple(args.position_ecef, "--position-ecef"), "ecef")
+        tr = Trajectory.static(parse_triple(args.position_ecef, "--position-ecef"), "ecef")
     elif args.position:
-        tr = Trajectory.static(_triple(args.position, "--position"), "geodetic")
+        tr = Trajectory.static(parse_triple(args.position, "--position"), "geodetic")
     elif args.trajectory:
         tr = Trajectory.from_csv(args.trajectory)
     else:
