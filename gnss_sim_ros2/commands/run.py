@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import os
 import signal
+import struct
 import subprocess
 import sys
 import time
@@ -163,11 +164,17 @@ class Runner:
         def key(m):
             return m.header.stamp.sec + m.header.stamp.nanosec * 1e-9
 
-        def on_states(m):
-            self.t_states[key(m)] = time.perf_counter()
+        def raw_stamp(data: bytes) -> float:
+            # CDR: 4-byte encapsulation header, then std_msgs/Header.stamp (int32 sec, uint32 nanosec);
+            # reading only the stamp keeps the latency probe from deserialising 100+ satellites
+            sec, nsec = struct.unpack_from("<iI" if data[1] == 1 else ">iI", data, 4)
+            return sec + nsec * 1e-9
 
-        def on_obs(m):
-            self.t_obs[key(m)] = time.perf_counter()
+        def on_states(data):
+            self.t_states[raw_stamp(data)] = time.perf_counter()
+
+        def on_obs(data):
+            self.t_obs[raw_stamp(data)] = time.perf_counter()
 
         def on_status(m):
             self.status[key(m)] = m
@@ -180,8 +187,8 @@ class Runner:
             self.last_vis = m
 
         d = self.driver
-        self._subs = [d.create_subscription(SatelliteStates, "/gnss/satellite_states", on_states, 100),
-                      d.create_subscription(Observations, "/gnss/observations", on_obs, 100),
+        self._subs = [d.create_subscription(SatelliteStates, "/gnss/satellite_states", on_states, 100, raw=True),
+                      d.create_subscription(Observations, "/gnss/observations", on_obs, 100, raw=True),
                       d.create_subscription(ReceiverStatus, "/gnss/status", on_status, 100),
                       d.create_subscription(NavSatFix, "/gnss/fix", on_fix, 100),
                       d.create_subscription(Visibility, "/gnss/visibility", on_vis, 100)]
