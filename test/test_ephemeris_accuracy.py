@@ -24,9 +24,8 @@ import pytest
 
 from gnss_sim_ros2.core.constants import F_B1I_HZ, F_B3I_HZ
 from gnss_sim_ros2.core.ephemeris.broadcast import BroadcastEphemeris
+from gnss_sim_ros2.core.ephemeris.sp3 import Sp3Ephemeris
 from gnss_sim_ros2.core.time import GnssTime
-
-Sp3Ephemeris = pytest.importorskip("gnss_sim_ros2.core.ephemeris.sp3").Sp3Ephemeris
 
 NAV = [f"OPEC00NOR_S_20220010000_01D_{s}N.rnx" for s in "GECR"]
 SP3 = "COD0MGXFIN_20220010000_01D_05M_ORB.SP3"

@@ -526,7 +526,7 @@ def test_bad_input_errors_name_the_file(tmp_path):
 
 
 def test_records_roundtrip_through_rinex3_writer(tmp_path):
-    writer = pytest.importorskip("gnss_sim_ros2.core.ephemeris.rinex_nav_writer")
+    from gnss_sim_ros2.core.ephemeris import rinex_nav_writer as writer
     text = (_hdr3(f"{'GPSA   1.2107E-08 -7.4506E-09 -5.9605E-08  1.1921E-07':<60}IONOSPHERIC CORR")
             + _rec3("G30", G30_EPOCH, gps_values(G30))
             + _rec3("R07", (2022, 1, 1, 2, 15, 0), glo_values(_glonass_record(R_POS, R_VEL, R_ACC))))

@@ -74,7 +74,7 @@ def test_noise_free_fix_recovers_antenna(synthetic, lat, lon, h):
     d = st.pos_ecef_m - ecef
     el_ref = np.degrees(np.arcsin(d @ up_unit(lat, lon) / np.linalg.norm(d, axis=1)))
     np.testing.assert_allclose(el, el_ref, atol=1e-9)
-    assert np.all((az >= 0) & (az <= 360)) and np.all(np.isfinite(az))   # 360: see the xfail test below
+    assert np.all((az >= 0) & (az < 360)) and np.all(np.isfinite(az))
     np.testing.assert_allclose(rng, np.linalg.norm(d, axis=1), rtol=1e-12)
 
 

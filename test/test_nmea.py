@@ -6,6 +6,7 @@ import functools
 import operator
 
 import numpy as np
+import pynmea2  # noqa: E402  (an independent NMEA parser, requirements/test.txt)
 import pytest
 
 from gnss_sim_ros2.core.nmea import (
@@ -21,8 +22,6 @@ from gnss_sim_ros2.core.nmea import (
     sentences_from_solution,
 )
 from gnss_sim_ros2.core.time import GnssTime
-
-pynmea2 = pytest.importorskip("pynmea2")
 
 # 1e-5 arc minute, the last digit of ddmm.mmmmm, is 1.7e-7 deg; half of it is the rounding error
 LATLON_TOL_DEG = 0.5e-5 / 60.0 + 1e-12

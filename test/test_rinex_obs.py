@@ -17,6 +17,7 @@ import sys
 import warnings
 from pathlib import Path
 
+import georinex  # noqa: E402
 import numpy as np
 import pytest
 
@@ -29,7 +30,6 @@ from gnss_sim_ros2.core.rinex_obs import (
 )
 from gnss_sim_ros2.core.time import GnssTime
 
-georinex = pytest.importorskip("georinex")
 REPO_ROOT = Path(__file__).resolve().parents[1]
 OPEC_OBS = "OPEC00NOR_S_20220010000_0340_30S_MO.rnx"
 OPEC_NAV_G = "OPEC00NOR_S_20220010000_01D_GN.rnx"
