@@ -460,7 +460,8 @@ class Receiver:
 
     def _empty(self, t, bias, drift, svs, az, el, vis, att):
         z = np.zeros(0)
-        self.tracker.update(t, np.zeros(0, dtype="<U3"), np.zeros(0, dtype="<U2"), z) if len(svs) == 0 else None
+        # nothing observed this epoch: every track the tracker holds loses lock
+        self.tracker.update(t, np.zeros(0, dtype="<U3"), np.zeros(0, dtype="<U2"), z)
         return EpochObservations(t, bias, drift, svs, az, el, vis, att, np.zeros(0, "<U3"), np.zeros(0, "<U2"),
                                  z, z, z, z, z, np.zeros(0, np.int8), z, np.zeros((0, 3)), np.zeros((0, 3)), z, z, z,
                                  z, z, z)
