@@ -11,7 +11,7 @@ _SOURCES = {"broadcast": 0, "sp3": 1, "synthetic": 2}
 
 def states_to_msg(states: SatelliteStates, t: GnssTime, header, iono: dict | None = None):
     """``gnss_sim_msgs/SatelliteStates`` of one epoch ``t`` (``iono``: the navigation header's
-    coefficients, {"GPSA": [4], "GPSB": [4]})."""
+    coefficients, {"GPSA": [4], "GPSB": [4], "GAL": [3]})."""
     from geometry_msgs.msg import Point, Vector3
     from gnss_sim_msgs.msg import SatelliteState
     from gnss_sim_msgs.msg import SatelliteStates as Msg
@@ -21,6 +21,8 @@ def states_to_msg(states: SatelliteStates, t: GnssTime, header, iono: dict | Non
     if iono and iono.get("GPSA") and iono.get("GPSB"):
         msg.klobuchar_alpha = [float(v) for v in iono["GPSA"]]
         msg.klobuchar_beta = [float(v) for v in iono["GPSB"]]
+    if iono and iono.get("GAL"):
+        msg.nequick_coefficients = [float(v) for v in iono["GAL"][:3]]
     source = _SOURCES.get(states.source.split("+")[0], 0)
     pos, vel, acc = states.pos_ecef_m, states.vel_ecef_mps, states.acc_ecef_mps2
     out = []
@@ -38,6 +40,18 @@ def states_to_msg(states: SatelliteStates, t: GnssTime, header, iono: dict | Non
         ))
     msg.states = out
     return msg
+
+
+def iono_from_msg(msg) -> dict | None:
+    """The navigation header's ionosphere coefficients carried by a ``SatelliteStates`` message (the dict
+    states_to_msg takes: "GPSA"/"GPSB" Klobuchar, "GAL" NeQuick-G), None when it carries none."""
+    iono = {}
+    if len(msg.klobuchar_alpha) == 4 and len(msg.klobuchar_beta) == 4:
+        iono["GPSA"] = [float(v) for v in msg.klobuchar_alpha]
+        iono["GPSB"] = [float(v) for v in msg.klobuchar_beta]
+    if len(msg.nequick_coefficients) >= 3:
+        iono["GAL"] = [float(v) for v in msg.nequick_coefficients[:3]]
+    return iono or None
 
 
 def states_from_msg(msg) -> tuple[GnssTime, SatelliteStates]:

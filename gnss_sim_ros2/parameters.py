@@ -140,8 +140,10 @@ NODE_PARAMS: dict[str, list[Param]] = {
     ],
     "receiver": [
         Param("profile", "geodetic", "signals tracked", choices=("geodetic", "single_frequency")),
-        Param("noise", True, "random errors on (thermal noise, clock wander); off keeps deterministic models"),
-        Param("ionosphere", "", "ionosphere model (empty: from preset)", choices=("", "klobuchar", "none")),
+        Param("noise", True, "receiver errors on (noise, clock wander, SISRE, ionosphere error, hardware code biases); "
+              "off: an ideal receiver with the deterministic models"),
+        Param("ionosphere", "", "true ionosphere (empty: from preset; auto: NeQuick-G where Galileo coefficients "
+              "are given, else Klobuchar)", choices=("", "auto", "nequick", "klobuchar", "none")),
         Param("troposphere", "", "troposphere model (empty: from preset)", choices=("", "saastamoinen", "none")),
         Param("write_nmea_file", False, "also write the NMEA sentences to output_dir/gnss_sim.nmea"),
         Param("cn0_acquire_dbhz", 33.0, "C/N0 above which a signal is acquired [dB-Hz]", min=0.0, max=70.0),

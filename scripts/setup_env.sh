@@ -65,15 +65,16 @@ VPY="$VENV/bin/python"
 export PIP_DISABLE_PIP_VERSION_CHECK=1
 
 # ---------------------------------------------------------------- Python packages
-req_files=("$REPO/requirements/python.txt" "$REPO/requirements/test.txt")
+req_files=("$REPO/requirements/python.txt" "$REPO/requirements/test.txt" "$REPO/requirements/no-deps.txt")
 [ $ROS_MODE = 0 ] && req_files=("$REPO/requirements/ros-wheels.txt" "${req_files[@]}")
 h=$(hash_of "${req_files[@]}")
 if ! stamp_ok deps "$h"; then
   log "installing Python packages (first run: a few minutes; pip caches the downloads)"
   args=()
-  for f in "${req_files[@]}"; do args+=(-r "$f"); done
+  for f in "${req_files[@]}"; do [ "$f" = "$REPO/requirements/no-deps.txt" ] || args+=(-r "$f"); done
   mkdir -p "$REPO/build"
-  "$VPY" -m pip install -q "${args[@]}" > "$REPO/build/pip-install.log" 2>&1 \
+  { "$VPY" -m pip install -q "${args[@]}" &&
+    "$VPY" -m pip install -q --no-deps -r "$REPO/requirements/no-deps.txt"; } > "$REPO/build/pip-install.log" 2>&1 \
     || { grep -v "is ignored: it is neither" "$REPO/build/pip-install.log" | tail -30 >&2;
          die "pip install failed (log: $REPO/build/pip-install.log)"; }
   stamp_set deps "$h"

@@ -12,9 +12,18 @@ the real receiver's observation file, read with georinex.
    Saastamoinen troposphere, 10 deg mask, one system set per run.  The same
    options and the same merged navigation file (our *_MN.rnx) serve the real
    observation file.
-   - noise-free simulation, GPS+Galileo+BeiDou: horizontal RMS < 0.3 m;
-   - default settings: horizontal RMS within [0.5, 2] x that of the real
-     file (GPS alone; GPS+Galileo+BeiDou is a known gap, see its xfail).
+   - noise-free simulation with RTKLIB's atmosphere models (Klobuchar as the
+     true ionosphere, ``RTKLIB_ATMOSPHERE``), GPS+Galileo+BeiDou: horizontal
+     RMS < 0.3 m;
+   - default settings (NeQuick-G as the true ionosphere, receiver errors and
+     code biases): horizontal RMS within [0.5, 2] x that of the real file, for
+     GPS, GPS+Galileo and GPS+Galileo+BeiDou.  The real receiver's error is
+     measured against its antenna position from RTKLIB PPP (static, dual
+     frequency, CODE final orbits and clocks): the header's APPROX POSITION is
+     0.7 m from it (E 0.26 m, N 0.67 m: the plate motion since 1989 of a
+     EUREF89 coordinate is 0.75 m north-east), which would otherwise count as
+     receiver error.  The simulated receiver sits at the header position, its
+     own truth.
 2. Simulated minus real C1C of each GPS satellite after one clock offset per
    epoch (the median over the common GPS satellites): RMS over all satellites
    and epochs < 3 m (per-satellite figures printed).
@@ -45,10 +54,17 @@ N_EPOCHS = 440
 REAL_OBS = "OPEC00NOR_S_20220010000_0340_30S_MO.rnx"
 MASK_DEG = 10.0
 
+#: a configuration whose true atmosphere is the one RTKLIB corrects (Klobuchar, Saastamoinen)
+RTKLIB_ATMOSPHERE = "gnss_sim_receiver:\n  ros__parameters:\n    ionosphere: klobuchar\n    troposphere: saastamoinen\n"
+#: rnx2rtkp static PPP options for the real antenna's position (CODE final orbits and clocks in the SP3)
+PPP_OPTIONS = {"pos1-posmode": "ppp-static", "pos1-frequency": "l1+l2", "pos1-elmask": "10",
+               "pos1-ionoopt": "dual-freq", "pos1-tropopt": "est-ztd", "pos1-sateph": "precise",
+               "pos1-navsys": "1", "misc-timeinterp": "on"}
+SP3 = "COD0MGXFIN_20220010000_01D_05M_ORB.SP3"
 #: rnx2rtkp single point options (its defaults have no atmosphere corrections)
 SPP_OPTIONS = {"pos1-posmode": "single", "pos1-elmask": "10", "pos1-ionoopt": "brdc", "pos1-tropopt": "saas"}
 #: RTKLIB pos1-navsys bit masks (rtklib.h SYS_GPS=1, SYS_GAL=8, SYS_CMP=32)
-NAVSYS = {"G": 1, "GE": 9, "GEC": 41}
+NAVSYS = {"G": 1, "GE": 9, "C": 32, "GEC": 41}
 
 pytestmark = pytest.mark.skipif(shutil.which("rnx2rtkp") is None,
                                 reason="RTKLIB rnx2rtkp is not installed (scripts/setup_env.sh installs rtklib)")
@@ -148,10 +164,25 @@ def elevation_table(opec_dir: Path, times, svs) -> np.ndarray:
 def opec_runs(opec_dir, tmp_path_factory):
     """Noise-free and default simulations of the OPEC day, GPS+Galileo+BeiDou, 440 epochs."""
     root = tmp_path_factory.mktemp("opec_acceptance")
-    nf_obs, nav = simulate(root / "noise_free", opec_dir, "--noise-free")
+    conf = root / "rtklib_atmosphere.yaml"
+    conf.write_text(RTKLIB_ATMOSPHERE)
+    nf_obs, nav = simulate(root / "noise_free", opec_dir, "--noise-free", "--config", str(conf))
     def_obs, _ = simulate(root / "default", opec_dir)
     return {"root": root, "noise_free": nf_obs, "default": def_obs, "nav": nav,
-            "real": opec_dir / REAL_OBS}
+            "real": opec_dir / REAL_OBS, "sp3": opec_dir / SP3}
+
+
+@pytest.fixture(scope="module")
+def real_antenna_ecef_m(opec_runs):
+    """The real antenna's position: the converged static PPP solution of the real file (formal sigma < 5 cm)."""
+    sol = rnx2rtkp(PPP_OPTIONS, opec_runs["root"] / "real_ppp.pos", opec_runs["real"], opec_runs["nav"],
+                   opec_runs["sp3"])
+    assert len(sol) >= 200, f"rnx2rtkp PPP solved {len(sol)} epochs"
+    last = sol[-1, :3]
+    assert np.all(np.abs(sol[-20:, :3] - last) < 0.01), "PPP has not converged over its last 20 epochs"
+    e = enu_errors_m(last[None, :], OPEC_ECEF_M)[0]
+    print(f"\nreal antenna (PPP) minus header position: E {e[0]:.3f} N {e[1]:.3f} U {e[2]:.3f} m")
+    return last
 
 
 @pytest.fixture(scope="module")
@@ -174,28 +205,31 @@ def test_spp_noise_free_matches_rtklib_models(opec_runs):
     assert h < 0.3
 
 
-def _realism(opec_runs, systems):
+def _realism(opec_runs, systems, real_antenna_ecef_m):
     root = opec_runs["root"]
     sim = horizontal_rms_m(spp(root / f"sim_{systems}.pos", systems, opec_runs["default"], opec_runs["nav"]))
-    real = horizontal_rms_m(spp(root / f"real_{systems}.pos", systems, opec_runs["real"], opec_runs["nav"]))
+    real = horizontal_rms_m(spp(root / f"real_{systems}.pos", systems, opec_runs["real"], opec_runs["nav"]),
+                            real_antenna_ecef_m)
     print(f"\n{systems}: rnx2rtkp horizontal RMS simulated {sim:.2f} m, real receiver {real:.2f} m, "
           f"ratio {sim / real:.2f}")
     return sim, real
 
 
-def test_spp_default_errors_realistic_gps(opec_runs):
-    """Default error models, GPS single point: within half and twice the real receiver's horizontal RMS
-    (real measured 1.32 m, physics-anchors.md)."""
-    sim, real = _realism(opec_runs, "G")
-    assert 0.5 * real <= sim <= 2.0 * real
+#: GPS+Galileo+BeiDou: simulated 0.73 m against real 1.60 m (ratio 0.45; 0.44-0.66 over six world seeds).
+#: The real receiver's solution gets 2.5 times worse when BeiDou joins GPS+Galileo (0.65 -> 1.60 m), even
+#: with only BeiDou-3 satellites (1.51 m): its B1I residuals per satellite (-1.5 to +1.6 m after one BeiDou
+#: clock) follow the direction in the sky and loosely the broadcast TGD1, i.e. broadcast group delay and
+#: clock offsets of that day (Montenbruck et al., NAVIGATION 2022, navi.526) beyond the published SISRE.
+GEC_GAP = pytest.mark.xfail(strict=True, reason=(
+    "known gap: the real GPS+Galileo+BeiDou solution (1.60 m) is dominated by BeiDou B1I errors of that day "
+    "(BeiDou-3 alone makes it 2.3x worse); the simulator's BeiDou SISRE (1.5 m) and BeiDou-2/-3 code bias "
+    "give 0.73 m (ratio 0.45)"))
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "known gap: the real GPS+Galileo+BeiDou solution (2.2 m) is dominated by BeiDou (BeiDou-only 3.8 m, "
-    "biased 2 m E / 2.7 m N: BDS-2 GEO/IGSO code biases in a fixed southern sky), which the simulator does "
-    "not model; its BeiDou SISRE (1.5 m, Montenbruck et al. 2015) is random per satellite and gives 0.6 m"))
-def test_spp_default_errors_realistic_gec(opec_runs):
-    sim, real = _realism(opec_runs, "GEC")
+@pytest.mark.parametrize("systems", ["G", "GE", pytest.param("GEC", marks=GEC_GAP)])
+def test_spp_default_errors_realistic(opec_runs, real_antenna_ecef_m, systems):
+    """Default error models, single point: within half and twice the real receiver's horizontal RMS."""
+    sim, real = _realism(opec_runs, systems, real_antenna_ecef_m)
     assert 0.5 * real <= sim <= 2.0 * real
 
 

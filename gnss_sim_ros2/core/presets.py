@@ -23,10 +23,17 @@ effects are measured by ``gnss-sim bench`` (README trade table) and
 - ``light_time_iterations``: iterations of the "expansion" mode: 1 leaves
   ~1 mm of range error, 2 ~1e-6 m, 3 is converged to float precision.  Cost: a
   few vector operations per iteration.  ("recompute" iterates to convergence.)
-- ``ionosphere`` / ``troposphere``: "klobuchar" / "saastamoinen" or "none".
-  "none" removes the delays (2-30 m) from the observations *and* the
-  receiver's own corrections: the position fix is unchanged but the
-  pseudoranges no longer look like a real receiver's.  Cost ~0.1 ms each.
+- ``ionosphere``: the true ionosphere, "auto" (NeQuick-G where the navigation
+  header has Galileo's coefficients, else Klobuchar), "nequick", "klobuchar"
+  or "none"; ``troposphere``: "saastamoinen" or "none".  "none" removes the
+  delays (2-30 m) from the observations *and* the receiver's own corrections:
+  the position fix is unchanged but the pseudoranges no longer look like a
+  real receiver's.  Cost ~0.1 ms each (Klobuchar, troposphere); NeQuick-G
+  ~0.2-0.5 ms per epoch (core/nequick.py).  Effect: with Klobuchar as the
+  truth a receiver's Klobuchar correction leaves only a common scale error
+  (no horizontal gradient); with NeQuick-G it leaves the structured residual
+  of a real receiver (OPEC 2022-001: RTKLIB single point horizontal error
+  realistic only with it, test_receiver_acceptance).
 - ``noise``: thermal noise, multipath, clock wander, ionosphere residual,
   SISRE.  Cost ~0.1 ms (vectorised per signal).
   On in every preset: the errors are what a receiver simulator is for; the
@@ -57,15 +64,15 @@ PRESETS: dict[str, dict] = {
              "ionosphere": "klobuchar", "troposphere": "saastamoinen", "noise": True, "fresnel_rays": 0,
              "foliage": "touch", "epoch_interval_s": 10.0},
     "balanced": {"orbit": "broadcast", "transmit_time": "expansion", "light_time_iterations": 2,
-                 "ionosphere": "klobuchar", "troposphere": "saastamoinen", "noise": True, "fresnel_rays": 0,
+                 "ionosphere": "auto", "troposphere": "saastamoinen", "noise": True, "fresnel_rays": 0,
                  "foliage": "path", "epoch_interval_s": 1.0},
     "accurate": {"orbit": "precise", "transmit_time": "recompute", "light_time_iterations": 3,
-                 "ionosphere": "klobuchar", "troposphere": "saastamoinen", "noise": True, "fresnel_rays": 8,
+                 "ionosphere": "auto", "troposphere": "saastamoinen", "noise": True, "fresnel_rays": 8,
                  "foliage": "path", "epoch_interval_s": 1.0},
 }
 
 _CHOICES = {"orbit": ("broadcast", "precise"), "transmit_time": ("recompute", "expansion"),
-            "ionosphere": ("klobuchar", "none"), "troposphere": ("saastamoinen", "none"),
+            "ionosphere": ("auto", "nequick", "klobuchar", "none"), "troposphere": ("saastamoinen", "none"),
             "foliage": ("path", "touch")}
 
 

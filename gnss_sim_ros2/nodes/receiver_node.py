@@ -26,7 +26,7 @@ from geometry_msgs.msg import TwistWithCovarianceStamped
 from sensor_msgs.msg import NavSatFix, NavSatStatus
 from std_msgs.msg import Header, String
 
-from gnss_sim_ros2.conversions import states_from_msg
+from gnss_sim_ros2.conversions import iono_from_msg, states_from_msg
 from gnss_sim_ros2.core.presets import preset as preset_switches
 from gnss_sim_ros2.nodes.common import GnssSimNode, run_node
 
@@ -69,6 +69,7 @@ class ReceiverNode(GnssSimNode):
             tracking=TrackingConfig(acquisition_cn0_dbhz=p["cn0_acquire_dbhz"],
                                     tracking_cn0_dbhz=p["cn0_lose_dbhz"]))
         self.rx = Receiver(self.cfg, None, None)
+        self.iono = None  # the navigation header's coefficients, from the first states message carrying them
         self.obs_types = obs_types_for(self.cfg.profile, p["systems"])
         self.out_dir = Path(p["output_dir"]) if p["output_dir"] else None
         if self.out_dir is not None:
@@ -133,9 +134,10 @@ class ReceiverNode(GnssSimNode):
         from gnss_sim_ros2.core.receiver.outputs import epoch_arrays, position_fix
 
         t, states = states_from_msg(states_msg)
-        if states_msg.klobuchar_alpha and states_msg.klobuchar_beta:
-            self.rx.iono_alpha = np.asarray(states_msg.klobuchar_alpha, dtype=float)
-            self.rx.iono_beta = np.asarray(states_msg.klobuchar_beta, dtype=float)
+        iono = iono_from_msg(states_msg)
+        if iono != self.iono:
+            self.iono = iono
+            self.rx.set_iono_coefficients(iono)
         a = vis_msg.antenna_ecef_m
         ecef = np.array([a.x, a.y, a.z])
         by_sv = {s.sv: s for s in vis_msg.satellites}

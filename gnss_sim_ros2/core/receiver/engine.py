@@ -3,7 +3,7 @@
 Observation equations (per satellite s and signal j, all in metres unless noted;
 IS-GPS-200N 20.3.3.3.3, RTKLIB manual E.5):
 
-    P  = rho + c (dt_r - dt_s,j) + S_s + I_j + T + m_j + e_P    pseudorange
+    P  = rho + c (dt_r - dt_s,j) + S_s + I_j + T + B_j + m_j + e_P    pseudorange
     L  = [rho + c (dt_r - dt_s,j) + S_s - I_j + T + e_L] / lambda_j + N_j   carrier phase [cycles]
     D  = -[rho_dot + c (ddt_r - ddt_s)] / lambda_j + e_D         Doppler [Hz]
 
@@ -17,10 +17,13 @@ IS-GPS-200N 20.3.3.3.3, RTKLIB manual E.5):
   Galileo BGD(E1,E5a) on E1/E5a/E5b, OS SIS ICD 5.1.5; BeiDou TGD1 on B1I,
   BDS-SIS-ICD-B1I 5.2.4.10); inter-signal corrections of L5/E6/B1C/B2a are not
   modelled;
-- I_j: ionosphere (Klobuchar from the navigation header, scaled to f_j;
-  the "truth" differs from the broadcast model by a slowly varying factor
-  1 + ``iono_error_frac`` g(t) so that a receiver applying Klobuchar keeps a
-  realistic residual); T: troposphere (Saastamoinen + Niell);
+- I_j: ionosphere, scaled to f_j.  The *true* ionosphere is NeQuick-G
+  (core/nequick.py) where the navigation header has Galileo's coefficients,
+  Klobuchar otherwise (``ionosphere``: auto | nequick | klobuchar | none),
+  times a slowly varying factor 1 + ``iono_error_frac`` g(t) (the model's own
+  error); a receiver correcting with Klobuchar (``iono_model_m``) thus keeps
+  a residual with a real one's size and spatial structure;
+  T: troposphere (Saastamoinen + Niell);
 - S_s: broadcast orbit and clock error of satellite s projected on the line of
   sight (signal-in-space range error, SISRE; same on every signal, code and
   phase), sigma ``sisre_m`` per system;
@@ -30,6 +33,8 @@ IS-GPS-200N 20.3.3.3.3, RTKLIB manual E.5):
   (a base and a rover) sees the same ionosphere and satellite errors at any
   epoch rate, as in reality; what differs between receivers (multipath,
   thermal noise, clock) comes from ``seed``;
+- B_j: the receiver's hardware code delay of signal j (inter-system,
+  BeiDou-2/-3 and inter-frequency biases, core/receiver/hardware_bias.py);
 - m_j: code multipath/residual as a first-order Gauss-Markov process per
   signal, sigma = mp_zenith_m + mp_low_m exp(-el/15 deg) (a stated approximation);
 - e: thermal noise from C/N0 (DLL, PLL, FLL jitter, core/receiver/noise.py);
@@ -37,6 +42,7 @@ IS-GPS-200N 20.3.3.3.3, RTKLIB manual E.5):
 """
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -46,8 +52,11 @@ from .. import propagation as prop
 from .. import signals as sig
 from ..ephemeris.states import SatelliteStates
 from ..frames import az_el_at, ecef_to_geodetic
+from ..nequick import NeQuickG
+from ..nequick import available as nequick_available
 from ..time import GnssTime
 from . import cn0 as cn0_model
+from . import hardware_bias
 from . import noise as noise_model
 from .clock import ClockConfig, ReceiverClock
 from .tracking import Tracker, TrackingConfig
@@ -56,6 +65,8 @@ OMEGA_BY_SYSTEM = {
     "G": k.OMEGA_E_GPS_RADPS, "J": k.OMEGA_E_GPS_RADPS, "I": k.OMEGA_E_GPS_RADPS,
     "E": k.OMEGA_E_GAL_RADPS, "C": k.OMEGA_E_BDS_RADPS, "R": k.OMEGA_E_GLO_RADPS,
 }
+#: the receiver's ionosphere settings (ReceiverConfig.ionosphere)
+IONOSPHERE_MODELS = ("auto", "nequick", "klobuchar", "none")
 #: visibility states (gnss_sim_msgs/SatelliteVisibility)
 VISIBLE, BLOCKED, ATTENUATED, REFLECTED_ONLY = 0, 1, 2, 3
 
@@ -75,9 +86,12 @@ class ReceiverConfig:
     profile: str | dict = "geodetic"
     systems: str = "GRECJI"
     elevation_mask_deg: float = 10.0
-    #: random errors (thermal noise, multipath, clock wander, iono residual, SISRE) on
+    #: the receiver's errors on: random ones (thermal noise, multipath, clock wander, iono residual, SISRE)
+    #: and its hardware code biases; off: an ideal receiver with the deterministic models only
     noise: bool = True
-    ionosphere: str = "klobuchar"      # "klobuchar" | "none"
+    #: true ionosphere: "auto" (NeQuick-G where Galileo coefficients are given, else Klobuchar), "nequick",
+    #: "klobuchar" or "none"; a receiver's own correction is always Klobuchar (unless "none")
+    ionosphere: str = "auto"
     troposphere: str = "saastamoinen"  # "saastamoinen" | "none"
     #: transmit-time geometry: "recompute" (ephemeris at t_tx) or "expansion" (2nd order from states at t)
     transmit_time: str = "recompute"
@@ -92,22 +106,27 @@ class ReceiverConfig:
     mp_zenith_m: float = 0.15
     mp_low_m: float = 1.2
     mp_tau_s: float = 60.0
-    #: truth ionosphere = broadcast model x (1 + iono_error_frac * g(t)), g smooth, unit variance (module doc).
-    #: 0.5: Klobuchar removes about 50 % of the RMS ionospheric delay (Navipedia, physics-anchors.md), so
-    #: the residual a receiver keeps is about half the delay (was 0.3, i.e. Klobuchar's 70 % best case)
-    iono_error_frac: float = 0.5
+    #: true ionosphere = model x (1 + iono_error_frac * g(t)), g smooth, unit variance (module doc), per model.
+    #: Klobuchar 0.5: it removes about 50 % of the RMS ionospheric delay (Navipedia, physics-anchors.md).
+    #: NeQuick-G 0.3: designed to correct at least 70 % of the delay (Galileo Ionospheric Correction
+    #: Algorithm 1.2, 2016, section 1).
+    iono_error_frac: dict = field(default_factory=lambda: {"klobuchar": 0.5, "nequick": 0.3})
     #: broadcast orbit + clock error on the line of sight (SISRE) [m] per system (module doc)
     sisre_m: dict = field(default_factory=lambda: dict(SISRE_DEFAULT_M))
     #: seed of the world's random errors (ionosphere residual, SISRE): the same for all receivers of one world
     world_seed: int = 0
+    #: hardware code biases [m] (core/receiver/hardware_bias.py); None: the table of a named profile
+    code_bias_m: dict | None = None
     cn0_noise_db: float = 0.3
     tracking: TrackingConfig = field(default_factory=TrackingConfig)
     clock: ClockConfig = field(default_factory=ClockConfig)
     link_budget: cn0_model.LinkBudget = field(default_factory=cn0_model.LinkBudget)
 
     def __post_init__(self):
-        if self.ionosphere not in ("klobuchar", "none"):
-            raise ValueError(f"receiver: parameter 'ionosphere' = {self.ionosphere!r} (klobuchar or none)")
+        if self.ionosphere not in IONOSPHERE_MODELS:
+            raise ValueError(f"receiver: parameter 'ionosphere' = {self.ionosphere!r} (one of {IONOSPHERE_MODELS})")
+        if isinstance(self.iono_error_frac, (int, float)):
+            self.iono_error_frac = {"klobuchar": float(self.iono_error_frac), "nequick": float(self.iono_error_frac)}
         if self.troposphere not in ("saastamoinen", "none"):
             raise ValueError(f"receiver: parameter 'troposphere' = {self.troposphere!r} (saastamoinen or none)")
         if self.transmit_time not in ("recompute", "expansion"):
@@ -115,11 +134,16 @@ class ReceiverConfig:
         bad = {s: v for s, v in dict(self.sisre_m).items() if not (np.isfinite(v) and v >= 0)}
         if bad:
             raise ValueError(f"receiver: parameter 'sisre_m' has values that are not finite and >= 0: {bad}")
+        if self.code_bias_m is None:
+            named = self.profile if isinstance(self.profile, str) else None
+            self.code_bias_m = hardware_bias.PROFILE_CODE_BIAS_M.get(named, {})
+        self.code_bias_m = hardware_bias.validate(self.code_bias_m)
         if isinstance(self.profile, str):
             self.profile = sig.profile(self.profile)
         else:
             sig.validate_profile(self.profile)
         if not self.noise:
+            self.code_bias_m = {}
             self.clock = ClockConfig(**{**self.clock.__dict__, "noise": False})
             self.tracking = TrackingConfig(**{**self.tracking.__dict__, "random_slips": False})
 
@@ -168,12 +192,13 @@ class Receiver:
     def __init__(self, config: ReceiverConfig, provider=None, iono_coeffs: dict | None = None):
         self.cfg = config
         self.provider = provider
+        self._nequick = None
         rng = np.random.default_rng(config.seed)
         self.rng_noise = np.random.default_rng(rng.integers(2**63))
         self.clock = ReceiverClock(config.clock, np.random.default_rng(rng.integers(2**63)))
         self.tracker = Tracker(config.tracking, np.random.default_rng(rng.integers(2**63)))
         self._mp_rng = np.random.default_rng(rng.integers(2**63))
-        self.iono_alpha, self.iono_beta = _klobuchar_coeffs(iono_coeffs)
+        self.set_iono_coefficients(iono_coeffs)
         self._t_prev: GnssTime | None = None
         #: multipath state per (sv, code): slot in _mp_x (NaN until the key is first seen)
         self._mp_index: dict[tuple[str, str], int] = {}
@@ -186,6 +211,18 @@ class Receiver:
         self._iono_terms = None
         self._doy_key = None
         self._doy0 = 0.0
+
+    def set_iono_coefficients(self, iono: dict | None) -> None:
+        """Take the navigation header's ionosphere coefficients ({"GPSA": [4], "GPSB": [4], "GAL": [3]}, or
+        None before any are known) and choose the true ionosphere's model (ReceiverConfig.ionosphere)."""
+        self.iono_alpha, self.iono_beta = _klobuchar_coeffs(iono)
+        #: the true ionosphere's model: "nequick", "klobuchar" or "none"; NeQuick-G only where used
+        self.iono_truth = _truth_model(self.cfg.ionosphere, iono)
+        gal = tuple(iono["GAL"][:3]) if self.iono_truth == "nequick" else None
+        if gal is None:
+            self._nequick = None
+        elif self._nequick is None or self._nequick.coefficients != gal:
+            self._nequick = NeQuickG(gal)
 
     # ------------------------------------------------------------------
     def _signal_rows(self, svs: np.ndarray, glo_channel: np.ndarray):
@@ -215,6 +252,7 @@ class Receiver:
         rows.p_min, rows.el_min = cn0_model.power_params(systems, codes) if len(codes) else (np.zeros(0), np.zeros(0))
         rows.omega = np.array([OMEGA_BY_SYSTEM.get(s[0], k.OMEGA_E_GPS_RADPS) for s in svs], dtype=float)
         rows.sv_j = np.asarray(svs)[sat_i]
+        rows.code_bias_m = hardware_bias.code_bias_m(self.cfg.code_bias_m, rows.sv_j, codes)
         rows.sisre_sigma = np.array([self.cfg.sisre_m.get(sv[0], 0.0) for sv in svs], dtype=float)
         rows.sisre_terms = self._stacked_terms([("sat", str(sv)) for sv in svs]) if len(svs) else None
         # multipath states: one slot per (sv, code), kept for the receiver's lifetime
@@ -303,22 +341,28 @@ class Receiver:
         ddts = st.clock_drift_sps[sat_i]
 
         # atmosphere (per satellite; the ionosphere scaled to each signal's frequency)
-        if cfg.ionosphere == "klobuchar":
+        if self.iono_truth != "none":
             l1_delay = prop.klobuchar_l1_delay_s(t_true, lat, lon, az, el, self.iono_alpha, self.iono_beta)
             iono_model = prop.iono_code_delay_m(l1_delay[sat_i], freq)
+            if self._nequick is not None:
+                l1_true = self._nequick.l1_delay_s(t_true.to_datetime("UTC"), lat, lon, az, el)
+                iono_base = prop.iono_code_delay_m(l1_true[sat_i], freq)
+            else:
+                iono_base = iono_model
         else:
-            iono_model = np.zeros(m)
+            iono_model = iono_base = np.zeros(m)
         if cfg.troposphere == "saastamoinen":
             tropo = prop.tropo_slant_delay_m(np.maximum(el, 1.0), lat, h, self._day_of_year(t))[sat_i]
         else:
             tropo = np.zeros(m)
-        if cfg.noise and cfg.iono_error_frac != 0:
+        frac = cfg.iono_error_frac.get(self.iono_truth, 0.0)
+        if cfg.noise and frac != 0:
             if self._iono_terms is None:
                 self._iono_terms = self._stacked_terms([("iono",)])
             g_iono = self._world_process_terms(t_true, self._iono_terms)[0]
-            iono_true = iono_model * (1.0 + cfg.iono_error_frac * g_iono)
+            iono_true = iono_base * (1.0 + frac * g_iono)
         else:
-            iono_true = iono_model
+            iono_true = iono_base
 
         # signal strength and tracking
         cn0 = cn0_model.cn0_dbhz_from_params(rows.p_min, rows.el_min, rho, el_j, att[sat_i], budget=cfg.link_budget)
@@ -346,7 +390,7 @@ class Receiver:
         common = rho + k.C_MPS * (bias - dts) + tropo
         if cfg.noise:
             common = common + (rows.sisre_sigma * self._world_process_terms(t_true, rows.sisre_terms))[sat_i]
-        pr = common + iono_true + mp + e_p
+        pr = common + iono_true + rows.code_bias_m + mp + e_p
         phase = (common - iono_true + e_l) / lam + trk.ambiguity_cyc
         dop = -(rho_dot + k.C_MPS * (drift - ddts)) / lam + e_d
 
@@ -494,6 +538,7 @@ class _SignalRows:
     el_min: np.ndarray
     omega: np.ndarray
     sv_j: np.ndarray
+    code_bias_m: np.ndarray
     sisre_sigma: np.ndarray
     sisre_terms: tuple | None
     mp_idx: np.ndarray
@@ -515,6 +560,28 @@ def _group_delay_factor(systems, codes, freq):
     f = np.where(gal, (k.F_L1_HZ / freq) ** 2, f)
     f = np.where((systems == "C") & (band == "2"), 1.0, f)
     return f
+
+
+def _truth_model(setting: str, iono: dict | None) -> str:
+    """The true ionosphere's model for ``setting`` (ReceiverConfig.ionosphere) and the header's coefficients.
+
+    "auto": NeQuick-G where the Galileo coefficients are given and the library is installed, Klobuchar
+    otherwise (a warning names the missing library).  "nequick" without coefficients: Klobuchar while none
+    are known (``iono`` None: a node before its first message), an error when a header lacks them.
+    """
+    has_gal = bool(iono) and iono.get("GAL") is not None and len(iono["GAL"]) >= 3 and any(iono["GAL"][:3])
+    if setting == "auto":
+        if has_gal and not nequick_available():
+            warnings.warn("receiver: the 'nequick' package is not installed; the true ionosphere falls back to "
+                          "Klobuchar (pip install --no-deps nequick, see requirements/no-deps.txt)", stacklevel=3)
+            return "klobuchar"
+        return "nequick" if has_gal else "klobuchar"
+    if setting == "nequick" and not has_gal:
+        if iono is None:
+            return "klobuchar"
+        raise ValueError("receiver: parameter 'ionosphere' = 'nequick' needs the Galileo coefficients (GAL "
+                         "IONOSPHERIC CORR) in the navigation header; none were given")
+    return setting
 
 
 def _klobuchar_coeffs(iono: dict | None):
