@@ -74,7 +74,8 @@ def main(argv=None) -> int:
                 if not cols:
                     continue
                 means = np.array([np.nanmean(d[:, j]) for j in cols])
-                print(f"{group:6s} {real_code:5s} {sim_code:5s} {len(cols):4d} {np.median(means):+7.2f} {means.std():8.2f}")
+                print(f"{group:6s} {real_code:5s} {sim_code:5s} {len(cols):4d} {np.median(means):+7.2f} "
+                      f"{means.std():8.2f}")
     return 0
 
 

@@ -36,8 +36,8 @@ def add_arguments(p):
     p.add_argument("--systems", help="systems, RINEX letters from GRECJI")
     p.add_argument("--seed", type=int, default=None)
     p.add_argument("--preset", choices=("fast", "balanced", "accurate"), default=None)
-    p.add_argument("--noise-free", action="store_true", help="an ideal receiver: no random errors and no hardware code biases "
-                   "(deterministic models kept)")
+    p.add_argument("--noise-free", action="store_true",
+                   help="an ideal receiver: no random errors and no hardware code biases (deterministic models kept)")
     p.add_argument("--profile", choices=("geodetic", "single_frequency"), default=None)
     p.add_argument("--marker", default=None, help="RINEX marker name")
     p.add_argument("--quiet", action="store_true", help="no progress output")
