@@ -6,7 +6,7 @@ import pytest
 from rclpy.parameter import Parameter
 from ros_helpers import ros  # noqa: F401  (fixture)
 
-from gnss_sim_ros2.conversions import states_from_msg
+from gnss_sim_ros2.conversions import iono_from_msg, states_from_msg, states_to_msg
 from gnss_sim_ros2.core.ephemeris.broadcast import BroadcastEphemeris
 from gnss_sim_ros2.core.time import GnssTime
 from gnss_sim_ros2.nodes.ephemeris_node import EphemerisNode
@@ -43,6 +43,9 @@ def test_states_every_epoch_on_sim_time(ros, opec_dir, tmp_path):  # noqa: F811
     ref = BroadcastEphemeris.from_files([nav]).states(t, systems="G")
     assert list(st.sv) == list(ref.sv) and len(st) >= 8
     np.testing.assert_allclose(st.pos_ecef_m, ref.pos_ecef_m, atol=1e-6)
+    # the GPS file's Klobuchar coefficients travel with the states (no Galileo file: no NeQuick-G)
+    iono = iono_from_msg(got[4])
+    assert set(iono) == {"GPSA", "GPSB"} and len(iono["GPSA"]) == 4
     # deactivate stops publishing; cleanup frees; configure again works
     node.trigger_deactivate()
     n = len(got)
@@ -64,3 +67,20 @@ def test_bad_parameters_refuse_configure(ros, params, message, tmp_path):  # noq
     node.trigger_configure()
     assert node._state_machine.current_state[1] == "unconfigured"
     assert message in node.last_error
+
+
+def test_ionosphere_coefficients_round_trip(opec_dir):
+    """states_to_msg -> iono_from_msg keeps Klobuchar and NeQuick-G coefficients (the receiver node's input)."""
+    from std_msgs.msg import Header
+
+    from gnss_sim_ros2.core.ephemeris.rinex_nav import read_nav_files
+
+    nav = read_nav_files([str(opec_dir / f"OPEC00NOR_S_20220010000_01D_{s}N.rnx") for s in "GE"])
+    eph = BroadcastEphemeris(nav)
+    t = GnssTime.from_iso("2022-01-01T01:00:00")
+    msg = states_to_msg(eph.states(t, systems="GE"), t, Header(), nav.iono)
+    iono = iono_from_msg(msg)
+    assert iono["GAL"] == pytest.approx([87.75, 0.41797, -0.010742])
+    assert iono["GPSA"] == pytest.approx(nav.iono["GPSA"]) and iono["GPSB"] == pytest.approx(nav.iono["GPSB"])
+    empty = states_to_msg(eph.states(t, systems="GE"), t, Header(), None)
+    assert iono_from_msg(empty) is None
