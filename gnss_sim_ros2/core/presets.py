@@ -31,9 +31,9 @@ effects are measured by ``gnss-sim bench`` (README trade table) and
   real receiver's.  Cost ~0.1 ms each (Klobuchar, troposphere); NeQuick-G
   ~0.2-0.5 ms per epoch (core/nequick.py).  Effect: with Klobuchar as the
   truth a receiver's Klobuchar correction leaves only a common scale error
-  (no horizontal gradient); with NeQuick-G it leaves the structured residual
-  of a real receiver (OPEC 2022-001: RTKLIB single point horizontal error
-  realistic only with it, test_receiver_acceptance).
+  (no horizontal gradient at night); with NeQuick-G it leaves a residual with
+  a real receiver's north-south structure (OPEC 2022-001, README "How it
+  compares with a real receiver").
 - ``noise``: thermal noise, multipath, clock wander, ionosphere residual,
   SISRE.  Cost ~0.1 ms (vectorised per signal).
   On in every preset: the errors are what a receiver simulator is for; the
