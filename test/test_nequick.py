@@ -180,9 +180,9 @@ def test_library_reproduces_ica_validation(coeffs, month, ut, slon, slat, sh, tl
 def test_thin_shell_against_slant_integration():
     """The stated approximation: thin-shell VTEC x mapping against the library's slant integration on the
     ICA rows, within 10 % (measured 0.95-1.05 at 9-47 deg elevation)."""
-    for coeffs, month, ut, slon, slat, sh, tlon, tlat, th, stec in ICA_VALIDATION:
-        from gnss_sim_ros2.core.frames import az_el_from_ecef, geodetic_to_ecef
+    from gnss_sim_ros2.core.frames import az_el_from_ecef, geodetic_to_ecef
 
+    for coeffs, month, ut, slon, slat, sh, tlon, tlat, th, stec in ICA_VALIDATION:
         rx = np.array(geodetic_to_ecef(slat, slon, sh))
         sat = np.array(geodetic_to_ecef(tlat, tlon, th))
         az, el, _ = az_el_from_ecef(rx, sat[None, :])

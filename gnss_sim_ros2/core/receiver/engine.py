@@ -225,10 +225,6 @@ class Receiver:
             self._nequick = NeQuickG(gal)
 
     # ------------------------------------------------------------------
-    def _signal_rows(self, svs: np.ndarray, glo_channel: np.ndarray):
-        """Per-signal rows of a satellite set: (sat_i, codes, freq, chip, systems) (cached)."""
-        return self._rows_of(svs, glo_channel).signal_rows
-
     def _rows_of(self, svs: np.ndarray, glo_channel: np.ndarray) -> _SignalRows:
         key = (_array_key(svs), _array_key(glo_channel))
         hit = self._signal_cache.get(key)
@@ -440,7 +436,7 @@ class Receiver:
                                               rx_vel, omega)
 
     def _stacked_terms(self, keys):
-        """(periods (K, 6) int, phases (K, 6)) of the world processes of ``keys`` (see _world_process)."""
+        """(periods (K, 6) int, phases (K, 6)) of the world processes of ``keys`` (see _world_process_terms)."""
         per, pha = [], []
         for key in keys:
             terms = self._world_terms.get(key)
@@ -456,27 +452,18 @@ class Receiver:
         return np.array(per), np.array(pha)
 
     def _world_process_terms(self, t: GnssTime, terms) -> np.ndarray:
-        sec = int(np.asarray(t.sec))
-        frac = float(np.asarray(t.frac))
-        per, pha = terms
-        arg = 2.0 * np.pi * ((sec % per) + frac) / per + pha
-        return np.sqrt(2.0 / WORLD_TERMS) * np.sin(arg).sum(axis=-1)
-
-    def _world_process(self, t: GnssTime, keys) -> np.ndarray:
-        """Smooth zero-mean unit-variance processes of GPS time, one per key, from ``world_seed`` only.
+        """Smooth zero-mean unit-variance processes of GPS time, one per row of ``terms`` (_stacked_terms),
+        from ``world_seed`` only.
 
         x(t) = sqrt(2/K) sum_k sin(2 pi t / P_k + phi_k), K = 6 terms, integer periods
         P_k log-uniform in the key's band, phases uniform: the same values at any
         epoch rate and for every receiver with the same ``world_seed``.
         """
-        return self._world_process_terms(t, self._stacked_terms(keys))
-
-    def _sisre(self, t: GnssTime, svs) -> np.ndarray:
-        """Line-of-sight broadcast orbit + clock error [m] per satellite (module doc)."""
-        if len(svs) == 0:
-            return np.zeros(0)
-        sig = np.array([self.cfg.sisre_m.get(sv[0], 0.0) for sv in svs], dtype=float)
-        return sig * self._world_process(t, [("sat", str(sv)) for sv in svs])
+        sec = int(np.asarray(t.sec))
+        frac = float(np.asarray(t.frac))
+        per, pha = terms
+        arg = 2.0 * np.pi * ((sec % per) + frac) / per + pha
+        return np.sqrt(2.0 / WORLD_TERMS) * np.sin(arg).sum(axis=-1)
 
     def _multipath(self, sv_j, codes, el_j, dt_s):
         """Code multipath/residual [m] of signals (sv_j, codes) (module doc), first-order Gauss-Markov."""
