@@ -314,3 +314,47 @@ def test_truth_csv_interpolates(tmp_path):
     bad.write_text("t,x\n1,2\n")
     with pytest.raises(ValueError, match=r"bad\.csv, line 1: need columns"):
         truth_from_csv(bad, t)
+
+
+# ----------------------------------------------------------------------------- RTKLIB input copy
+_HDR = ("     3.04           OBSERVATION DATA    M: Mixed            RINEX VERSION / TYPE\r\n"
+        "G    2 C1C L1C                                              SYS / # / OBS TYPES \r\n"
+        "C   14 C1X L1X C7X L7X C2X L2X D2X S2X C6X L6X C5X L5X C8X  SYS / # / OBS TYPES \r\n"
+        "       L8X                                                  SYS / # / OBS TYPES \r\n"
+        "C L2X  0.00000                                              SYS / PHASE SHIFT   \r\n"
+        "C L7X  0.00000                                              SYS / PHASE SHIFT   \r\n"
+        "                                                            END OF HEADER       \r\n")
+_BODY = "> 2022 01 01 00 00 00.0000000  0  1\r\nC20  22103073.242   115096519.139\r\n"
+
+
+def test_rtklib_copy_renames_beidou_b1i_only(tmp_path):
+    """BeiDou band-2 codes with attribute X become I in the obs types and phase shifts (not B1C "1X", not
+    "7X", not GPS); every other byte, CRLF line ends included, is the original's."""
+    from gnss_sim_ros2.core.compare import rtklib_observation_copy
+
+    src = tmp_path / "in" / "a_MO.rnx"
+    src.parent.mkdir()
+    src.write_bytes((_HDR + _BODY).encode())
+    out, renamed = rtklib_observation_copy(src, tmp_path / "out")
+    assert renamed == ["C2X", "L2X", "D2X", "S2X"]
+    want = (_HDR.replace("C2X L2X D2X S2X", "C2I L2I D2I S2I").replace("C L2X", "C L2I") + _BODY).encode()
+    assert out.read_bytes() == want
+    assert src.read_bytes() == (_HDR + _BODY).encode()
+
+
+def test_rtklib_copy_leaves_files_alone(tmp_path):
+    """Nothing to rename (C2I already there beside C2X: no duplicate code; no BeiDou X code; not RINEX 3
+    text): the original path comes back and nothing is written."""
+    from gnss_sim_ros2.core.compare import rtklib_observation_copy
+
+    both = tmp_path / "both.rnx"
+    both.write_text(_HDR.replace("C5X L5X", "C2I L2I") + _BODY)
+    plain = tmp_path / "plain.rnx"
+    plain.write_text(_HDR.replace("C2X L2X D2X S2X", "C2I L2I D2I S2I") + _BODY)
+    gz = tmp_path / "x.rnx.gz"
+    gz.write_bytes(b"\x1f\x8b\x08\x00\xff\xfe")
+    rinex2 = tmp_path / "r2.22o"
+    rinex2.write_text("     2.11           OBSERVATION DATA    M (MIXED)           RINEX VERSION / TYPE\n")
+    for p in (both, plain, gz, rinex2):
+        assert rtklib_observation_copy(p, tmp_path / "out") == (p, [])
+    assert not (tmp_path / "out").exists()

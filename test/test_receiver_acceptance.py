@@ -23,7 +23,12 @@ the real receiver's observation file, read with georinex.
      0.7 m from it (E 0.26 m, N 0.67 m: the plate motion since 1989 of a
      EUREF89 coordinate is 0.75 m north-east), which would otherwise count as
      receiver error.  The simulated receiver sits at the header position, its
-     own truth.
+     own truth.  RTKLIB reads the real file through
+     ``compare.rtklib_observation_copy``: the NETR9 labels BeiDou B1I "C2X"
+     (I+Q tracking), and RTKLIB 2.4.3 applies the broadcast TGD1 to "C2I"
+     only, so the copy names it C2I (the evidence is a test here:
+     ``test_rtklib_skips_beidou_tgd1_on_c2x``); the file as it is gives 1.60 m
+     GPS+Galileo+BeiDou, printed beside.
 2. Simulated minus real C1C of each GPS satellite after one clock offset per
    epoch (the median over the common GPS satellites): RMS over all satellites
    and epochs < 3 m (per-satellite figures printed).
@@ -45,6 +50,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from gnss_sim_ros2.core.compare import rtklib_observation_copy
 from gnss_sim_ros2.core.frames import ecef_to_enu, ecef_to_geodetic, enu_to_ecef
 
 OPEC_ECEF_M = np.array([3149785.9652, 598260.8822, 5495348.4927])   # RINEX header APPROX POSITION XYZ
@@ -168,8 +174,10 @@ def opec_runs(opec_dir, tmp_path_factory):
     conf.write_text(RTKLIB_ATMOSPHERE)
     nf_obs, nav = simulate(root / "noise_free", opec_dir, "--noise-free", "--config", str(conf))
     def_obs, _ = simulate(root / "default", opec_dir)
+    real_rtklib, renamed = rtklib_observation_copy(opec_dir / REAL_OBS, root / "rtklib_input")
+    assert renamed == ["C2X", "L2X"], renamed
     return {"root": root, "noise_free": nf_obs, "default": def_obs, "nav": nav,
-            "real": opec_dir / REAL_OBS, "sp3": opec_dir / SP3}
+            "real": opec_dir / REAL_OBS, "real_rtklib": real_rtklib, "sp3": opec_dir / SP3}
 
 
 @pytest.fixture(scope="module")
@@ -208,29 +216,55 @@ def test_spp_noise_free_matches_rtklib_models(opec_runs):
 def _realism(opec_runs, systems, real_antenna_ecef_m):
     root = opec_runs["root"]
     sim = horizontal_rms_m(spp(root / f"sim_{systems}.pos", systems, opec_runs["default"], opec_runs["nav"]))
-    real = horizontal_rms_m(spp(root / f"real_{systems}.pos", systems, opec_runs["real"], opec_runs["nav"]),
+    real = horizontal_rms_m(spp(root / f"real_{systems}.pos", systems, opec_runs["real_rtklib"], opec_runs["nav"]),
                             real_antenna_ecef_m)
-    print(f"\n{systems}: rnx2rtkp horizontal RMS simulated {sim:.2f} m, real receiver {real:.2f} m, "
+    as_is = ""
+    if "C" in systems:
+        raw = horizontal_rms_m(spp(root / f"real_as_is_{systems}.pos", systems, opec_runs["real"], opec_runs["nav"]),
+                               real_antenna_ecef_m)
+        as_is = f" (the file as it is, BeiDou C2X without TGD1 in RTKLIB: {raw:.2f} m)"
+    print(f"\n{systems}: rnx2rtkp horizontal RMS simulated {sim:.2f} m, real receiver {real:.2f} m{as_is}, "
           f"ratio {sim / real:.2f}")
     return sim, real
 
 
-#: GPS+Galileo+BeiDou: simulated 0.73 m against real 1.60 m (ratio 0.45; 0.44-0.66 over six world seeds).
-#: The real receiver's solution gets 2.5 times worse when BeiDou joins GPS+Galileo (0.65 -> 1.60 m), even
-#: with only BeiDou-3 satellites (1.51 m): its B1I residuals per satellite (-1.5 to +1.6 m after one BeiDou
-#: clock) follow the direction in the sky and loosely the broadcast TGD1, i.e. broadcast group delay and
-#: clock offsets of that day (Montenbruck et al., NAVIGATION 2022, navi.526) beyond the published SISRE.
-GEC_GAP = pytest.mark.xfail(strict=True, reason=(
-    "known gap: the real GPS+Galileo+BeiDou solution (1.60 m) is dominated by BeiDou B1I errors of that day "
-    "(BeiDou-3 alone makes it 2.3x worse); the simulator's BeiDou SISRE (1.5 m) and BeiDou-2/-3 code bias "
-    "give 0.73 m (ratio 0.45)"))
-
-
-@pytest.mark.parametrize("systems", ["G", "GE", pytest.param("GEC", marks=GEC_GAP)])
+@pytest.mark.parametrize("systems", ["G", "GE", "GEC"])
 def test_spp_default_errors_realistic(opec_runs, real_antenna_ecef_m, systems):
     """Default error models, single point: within half and twice the real receiver's horizontal RMS."""
     sim, real = _realism(opec_runs, systems, real_antenna_ecef_m)
     assert 0.5 * real <= sim <= 2.0 * real
+
+
+def _zero_beidou_tgd1(nav_path: Path, out: Path) -> Path:
+    """A copy of a navigation file with every BeiDou TGD1 set to zero (our reader and writer)."""
+    from gnss_sim_ros2.core.ephemeris.rinex_nav import header_dict, read_nav_files, records_as_dicts
+    from gnss_sim_ros2.core.ephemeris.rinex_nav_writer import write_rinex3_nav
+
+    nav = read_nav_files([nav_path])
+    recs = records_as_dicts(nav, "GEC")
+    for rec in recs["C"]:
+        rec["TGD1"] = 0.0
+    return write_rinex3_nav(out, recs, header_dict(nav))
+
+
+def test_rtklib_skips_beidou_tgd1_on_c2x(opec_runs):
+    """Why RTKLIB reads the real file through rtklib_observation_copy: with BeiDou B1I labelled C2X (as
+    the NETR9 writes it) rnx2rtkp 2.4.3 ignores TGD1 (zeroing it in the navigation file changes no
+    solution), with the same observations labelled C2I it applies it (the solutions move).  Should a
+    later RTKLIB apply TGD1 to C2X, this fails and the copy is no longer needed."""
+    root = opec_runs["root"]
+    nav0 = _zero_beidou_tgd1(opec_runs["nav"], root / "nav_tgd1_zero.rnx")
+
+    def moved_m(obs, tag):
+        with_tgd = spp(root / f"{tag}_tgd.pos", "GEC", obs, opec_runs["nav"])
+        without = spp(root / f"{tag}_no_tgd.pos", "GEC", obs, nav0)
+        assert with_tgd.shape == without.shape
+        return float(np.sqrt(np.mean(np.sum((with_tgd[:, :3] - without[:, :3]) ** 2, axis=1))))
+
+    as_c2x, as_c2i = moved_m(opec_runs["real"], "c2x"), moved_m(opec_runs["real_rtklib"], "c2i")
+    print(f"\nzeroing BeiDou TGD1 moves RTKLIB's solutions by {as_c2x:.4f} m RMS (C2X), {as_c2i:.3f} m (C2I)")
+    assert as_c2x == 0.0
+    assert as_c2i > 0.3
 
 
 # ----------------------------------------------------------------------------- 2. against the real receiver

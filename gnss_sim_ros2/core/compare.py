@@ -460,6 +460,7 @@ class Solutions:
     pos_ecef_m: np.ndarray      #: (E, 3)
     n_used: np.ndarray          #: (E,) int
     solver: str                 #: "gnss_sim solve_pvt" | "RTKLIB rnx2rtkp"
+    note: str = ""              #: what was done to the input for the solver (rtklib_observation_copy)
 
 
 def _klobuchar(eph):
@@ -584,6 +585,70 @@ def spp_solutions(tab: ObsTable, eph, code_of_system: dict[str, str], epochs=Non
     return Solutions(pos, used, "gnss_sim solve_pvt")
 
 
+#: BeiDou B1I observation codes whose tracking attribute RTKLIB 2.4.3 (b34, Debian's rnx2rtkp) mishandles:
+#: measured on OPEC 2022-001, it applies the broadcast TGD1 (BDS-SIS-ICD-B1I 5.2.4.10) to "C2I" but not to
+#: "C2X" (B1I, I+Q tracking, as a Trimble NETR9 labels it): zeroing TGD1 in the navigation file leaves its
+#: solution from C2X unchanged to the last digit, and its BeiDou residuals per satellite follow c*TGD1
+#: (2.3 m RMS, up to 5 m).  The attribute names the tracked channel, not another signal or group delay.
+RTKLIB_BEIDOU_B1I_ALIASES = ("X", "Q")
+
+
+def rtklib_observation_copy(obs_path, workdir) -> tuple[Path, list[str]]:
+    """The observation file as RTKLIB 2.4.3 should read it: a copy in ``workdir`` whose BeiDou B1I codes
+    with attribute X or Q (C2X, L2X, D2X, S2X; ...) are renamed to attribute I in the header's
+    SYS / # / OBS TYPES (``RTKLIB_BEIDOU_B1I_ALIASES``), unless the file has a B1I code with attribute I.
+    Returns (path, renamed codes); the original path and [] when nothing needs renaming or the file is
+    not plain RINEX 3 text (compressed files are passed through unchanged)."""
+    obs_path = Path(obs_path)
+    try:
+        with open(obs_path, encoding="ascii", errors="strict", newline="") as f:
+            header = []
+            for line in f:
+                header.append(line)
+                if line[60:].strip() == "END OF HEADER" or len(header) > 2000:
+                    break
+    except (UnicodeDecodeError, OSError):
+        return obs_path, []
+    if not header or header[0][60:].strip() != "RINEX VERSION / TYPE" or not header[0][:9].strip().startswith("3"):
+        return obs_path, []
+    rows = [i for i, ln in enumerate(header) if ln[60:].strip() == "SYS / # / OBS TYPES"]
+    beidou, in_c = [], False
+    for i in rows:
+        if header[i][0] != " ":
+            in_c = header[i][0] == "C"
+        if in_c:
+            beidou.append(i)
+    codes = {header[i][7 + 4 * j: 10 + 4 * j] for i in beidou for j in range(13)}
+    if any(c[1:] == "2I" for c in codes):
+        return obs_path, []          # B1I already tracked as I: RTKLIB prefers it, nothing to rename
+    renamed = []
+    for i in beidou:
+        line = header[i]
+        for j in range(13):
+            c = line[7 + 4 * j: 10 + 4 * j]
+            if len(c) == 3 and c[1] == "2" and c[2] in RTKLIB_BEIDOU_B1I_ALIASES:
+                line = line[: 7 + 4 * j] + c[:2] + "I" + line[10 + 4 * j:]
+                renamed.append(c)
+        header[i] = line
+    if not renamed:
+        return obs_path, []
+    for i, line in enumerate(header):     # the phase shift records name the same codes
+        if line[60:].strip() == "SYS / PHASE SHIFT" and line[:1] == "C" and line[2:5] in renamed:
+            header[i] = line[:4] + "I" + line[5:]
+    workdir = Path(workdir)
+    workdir.mkdir(parents=True, exist_ok=True)
+    out = workdir / obs_path.name
+    if out.resolve() == obs_path.resolve():
+        raise ValueError(f"{obs_path}: the RTKLIB copy would overwrite the original (choose another workdir)")
+    with open(obs_path, encoding="ascii", newline="") as src, open(out, "w", encoding="ascii", newline="") as dst:
+        for _ in header:
+            src.readline()
+        dst.writelines(header)
+        for chunk in iter(lambda: src.read(1 << 20), ""):
+            dst.write(chunk)
+    return out, renamed
+
+
 def rtklib_solutions(obs_path, nav_paths, systems: str, times: np.ndarray, workdir,
                      elevation_mask_deg: float = 10.0) -> Solutions:
     """RTKLIB rnx2rtkp single point solutions (broadcast ionosphere, Saastamoinen) at ``times``."""
@@ -601,7 +666,10 @@ def rtklib_solutions(obs_path, nav_paths, systems: str, times: np.ndarray, workd
     opts = {"pos1-posmode": "single", "pos1-elmask": f"{elevation_mask_deg:g}", "pos1-ionoopt": "brdc",
             "pos1-tropopt": "saas", "pos1-navsys": str(navsys), "out-solformat": "xyz", "out-timesys": "gpst"}
     conf.write_text("".join(f"{a}={b}\n" for a, b in opts.items()))
-    subprocess.run(["rnx2rtkp", "-k", str(conf), "-o", str(out), str(obs_path), *map(str, nav_paths)], check=True,
+    obs_in, renamed = rtklib_observation_copy(obs_path, workdir / "input")
+    note = (f"{Path(obs_path).name}: BeiDou {', '.join(renamed)} given to RTKLIB as attribute I (RTKLIB 2.4.3 "
+            "applies TGD1 to C2I only)") if renamed else ""
+    subprocess.run(["rnx2rtkp", "-k", str(conf), "-o", str(out), str(obs_in), *map(str, nav_paths)], check=True,
                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, timeout=600)
     t_sol, rows = [], []
     for ln in out.read_text().splitlines():
@@ -618,7 +686,7 @@ def rtklib_solutions(obs_path, nav_paths, systems: str, times: np.ndarray, workd
         arr = np.array(rows)
         pos[i_t] = arr[i_s, :3]
         used[i_t] = arr[i_s, 3].astype(int)
-    return Solutions(pos, used, "RTKLIB rnx2rtkp")
+    return Solutions(pos, used, "RTKLIB rnx2rtkp", note)
 
 
 def truth_from_csv(path, times: np.ndarray) -> np.ndarray:
@@ -948,6 +1016,7 @@ def compare(sim_path, real_path, nav_paths=None, truth_ecef_m=None, truth_csv=No
             merged = write_navigation(wd / "rtklib_nav.rnx", eph, "".join(ref))
             cmp.sol_sim = rtklib_solutions(sim_path, [merged], "".join(ref), times, wd / "rtklib_sim")
             cmp.sol_real = rtklib_solutions(real_path, [merged], "".join(ref), times, wd / "rtklib_real")
+            cmp.position_note = "; ".join(n for n in (cmp.sol_sim.note, cmp.sol_real.note) if n)
         elif ref:
             prior = truth[0] if truth is not None and np.all(np.isfinite(truth[0])) else None
             cmp.sol_sim = spp_solutions(sim, eph, code_sim, i_sim, prior)
