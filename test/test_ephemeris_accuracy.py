@@ -13,7 +13,8 @@ only (no relativistic term, no group delay).  Signal references: GPS broadcast
 and CODE both L1/L2 P(Y) ionosphere-free; Galileo I/NAV refers to E1/E5b and is
 converted to CODE's E1/E5a with dt(E1,E5a) = dt(E1,E5b) - BGD(E1,E5b) + BGD(E1,E5a)
 (OS SIS ICD 2.1 5.1.5); BeiDou D1/D2 refers to B3I, CODE to B1I/B3I:
-dt_IF = dt_B3I - f1^2/(f1^2 - f3^2) TGD1 (BDS-SIS-ICD-B1I 3.0 5.2.4.10);
+dt_IF = dt_B3I - f1^2/(f1^2 - f3^2) TGD1 (BDS-SIS-ICD-B1I 3.0 5.2.4.10); both with
+ephemeris.broadcast.precise_to_broadcast_clock_s, which the simulator's SP3 source uses too;
 GLONASS refers to GLONASST (its offset to GPST is common, removed per epoch).
 Run with ``pytest -s`` to see the table.
 """
@@ -22,8 +23,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from gnss_sim_ros2.core.constants import F_B1I_HZ, F_B3I_HZ
-from gnss_sim_ros2.core.ephemeris.broadcast import BroadcastEphemeris
+from gnss_sim_ros2.core.ephemeris.broadcast import BroadcastEphemeris, precise_to_broadcast_clock_s
 from gnss_sim_ros2.core.ephemeris.sp3 import Sp3Ephemeris
 from gnss_sim_ros2.core.time import GnssTime
 
@@ -37,15 +37,12 @@ CLOCK_LIMIT_NS = {"G": 3.0, "E": 3.0}
 def comparison(opec_dir):
     eph = BroadcastEphemeris.from_files([opec_dir / n for n in NAV])
     sp3 = Sp3Ephemeris.from_files([opec_dir / SP3])
-    e_rec = eph.records("E")
-    bgd = {(str(s), int(i)): (a, b) for s, i, a, b in zip(e_rec["sv"], e_rec["iode"], e_rec["bgd_e1e5a_s"],
-                                                            e_rec["bgd_e1e5b_s"])}
-    k_b1b3 = F_B1I_HZ**2 / (F_B1I_HZ**2 - F_B3I_HZ**2)
     rows = []  # (epoch index, sv, dpos(3), dclock raw, dclock converted)
     t0 = GnssTime.from_iso("2022-01-01T00:00:00")
     for k in range(288):
         t = t0 + 300.0 * k
         b = eph.states(t)
+        shift = precise_to_broadcast_clock_s(eph, b)
         p = sp3.states(t, svs=list(b.sv))
         idx = {s: i for i, s in enumerate(p.sv)}
         for i, s in enumerate(b.sv):
@@ -55,12 +52,7 @@ def comparison(opec_dir):
             if s[0] == "C" and (int(s[1:]) <= 5 or int(s[1:]) >= 59):
                 continue  # GEO: not in the requirement (and not in this SP3)
             dclk = b.clock_bias_s[i] - p.clock_bias_s[j]
-            conv = dclk
-            if s[0] == "E":
-                a5, b5 = bgd[(s, int(b.iode[i]))]
-                conv = dclk - b5 + a5
-            elif s[0] == "C":
-                conv = dclk - k_b1b3 * b.tgd_s[i]
+            conv = dclk - shift[i]
             rows.append((k, s, *(b.pos_ecef_m[i] - p.pos_ecef_m[j]), dclk, conv))
     return rows
 

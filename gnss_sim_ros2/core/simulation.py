@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .ephemeris.precise_broadcast import PreciseWithBroadcastGroupDelay
 from .ephemeris.provider import open_ephemeris
 from .ephemeris.states import SatelliteStates
 from .frames import az_el_from_ecef, geodetic_to_ecef
@@ -226,7 +227,8 @@ def run_simulation(setup: SimulationSetup) -> SimulationResult:
     else:
         provider, nav_paths = open_ephemeris(source, setup.start, setup.duration_s, setup.systems, setup.nav_files,
                                              setup.sp3_files, setup.clk_files, workdir=out / ".ephemeris")
-    if source == "sp3" and (setup.nav_files or "broadcast" in setup.ephemeris):
+    if (source == "sp3" and not isinstance(provider, PreciseWithBroadcastGroupDelay)
+            and (setup.nav_files or "broadcast" in setup.ephemeris)):
         brdc, brdc_paths = setup.ephemeris.get("broadcast") or open_ephemeris(
             "broadcast", setup.start, setup.duration_s, setup.systems, setup.nav_files)
         provider, nav_paths = PreciseWithBroadcastGroupDelay(provider, brdc, setup.start, setup.duration_s), brdc_paths
@@ -308,56 +310,6 @@ def run_simulation(setup: SimulationSetup) -> SimulationResult:
     res.sim_s = n_epochs * interval_s
     shutil.rmtree(out / ".ephemeris", ignore_errors=True)
     return res
-
-
-class PreciseWithBroadcastGroupDelay:
-    """SP3 orbits and clocks with the broadcast group delays (TGD/BGD) and navigation header.
-
-    SP3 clocks refer to the ionosphere-free combination (no group delay), while a
-    receiver's single-frequency code carries the broadcast TGD/BGD (IS-GPS-200N
-    20.3.3.3.3.2; Galileo OS SIS ICD 5.1.5): without it each satellite's code
-    would be off by its c * TGD (up to ~3 m).  The group delay of each satellite
-    is taken once from the broadcast record valid at ``t_ref`` (it changes on
-    the scale of months).  ``nav``/``iono`` come from the navigation files, so
-    the written navigation file and the Klobuchar coefficients are the real ones.
-    """
-
-    def __init__(self, precise, broadcast, t_ref, span_s: float = 0.0):
-        self.precise, self.broadcast = precise, broadcast
-        self.source = "sp3"
-        self.nav = getattr(broadcast, "nav", None)
-        self._tgd = {}
-        healthy = set()
-        # SP3 files carry no health flags: serve only satellites the broadcast message declares healthy at
-        # some time of the span (sampled hourly; station navigation files have gaps of hours)
-        for k in range(int(np.ceil(max(span_s, 0.0) / 3600.0)) + 1):
-            st = broadcast.states(t_ref + min(3600.0 * k, max(span_s, 0.0)))
-            for sv, tgd in zip(np.asarray(st.sv).tolist(), np.asarray(st.tgd_s, dtype=float).tolist()):
-                self._tgd.setdefault(sv, tgd)
-                healthy.add(sv)
-        self._healthy = healthy
-
-    @property
-    def iono(self):
-        return getattr(self.broadcast, "iono", None)
-
-    def svs(self, systems: str = "GRECJI"):
-        return [sv for sv in self.precise.svs(systems) if sv in self._healthy]
-
-    def _with_tgd(self, st):
-        names = np.asarray(st.sv).tolist()
-        keep = np.array([sv in self._healthy for sv in names], dtype=bool)
-        if not keep.all():
-            st = st.select(keep)
-            names = np.asarray(st.sv).tolist()
-        st.tgd_s = np.array([self._tgd.get(sv, 0.0) for sv in names], dtype=float)
-        return st
-
-    def states(self, t, svs=None, systems: str = "GRECJI"):
-        return self._with_tgd(self.precise.states(t, svs=svs, systems=systems))
-
-    def states_at(self, svs, t):
-        return self._with_tgd(self.precise.states_at(svs, t))
 
 
 class _EpochBlock:

@@ -293,3 +293,36 @@ def _galileo_filter(kep: np.ndarray, galileo_nav: str) -> np.ndarray:
         if kep["nav"][k] != want and kep["sv"][k] in sv_with_want:
             keep[k] = False
     return keep
+
+
+def precise_to_broadcast_clock_s(eph: BroadcastEphemeris, st: SatelliteStates) -> np.ndarray:
+    """Per row of broadcast states ``st`` (from ``eph``): what to add to an IGS/MGEX precise clock to
+    refer it to the broadcast record's own signal reference, so that the record's group delay applies
+    to the precise clock as it does to the broadcast one [s].
+
+    Precise clocks refer to ionosphere-free combinations (IGS conventions: GPS/QZSS L1/L2 P(Y), Galileo
+    E1/E5a, BeiDou B1I/B3I); the broadcast ones:
+    - GPS, QZSS: L1/L2 P(Y) as well (IS-GPS-200N 20.3.3.3.3.2): 0;
+    - Galileo F/NAV: E1/E5a: 0; I/NAV: E1/E5b, dt(E1,E5b) = dt(E1,E5a) + BGD(E1,E5b) - BGD(E1,E5a)
+      (OS SIS ICD 2.1 5.1.5);
+    - BeiDou D1/D2: B3I, TGD1 = B1I - B3I: dt_B3I = dt_IF + f1^2/(f1^2 - f3^2) TGD1
+      (BDS-SIS-ICD-B1I 3.0 5.2.4.10);
+    - GLONASS and others: 0 (no group delay in the message).
+    """
+    from ..constants import F_B1I_HZ, F_B3I_HZ
+
+    names = np.asarray(st.sv).tolist()
+    out = np.zeros(len(names))
+    beidou = np.array([sv[0] == "C" for sv in names], dtype=bool)
+    out[beidou] = F_B1I_HZ**2 / (F_B1I_HZ**2 - F_B3I_HZ**2) * np.asarray(st.tgd_s, dtype=float)[beidou]
+    gal = np.flatnonzero([sv[0] == "E" for sv in names])
+    if gal.size:
+        rec = eph.records("E")
+        bgd = {(str(s), int(i)): (a, b) for s, i, a, b in zip(rec["sv"], rec["iode"], rec["bgd_e1e5a_s"],
+                                                                rec["bgd_e1e5b_s"])}
+        for j in gal.tolist():
+            pair = bgd.get((names[j], int(st.iode[j])))
+            if pair is not None and np.isfinite(pair[0]) and np.isfinite(pair[1]):
+                # the record's TGD is BGD(E1,E5a) for F/NAV (shift 0) and BGD(E1,E5b) for I/NAV
+                out[j] = float(st.tgd_s[j]) - pair[0]
+    return out

@@ -3,7 +3,8 @@ the ephemeris node, ``gnss-sim simulate`` and the benchmarks share.
 
 Sources: ``synthetic`` (nominal constellation written as a RINEX navigation
 file, read back through the broadcast path), ``broadcast`` (RINEX navigation
-files), ``sp3`` (precise orbits and clocks), ``download`` (daily broadcast
+files), ``sp3`` (precise orbits and clocks; with navigation files, their
+group delays and health on top), ``download`` (daily broadcast
 files from public IGS archives, cached).  Only the time span simulated is
 loaded (with a margin for the fit intervals).
 """
@@ -23,7 +24,10 @@ def open_ephemeris(source: str, start: GnssTime, duration_s: float, systems: str
     """A provider with ``states(t, svs, systems)``/``states_at(svs, t)`` for the span.
 
     Returns (provider, nav_paths) where ``nav_paths`` are the RINEX navigation
-    files behind it (to copy next to the RINEX observations); empty for sp3.
+    files behind it (to copy next to the RINEX observations); for sp3 with
+    navigation files the precise orbits carry the broadcast group delays
+    (precise_broadcast.PreciseWithBroadcastGroupDelay), without them none (and
+    no navigation file to write).
     """
     from .broadcast import BroadcastEphemeris
 
@@ -53,7 +57,14 @@ def open_ephemeris(source: str, start: GnssTime, duration_s: float, systems: str
         for f in list(sp3_files) + list(clk_files):
             if not Path(f).is_file():
                 raise ValueError(f"file {f} does not exist (parameter sp3_files/clk_files)")
-        return Sp3Ephemeris.from_files(list(sp3_files), list(clk_files), start=lo, end=hi), []
+        precise = Sp3Ephemeris.from_files(list(sp3_files), list(clk_files), start=lo, end=hi)
+        if not nav_files:
+            return precise, []
+        # with navigation files: their group delays, clock references and health on top (precise_broadcast)
+        from .precise_broadcast import PreciseWithBroadcastGroupDelay
+
+        brdc, paths = open_ephemeris("broadcast", start, duration_s, systems, nav_files)
+        return PreciseWithBroadcastGroupDelay(precise, brdc, start, duration_s), paths
     if source == "download":
         import datetime as _dt
 
