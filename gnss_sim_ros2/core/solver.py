@@ -112,6 +112,8 @@ class PvtSolution:
     clock_drift_mps: float = math.nan
     clock_drift_sps: float = math.nan
     cov_vel_ecef_m2ps2: np.ndarray = field(default_factory=lambda: np.full((3, 3), np.nan))
+    #: the velocity's covariance in ENU at the solution [m^2/s^2] (from the a-priori range-rate sigmas)
+    cov_vel_enu_m2ps2: np.ndarray = field(default_factory=lambda: np.full((3, 3), np.nan))
     vel_residuals_mps: np.ndarray | None = None
     vel_status: str = "none"        # "fix" | "no_fix" | "none" (no rates given)
     vel_reason: str = ""
@@ -521,6 +523,7 @@ def _solve_velocity_into(sol: PvtSolution, sat, sat_vel, rate, sat_drift, cfg, l
     sol.clock_drift_mps = float(xv[3])
     sol.clock_drift_sps = float(xv[3] / C_MPS)
     sol.cov_vel_ecef_m2ps2 = cov[:3, :3]
+    sol.cov_vel_enu_m2ps2 = rot @ cov[:3, :3] @ rot.T
     sol.vel_residuals_mps = resid
     sol.vel_status, sol.vel_reason = "fix", ""
 

@@ -215,10 +215,10 @@ class ReceiverNode(GnssSimNode):
         v = np.asarray(sol.vel_enu_mps)
         if sol.vel_status == "fix" and np.all(np.isfinite(v)):
             msg.twist.twist.linear.x, msg.twist.twist.linear.y, msg.twist.twist.linear.z = (float(x) for x in v)
-            cov = np.full(36, 0.0)
-            cov[0] = cov[7] = cov[14] = 0.05**2
-            cov[21] = cov[28] = cov[35] = -1.0  # angular velocity unknown
-            msg.twist.covariance = cov.tolist()
+            cov = np.zeros((6, 6))
+            cov[:3, :3] = sol.cov_vel_enu_m2ps2     # the solver's, ENU like the velocity
+            cov[3, 3] = cov[4, 4] = cov[5, 5] = -1.0  # angular velocity unknown
+            msg.twist.covariance = [float(v) for v in cov.ravel()]
         else:
             msg.twist.covariance = [-1.0] + [0.0] * 35
         return msg
