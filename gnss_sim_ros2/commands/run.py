@@ -262,14 +262,29 @@ class Runner:
 
     def finish(self, n_epochs: int, dropped: int, wall_s: float, period: float):
         """Close the files (nodes cleaned up), then summary, sky plot and bag counts."""
+        horizon = self._local_horizon()    # before cleanup frees the visibility node's scene
         self.shutdown_nodes()
         if self.recorder is not None:
             self.recorder.close()
         summary = self.summary(n_epochs, dropped, wall_s, period)
         (self.out / "summary.json").write_text(json.dumps(summary, indent=2))
         (self.out / "summary.md").write_text(_summary_markdown(summary))
-        self.sky_plot()
+        self.sky_plot(horizon)
         print(_summary_markdown(summary))
+
+    def _antenna_world_m(self):
+        m = self.last_vis
+        return None if m is None else np.array([m.antenna_world_m.x, m.antenna_world_m.y, m.antenna_world_m.z])
+
+    def _local_horizon(self):
+        """The skyline at the last antenna position from the visibility node of this process (composed
+        mode); None when the nodes run in other processes."""
+        at = self._antenna_world_m()
+        for node in self.local:
+            scene = getattr(node, "scene", None)
+            if at is not None and scene is not None and hasattr(scene, "horizon_profile"):
+                return scene.horizon_profile(at)
+        return None
 
     def summary(self, n_epochs, dropped, wall_s, period) -> dict:
         from gnss_sim_ros2.core.frames import ecef_to_enu, ecef_to_geodetic, geodetic_to_ecef
@@ -309,25 +324,29 @@ class Runner:
             out["bag_messages"] = count_messages(self.out / "bag")
         return out
 
-    def sky_plot(self):
+    def sky_plot(self, horizon=None):
+        """skyplot.png of the last epoch; ``horizon``: the skyline if known, else the scene is loaded here
+        (nodes in other processes)."""
         m = self.last_vis
         if m is None:
             return
-        from gnss_sim_ros2.core.simulation import load_scene
         from gnss_sim_ros2.core.skyplot import plot_skyplot
 
-        vis = self.cfg.node("visibility")
-        world = vis["world_file"]
-        if not world and not vis["mesh_file"]:
-            from gnss_sim_ros2.commands.simulate import default_world
+        at = self._antenna_world_m()
+        if horizon is None:
+            from gnss_sim_ros2.core.simulation import load_scene
 
-            world = str(default_world())
-        scene = load_scene(world, vis["mesh_file"], vis["materials_file"])
-        at = np.array([m.antenna_world_m.x, m.antenna_world_m.y, m.antenna_world_m.z])
+            vis = self.cfg.node("visibility")
+            world = vis["world_file"]
+            if not world and not vis["mesh_file"]:
+                from gnss_sim_ros2.commands.simulate import default_world
+
+                world = str(default_world())
+            horizon = load_scene(world, vis["mesh_file"], vis["materials_file"]).horizon_profile(at)
         sats = m.satellites
         plot_skyplot(self.out / "skyplot.png", [s.sv for s in sats], np.array([s.azimuth_deg for s in sats]),
                      np.array([s.elevation_deg for s in sats]), np.array([s.state for s in sats]),
-                     horizon=scene.horizon_profile(at), mask_deg=self.cfg.node("receiver")["elevation_mask_deg"],
+                     horizon=horizon, mask_deg=self.cfg.node("receiver")["elevation_mask_deg"],
                      title=f"last epoch, antenna at E {at[0]:.1f} N {at[1]:.1f} U {at[2]:.1f} m")
 
     def shutdown_nodes(self):
