@@ -292,6 +292,13 @@ def test_opec_against_real_receiver(opec_dir, tmp_path):
     for png in ("code_difference.png", "cn0_elevation.png", "visibility.png", "positions.png"):
         assert (report.parent / png).stat().st_size > 5000, png
         assert f"]({png})" in text
+    if shutil.which("rnx2rtkp"):
+        # RTKLIB reads the real file's BeiDou C2X as C2I (compare.rtklib_observation_copy) and the report says so
+        cmp_r = compare(obs, real, nav_paths=navs, mask_deg=10.0, solver="rtklib", workdir=tmp_path / "rtklib")
+        text_r = write_report(cmp_r, tmp_path / "report_rtklib").read_text()
+        assert "BeiDou C2X, L2X given to RTKLIB as attribute I" in text_r
+        pos_r = cmp_r.positions()
+        assert pos_r["real_vs_truth"]["n"] >= 57 and pos_r["real_vs_truth"]["rms_h_m"] < 5.0
 
 
 def test_truth_csv_interpolates(tmp_path):
