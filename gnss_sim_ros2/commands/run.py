@@ -280,11 +280,8 @@ class Runner:
         """The skyline at the last antenna position from the visibility node of this process (composed
         mode); None when the nodes run in other processes."""
         at = self._antenna_world_m()
-        for node in self.local:
-            scene = getattr(node, "scene", None)
-            if at is not None and scene is not None and hasattr(scene, "horizon_profile"):
-                return scene.horizon_profile(at)
-        return None
+        scenes = [node.scene for node in self.local if getattr(node, "scene", None) is not None]
+        return scenes[0].horizon_profile(at) if at is not None and scenes else None
 
     def summary(self, n_epochs, dropped, wall_s, period) -> dict:
         from gnss_sim_ros2.core.frames import ecef_to_enu, ecef_to_geodetic, geodetic_to_ecef

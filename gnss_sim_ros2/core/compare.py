@@ -618,18 +618,15 @@ def rtklib_observation_copy(obs_path, workdir) -> tuple[Path, list[str]]:
             in_c = header[i][0] == "C"
         if in_c:
             beidou.append(i)
-    codes = {header[i][7 + 4 * j: 10 + 4 * j] for i in beidou for j in range(13)}
-    if any(c[1:] == "2I" for c in codes):
+    fields = [(i, 7 + 4 * j) for i in beidou for j in range(13)]     # (line, column) of each code (A3, 1X)
+    if any(header[i][c + 1: c + 3] == "2I" for i, c in fields):
         return obs_path, []          # B1I already tracked as I: RTKLIB prefers it, nothing to rename
     renamed = []
-    for i in beidou:
-        line = header[i]
-        for j in range(13):
-            c = line[7 + 4 * j: 10 + 4 * j]
-            if len(c) == 3 and c[1] == "2" and c[2] in RTKLIB_BEIDOU_B1I_ALIASES:
-                line = line[: 7 + 4 * j] + c[:2] + "I" + line[10 + 4 * j:]
-                renamed.append(c)
-        header[i] = line
+    for i, c in fields:
+        code = header[i][c: c + 3]
+        if len(code) == 3 and code[1] == "2" and code[2] in RTKLIB_BEIDOU_B1I_ALIASES:
+            header[i] = header[i][:c] + code[:2] + "I" + header[i][c + 3:]
+            renamed.append(code)
     if not renamed:
         return obs_path, []
     for i, line in enumerate(header):     # the phase shift records name the same codes

@@ -32,35 +32,34 @@ class PreciseWithBroadcastGroupDelay:
         self.precise, self.broadcast = precise, broadcast
         self.source = "sp3"
         self.nav = getattr(broadcast, "nav", None)
-        self._tgd, self._clock_shift_s = {}, {}
-        healthy = set()
-        # SP3 files carry no health flags: serve only satellites the broadcast message declares healthy at
-        # some time of the span (sampled hourly; station navigation files have gaps of hours)
+        #: per satellite (group delay [s], precise-to-broadcast clock shift [s]) of its first broadcast record;
+        #: its keys are the satellites served: SP3 files carry no health flags, so only those the broadcast
+        #: message declares healthy at some time of the span (sampled hourly; station navigation files have
+        #: gaps of hours)
+        self._broadcast_terms: dict[str, tuple[float, float]] = {}
         for k in range(int(np.ceil(max(span_s, 0.0) / 3600.0)) + 1):
             st = broadcast.states(t_ref + min(3600.0 * k, max(span_s, 0.0)))
-            shift = precise_to_broadcast_clock_s(broadcast, st) if hasattr(broadcast, "records") else np.zeros(len(st))
+            shift = precise_to_broadcast_clock_s(broadcast, st)
             for sv, tgd, dt_s in zip(np.asarray(st.sv).tolist(), np.asarray(st.tgd_s, dtype=float).tolist(),
                                      shift.tolist()):
-                if sv not in self._tgd:
-                    self._tgd[sv], self._clock_shift_s[sv] = tgd, dt_s
-                healthy.add(sv)
-        self._healthy = healthy
+                self._broadcast_terms.setdefault(sv, (tgd, dt_s))
 
     @property
     def iono(self):
         return getattr(self.broadcast, "iono", None)
 
     def svs(self, systems: str = "GRECJI"):
-        return [sv for sv in self.precise.svs(systems) if sv in self._healthy]
+        return [sv for sv in self.precise.svs(systems) if sv in self._broadcast_terms]
 
     def _with_tgd(self, st):
         names = np.asarray(st.sv).tolist()
-        keep = np.array([sv in self._healthy for sv in names], dtype=bool)
+        keep = np.array([sv in self._broadcast_terms for sv in names], dtype=bool)
         if not keep.all():
             st = st.select(keep)
             names = np.asarray(st.sv).tolist()
-        st.tgd_s = np.array([self._tgd.get(sv, 0.0) for sv in names], dtype=float)
-        st.clock_bias_s = st.clock_bias_s + np.array([self._clock_shift_s.get(sv, 0.0) for sv in names])
+        terms = np.array([self._broadcast_terms[sv] for sv in names], dtype=float).reshape(-1, 2)
+        st.tgd_s = terms[:, 0]
+        st.clock_bias_s = st.clock_bias_s + terms[:, 1]
         return st
 
     def states(self, t, svs=None, systems: str = "GRECJI"):
