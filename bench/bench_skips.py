@@ -37,10 +37,10 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from gnss_sim_ros2.commands.bench import shared_data_dir  # noqa: E402
-from gnss_sim_ros2.commands.simulate import default_world  # noqa: E402
 from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris  # noqa: E402
 from gnss_sim_ros2.core.frames import az_el_from_ecef  # noqa: E402
 from gnss_sim_ros2.core.receiver.engine import Receiver, ReceiverConfig  # noqa: E402
+from gnss_sim_ros2.core.scene.demo_world import demo_world_path  # noqa: E402
 from gnss_sim_ros2.core.scene.sdf_world import MaterialTable, WorldMesh  # noqa: E402
 from gnss_sim_ros2.core.scene.visibility import Scene  # noqa: E402
 from gnss_sim_ros2.core.simulation import (  # noqa: E402
@@ -88,7 +88,7 @@ def city(n_side=200, pitch_m=20.0):
     v[..., 1] = cy[:, None] + half * corners[:, 1]
     v[..., 2] = h[:, None] * corners[:, 2]
     f = (faces[None, :, :] + 8 * np.arange(cx.size)[:, None, None]).reshape(-1, 3)
-    base = load_scene(str(default_world())).world      # for its geodetic origin and material table
+    base = load_scene(str(demo_world_path())).world      # for its geodetic origin and material table
     return WorldMesh(v.reshape(-1, 3), f, np.zeros(len(f), dtype=np.int16), MaterialTable(),
                      base.spherical_coordinates)
 
@@ -101,7 +101,7 @@ def main() -> int:
     n, rep = a.epochs, a.repeats
     work = Path(tempfile.mkdtemp(prefix="gnss_sim_skips_"))
     provider, _ = open_ephemeris("synthetic", START, float(n), "GRECJI", workdir=work / "eph")
-    scene = load_scene(str(default_world()))
+    scene = load_scene(str(demo_world_path()))
     path = AntennaPath(demo_trajectory(loop=True), scene)
     t_rel = np.arange(n, dtype=float)
     ecef, world = path.at_many(t_rel)

@@ -19,12 +19,25 @@ This module is ROS-free: the nodes turn the table into parameter descriptors.
 """
 from __future__ import annotations
 
+import datetime as _dt
 import difflib
+import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import yaml
+
+from gnss_sim_ros2.core.vocabulary import (
+    EPHEMERIS_SOURCES,
+    IONOSPHERE_MODELS,
+    PRESET_NAMES,
+    PROFILES,
+    SYSTEMS,
+    TROPOSPHERE_MODELS,
+    check_systems,
+)
 
 #: ROS node names (the keys of a parameter file)
 NODE_NAMES = {
@@ -46,6 +59,11 @@ class Param:
     max: float | None = None
     #: element type for an empty list default ("string" or "double")
     item_type: str = ""
+    #: further check of the value: returns it normalised or raises ValueError naming ``where``
+    check_value: Callable[[Any, str], Any] | None = None
+    #: a shared parameter that must have one value in the whole graph (refused in a node's section);
+    #: False: a node's section may narrow it (e.g. the receiver tracks fewer systems than served)
+    shared_only: bool = True
 
     @property
     def kind(self) -> str:
@@ -76,6 +94,8 @@ class Param:
             if isinstance(value, bool) or not isinstance(value, (int, float)):
                 raise bad
             value = float(value)
+            if not math.isfinite(value):
+                raise ValueError(f"{where}: parameter '{self.name}' is {value!r}; a finite number is needed")
         elif kind == "string":
             if not isinstance(value, str):
                 raise bad
@@ -86,6 +106,8 @@ class Param:
                 if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
                     raise bad
                 value = [float(v) for v in value]
+                if not all(math.isfinite(v) for v in value):
+                    raise ValueError(f"{where}: parameter '{self.name}' = {value!r}: every number must be finite")
             elif not all(isinstance(v, str) for v in value):
                 raise bad
             value = list(value)
@@ -95,32 +117,50 @@ class Param:
             raise ValueError(f"{where}: parameter '{self.name}' is {value!r}; minimum is {self.min}")
         if self.max is not None and value > self.max:
             raise ValueError(f"{where}: parameter '{self.name}' is {value!r}; maximum is {self.max}")
+        if self.check_value is not None:
+            value = self.check_value(value, f"{where}: parameter '{self.name}'")
         return value
 
 
-SYSTEM_LETTERS = "GRECJI"
+#: the span of GNSS time this simulator supports: the GPS epoch to the end of the leap-second table's use
+SUPPORTED_SPAN = (_dt.datetime(1980, 1, 6), _dt.datetime(2100, 1, 1))
+
+
+def _check_iso_time(value: str, where: str) -> str:
+    from gnss_sim_ros2.core.time import GnssTime
+
+    try:
+        t = GnssTime.from_iso(value)
+    except ValueError as exc:
+        raise ValueError(f"{where}: {exc}") from None
+    d = t.to_datetime()
+    if not SUPPORTED_SPAN[0] <= d < SUPPORTED_SPAN[1]:
+        raise ValueError(f"{where} is {value!r}: outside the supported span "
+                         f"{SUPPORTED_SPAN[0]:%Y-%m-%d} .. {SUPPORTED_SPAN[1]:%Y-%m-%d}")
+    return value
+
 
 SHARED = [
-    Param("systems", "GRECJI", "GNSS systems simulated, RINEX letters: G GPS, R GLONASS, E Galileo, C BeiDou, "
-          "J QZSS, I NavIC"),
+    Param("systems", SYSTEMS, "GNSS systems simulated, RINEX letters: G GPS, R GLONASS, E Galileo, C BeiDou, "
+          "J QZSS, I NavIC; a node's section may narrow it", check_value=check_systems, shared_only=False),
     Param("start_time", "2025-06-01T10:00:00", "GNSS (GPS) time of the first epoch, ISO 8601; with "
-          "time_mapping=offset the ROS time 0 maps to it"),
+          "time_mapping=offset the ROS time 0 maps to it", check_value=_check_iso_time),
     Param("rate_hz", 1.0, "epoch rate [Hz]", min=0.001, max=100.0),
     Param("elevation_mask_deg", 10.0, "elevation mask [deg]: satellites below are neither cast nor tracked",
           min=-5.0, max=90.0),
     Param("world_frame", "world", "TF frame of the Gazebo world (ENU at spherical_coordinates)"),
     Param("antenna_frame", "gnss_antenna", "TF frame of the receiver antenna phase centre"),
-    Param("seed", 1, "seed of every random process (noise, clock, ambiguities)", min=0),
+    Param("seed", 1, "seed of every random process (noise, clock, ambiguities)", min=0, shared_only=False),
     Param("output_dir", "gnss_sim_output", "folder of the RINEX observation/navigation (and NMEA) files; "
           "empty: none written"),
     Param("marker_name", "GSIM", "RINEX marker name (its first 4 characters start the file names)"),
     Param("preset", "balanced", "fidelity preset: default values of the model switches",
-          choices=("fast", "balanced", "accurate")),
+          choices=PRESET_NAMES),
 ]
 
 NODE_PARAMS: dict[str, list[Param]] = {
     "ephemeris": [
-        Param("source", "synthetic", "where orbits come from", choices=("synthetic", "broadcast", "sp3", "download")),
+        Param("source", "synthetic", "where orbits come from", choices=EPHEMERIS_SOURCES),
         Param("nav_files", [], "RINEX 2/3/4 navigation files (source broadcast; gz/Z/crx accepted)",
               item_type="string"),
         Param("sp3_files", [], "SP3 precise orbit files (source sp3)", item_type="string"),
@@ -139,12 +179,12 @@ NODE_PARAMS: dict[str, list[Param]] = {
         Param("fresnel_rays", -1, "rays over the first Fresnel zone per satellite (0 off; -1 from preset)", min=-1),
     ],
     "receiver": [
-        Param("profile", "geodetic", "signals tracked", choices=("geodetic", "single_frequency")),
+        Param("profile", "geodetic", "signals tracked", choices=PROFILES),
         Param("noise", True, "receiver errors on (noise, clock wander, SISRE, ionosphere error, hardware code biases); "
               "off: an ideal receiver with the deterministic models"),
         Param("ionosphere", "", "true ionosphere (empty: from preset; auto: NeQuick-G where Galileo coefficients "
-              "are given, else Klobuchar)", choices=("", "auto", "nequick", "klobuchar", "none")),
-        Param("troposphere", "", "troposphere model (empty: from preset)", choices=("", "saastamoinen", "none")),
+              "are given, else Klobuchar)", choices=("", *IONOSPHERE_MODELS)),
+        Param("troposphere", "", "troposphere model (empty: from preset)", choices=("", *TROPOSPHERE_MODELS)),
         Param("write_nmea_file", False, "also write the NMEA sentences to output_dir/gnss_sim.nmea"),
         Param("cn0_acquire_dbhz", 33.0, "C/N0 above which a signal is acquired [dB-Hz]", min=0.0, max=70.0),
         Param("cn0_lose_dbhz", 28.0, "C/N0 below which a signal is lost [dB-Hz]", min=0.0, max=70.0),
@@ -185,28 +225,65 @@ def defaults() -> Config:
     return Config({k: {p.name: p.default for p in params_of(k)} for k in NODE_PARAMS})
 
 
-def _apply(target: dict, section: dict, specs: dict[str, Param], where: str):
+SHARED_ONLY_NAMES = frozenset(p.name for p in SHARED if p.shared_only)
+
+
+def _apply(target: dict, section: dict, specs: dict[str, Param], where: str, options: dict | None = None):
     for name, value in (section or {}).items():
         if name not in specs:
+            if name in SHARED_ONLY_NAMES:
+                raise ValueError(f"{where}: parameter '{name}' is shared by every node (one value for the whole "
+                                 f"graph): set it under '{SHARED_KEY}', not in one node's section")
             hint = difflib.get_close_matches(name, specs, n=1)
             extra = f" (did you mean '{hint[0]}'?)" if hint else ""
             raise ValueError(f"{where}: unknown parameter '{name}'{extra}")
-        target[name] = specs[name].check(value, where)
+        here = f"option {options[name]}" if options and name in options else where
+        target[name] = specs[name].check(value, here)
 
 
-def load_config(path: str | Path | None = None, overrides: dict[str, dict] | None = None) -> Config:
+def validate_node(key: str, values: dict, where: str) -> dict:
+    """Every parameter of node ``key`` checked by the table, then the rules between parameters.
+
+    The one validation path: :func:`load_config` (``config --check``, ``simulate``, ``run``, the launch
+    file) and the nodes' configure call it.  Returns the normalised values.
+    """
+    out = {p.name: p.check(values[p.name] if p.name in values else p.default, where) for p in params_of(key)}
+    if key == "receiver" and out["cn0_lose_dbhz"] > out["cn0_acquire_dbhz"]:
+        raise ValueError(f"{where}: parameter 'cn0_lose_dbhz' ({out['cn0_lose_dbhz']}) exceeds "
+                         f"'cn0_acquire_dbhz' ({out['cn0_acquire_dbhz']}): a signal would be lost above the "
+                         f"level at which it is acquired")
+    if key == "trajectory" and len(out["antenna_offset_m"]) != 3:
+        raise ValueError(f"{where}: parameter 'antenna_offset_m' needs 3 numbers (x, y, z in base_frame), "
+                         f"got {out['antenna_offset_m']!r}")
+    if key == "trajectory" and len(out["waypoints"]) % 4:
+        raise ValueError(f"{where}: parameter 'waypoints' needs groups of 4 numbers t_s,e_m,n_m,u_m, got "
+                         f"{len(out['waypoints'])} numbers")
+    return out
+
+
+def load_config(path: str | Path | None = None, overrides: dict[str, dict] | None = None,
+                options: dict[str, str] | None = None) -> Config:
     """Read a gnss_sim parameter file (ROS 2 format); ``None`` gives the defaults.
 
-    ``overrides``: {node key or "/**": {param: value}} applied last (command line options).
-    Errors name the file, the section and the parameter.
+    ``overrides``: {node key or "/**": {param: value}} applied last (command line options);
+    ``options``: {param: command-line option} so that an error names the option the user typed.
+    A shared parameter (``SHARED``) is accepted under ``/**`` only.  Errors name the file, the
+    section and the parameter (or the option).
     """
     cfg = defaults()
+    shared_specs = {p.name: p for p in SHARED}
+
+    def own_specs(key):
+        return {p.name: p for p in params_of(key) if p.name not in SHARED_ONLY_NAMES}
+
     if path is not None:
         path = Path(path)
         try:
             doc = yaml.safe_load(path.read_text()) or {}
         except FileNotFoundError:
             raise ValueError(f"configuration file {path} does not exist") from None
+        except IsADirectoryError:
+            raise ValueError(f"configuration file {path} is a folder, not a YAML file") from None
         except yaml.YAMLError as exc:
             raise ValueError(f"{path}: not valid YAML: {exc}") from None
         if not isinstance(doc, dict):
@@ -217,14 +294,15 @@ def load_config(path: str | Path | None = None, overrides: dict[str, dict] | Non
             if not isinstance(body, dict) or set(body) != {"ros__parameters"}:
                 raise ValueError(f"{where}: expected 'ros__parameters:' under it")
             params = body["ros__parameters"] or {}
-            name = section_name.lstrip("/")
+            if not isinstance(params, dict):
+                raise ValueError(f"{where}: 'ros__parameters' must be a mapping of parameter names to values")
+            name = str(section_name).lstrip("/")
             if section_name in (SHARED_KEY, "/**/"):
                 for key in NODE_NAMES:
-                    specs = {p.name: p for p in SHARED}
-                    _apply(cfg.values[key], params, specs, where)
+                    _apply(cfg.values[key], params, shared_specs, where)
             elif name in known:
                 key = known[name]
-                _apply(cfg.values[key], params, {p.name: p for p in params_of(key)}, where)
+                _apply(cfg.values[key], params, own_specs(key), where)
             else:
                 hint = difflib.get_close_matches(name, list(known), n=1)
                 extra = f" (did you mean '{hint[0]}'?)" if hint else ""
@@ -233,8 +311,11 @@ def load_config(path: str | Path | None = None, overrides: dict[str, dict] | Non
     for section_name, params in (overrides or {}).items():
         keys = list(NODE_NAMES) if section_name == SHARED_KEY else [section_name]
         for key in keys:
-            specs = {p.name: p for p in (SHARED if section_name == SHARED_KEY else params_of(key))}
-            _apply(cfg.values[key], params, specs, "command line")
+            specs = shared_specs if section_name == SHARED_KEY else own_specs(key)
+            _apply(cfg.values[key], params, specs, "command line", options)
+    where = cfg.source if path is None else str(path)
+    for key in NODE_NAMES:
+        cfg.values[key] = validate_node(key, cfg.values[key], f"{where}: {NODE_NAMES[key]}")
     return cfg
 
 

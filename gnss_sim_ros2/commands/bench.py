@@ -295,8 +295,8 @@ def bench_scenario(name: str, setup, presets, repeats: int, real: RealObs | None
 # ============================================================================ command
 def run_bench(quick: bool = False, presets=PRESET_ORDER, repeats: int | None = None, epochs: int | None = None,
               use_real: bool = True, workdir: Path | None = None, log=print) -> dict:
-    from gnss_sim_ros2.commands.simulate import default_world
     from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris
+    from gnss_sim_ros2.core.scene.demo_world import demo_world_path
     from gnss_sim_ros2.core.simulation import load_scene
     from gnss_sim_ros2.core.time import GnssTime
 
@@ -316,7 +316,7 @@ def run_bench(quick: bool = False, presets=PRESET_ORDER, repeats: int | None = N
     # demo: courtyard world, looped demo path, synthetic constellation
     demo_s = (10.0 * (epochs - 1) if epochs else (300.0 if quick else 600.0))
     t0 = time.perf_counter()
-    scene = load_scene(str(default_world()))
+    scene = load_scene(str(demo_world_path()))
     eph = {"synthetic": open_ephemeris("synthetic", GnssTime.from_iso(DEMO_START), demo_s, "GRECJI",
                                        workdir=work / "ephemeris")}
     log(f"[bench] demo scenario loaded in {time.perf_counter() - t0:.1f} s")

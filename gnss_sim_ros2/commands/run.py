@@ -331,15 +331,13 @@ class Runner:
 
         at = self._antenna_world_m()
         if horizon is None:
+            from gnss_sim_ros2.core.scene.demo_world import demo_world_path
             from gnss_sim_ros2.core.simulation import load_scene
 
             vis = self.cfg.node("visibility")
-            world = vis["world_file"]
-            if not world and not vis["mesh_file"]:
-                from gnss_sim_ros2.commands.simulate import default_world
-
-                world = str(default_world())
-            horizon = load_scene(world, vis["mesh_file"], vis["materials_file"]).horizon_profile(at)
+            world = vis["world_file"] if vis["world_file"] or vis["mesh_file"] else str(demo_world_path())
+            horizon = load_scene(world, vis["mesh_file"], vis["materials_file"],
+                                 vis["use_visuals"]).horizon_profile(at)
         sats = m.satellites
         plot_skyplot(self.out / "skyplot.png", [s.sv for s in sats], np.array([s.azimuth_deg for s in sats]),
                      np.array([s.elevation_deg for s in sats]), np.array([s.state for s in sats]),

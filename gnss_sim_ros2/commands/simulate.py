@@ -44,71 +44,66 @@ def add_arguments(p):
     p.add_argument("--out", required=True, metavar="DIR", help="output folder")
 
 
+#: command-line option -> (section of the parameter table, parameter): errors name the option
+OPTION_PARAMS = {
+    "--start": ("/**", "start_time"), "--rate": ("/**", "rate_hz"), "--interval": ("/**", "rate_hz"),
+    "--mask-deg": ("/**", "elevation_mask_deg"), "--systems": ("/**", "systems"), "--seed": ("/**", "seed"),
+    "--preset": ("/**", "preset"), "--marker": ("/**", "marker_name"), "--duration": ("ephemeris", "duration_s"),
+    "--nav": ("ephemeris", "nav_files"), "--sp3": ("ephemeris", "sp3_files"), "--clk": ("ephemeris", "clk_files"),
+    "--world": ("visibility", "world_file"), "--mesh": ("visibility", "mesh_file"),
+    "--profile": ("receiver", "profile"), "--noise-free": ("receiver", "noise"),
+}
+
+
+def parameter_overrides(args) -> tuple[dict, dict]:
+    """(overrides {section: {param: value}}, {param: option}) of the options given on the command line."""
+    given = {"--start": args.start, "--rate": args.rate,
+             "--interval": None if args.interval is None else (1.0 / args.interval if args.interval > 0 else
+                                                               args.interval),
+             "--mask-deg": args.mask_deg, "--systems": args.systems, "--seed": args.seed, "--preset": args.preset,
+             "--marker": args.marker, "--duration": args.duration, "--nav": args.nav, "--sp3": args.sp3,
+             "--clk": args.clk, "--world": args.world, "--mesh": args.mesh, "--profile": args.profile,
+             "--noise-free": False if args.noise_free else None}
+    ov: dict = {}
+    names: dict = {}
+    for opt, value in given.items():
+        if value is None:
+            continue
+        if opt == "--interval" and value <= 0:
+            raise ValueError(f"option --interval is {args.interval!r}; the epoch interval must be > 0 s")
+        section, name = OPTION_PARAMS[opt]
+        ov.setdefault(section, {})[name] = value
+        names[name] = opt
+    eph = ov.setdefault("ephemeris", {})
+    if args.nav:
+        eph["source"] = "broadcast"
+    if args.sp3:
+        eph["source"] = "sp3"
+    if args.synthetic:
+        eph["source"] = "synthetic"
+    vis = ov.setdefault("visibility", {})
+    if args.world is not None:
+        vis["mesh_file"] = ""
+    if args.mesh is not None:
+        vis["world_file"] = ""
+    return ov, names
+
+
 def setup_from_args(args):
-    from gnss_sim_ros2.core.simulation import SimulationSetup
-    from gnss_sim_ros2.core.time import GnssTime
-    from gnss_sim_ros2.core.trajectory import Trajectory, demo_trajectory
+    from gnss_sim_ros2.core.simulation import setup_from_config
+    from gnss_sim_ros2.core.trajectory import Trajectory
     from gnss_sim_ros2.parameters import load_config
 
-    cfg = load_config(args.config)
-    eph, vis, rcv = cfg.node("ephemeris"), cfg.node("visibility"), cfg.node("receiver")
-    source = eph["source"]
-    nav, sp3, clk = eph["nav_files"], eph["sp3_files"], eph["clk_files"]
-    if args.nav:
-        source, nav = "broadcast", args.nav
-    if args.sp3:
-        source, sp3 = "sp3", args.sp3
-    if args.clk:
-        clk = args.clk
-    if args.synthetic:
-        source = "synthetic"
-    world = args.world if args.world is not None else (vis["world_file"] if not args.mesh else "")
-    mesh = args.mesh if args.mesh is not None else (vis["mesh_file"] if not args.world else "")
+    ov, names = parameter_overrides(args)
+    cfg = load_config(args.config, ov, names)
+    tr = None
     if args.position_ecef:
         tr = Trajectory.static(parse_triple(args.position_ecef, "--position-ecef"), "ecef")
     elif args.position:
         tr = Trajectory.static(parse_triple(args.position, "--position"), "geodetic")
     elif args.trajectory:
         tr = Trajectory.from_csv(args.trajectory)
-    else:
-        if not world and not mesh:
-            world = str(default_world())
-        tr = demo_trajectory()
-    interval = 1.0 / (args.rate or rcv["rate_hz"]) if not args.interval else args.interval
-    if interval <= 0:
-        raise ValueError("--interval/--rate must be positive")
-    systems = args.systems or rcv["systems"]
-    if not systems or set(systems) - set("GRECJI"):
-        raise ValueError(f"--systems {systems!r}: use letters of GRECJI")
-    receiver = {"noise": False if args.noise_free else rcv["noise"], "profile": args.profile or rcv["profile"],
-                "ionosphere": rcv["ionosphere"], "troposphere": rcv["troposphere"]}
-    from gnss_sim_ros2.core.receiver.tracking import TrackingConfig
-
-    receiver["tracking"] = TrackingConfig(acquisition_cn0_dbhz=rcv["cn0_acquire_dbhz"],
-                                          tracking_cn0_dbhz=rcv["cn0_lose_dbhz"])
-    return SimulationSetup(
-        start=GnssTime.from_iso(args.start or rcv["start_time"]),
-        duration_s=args.duration if args.duration is not None else eph["duration_s"],
-        interval_s=interval, out_dir=Path(args.out), trajectory=tr, systems=systems,
-        elevation_mask_deg=args.mask_deg if args.mask_deg is not None else rcv["elevation_mask_deg"],
-        source=source, nav_files=nav, sp3_files=sp3, clk_files=clk, world_file=world or "", mesh_file=mesh or "",
-        materials_file=vis["materials_file"], preset=args.preset or rcv["preset"], fresnel_rays=vis["fresnel_rays"],
-        receiver=receiver, marker_name=args.marker or rcv["marker_name"],
-        seed=args.seed if args.seed is not None else rcv["seed"], progress=not args.quiet,
-    )
-
-
-def default_world() -> Path:
-    """worlds/courtyard.sdf from the source tree or the installed share folder."""
-    here = Path(__file__).resolve().parents[2] / "worlds" / "courtyard.sdf"
-    if here.is_file():
-        return here
-    try:
-        from ament_index_python.packages import get_package_share_directory
-
-        return Path(get_package_share_directory("gnss_sim")) / "worlds" / "courtyard.sdf"
-    except Exception:  # noqa: BLE001
-        raise ValueError("the demo world worlds/courtyard.sdf was not found; give --world or --mesh") from None
+    return setup_from_config(cfg, Path(args.out), tr, progress=not args.quiet)
 
 
 def run(args) -> int:

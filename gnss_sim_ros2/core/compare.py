@@ -503,8 +503,8 @@ def spp_epoch(eph, t_rx: GnssTime, sv, pseudorange_m, code_of_system: dict[str, 
     light time, ionosphere and troposphere at the previous solution, sigmas of :func:`spp_sigma_m`,
     with solve_pvt's residual test.  Returns a PvtSolution or None (fewer than 4 satellites)."""
     from . import propagation as prop
+    from .constants import OMEGA_BY_SYSTEM
     from .frames import az_el_from_ecef, ecef_to_geodetic
-    from .receiver.engine import OMEGA_BY_SYSTEM
     from .receiver.engine import _group_delay_factor as group_delay_factor  # the simulator's convention
     from .signals import frequency_hz
     from .solver import SolverConfig, solve_pvt

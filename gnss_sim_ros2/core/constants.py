@@ -105,3 +105,9 @@ FOLIAGE_ATTENUATION_DB_PER_M = 1.85
 #: (IEEE Trans. Antennas Propag. 34(12), 1986; fades 10-20 dB), the figure FOLIAGE_ATTENUATION_DB_PER_M
 #: is scaled to (1.85 dB/m x 6.5 m)
 FOLIAGE_MEDIAN_LOSS_DB = 12.0
+
+#: Earth rotation rate [rad/s] each system's ICD uses (for the Sagnac term of its satellites)
+OMEGA_BY_SYSTEM = {
+    "G": OMEGA_E_GPS_RADPS, "J": OMEGA_E_QZS_RADPS, "I": OMEGA_E_IRN_RADPS,
+    "E": OMEGA_E_GAL_RADPS, "C": OMEGA_E_BDS_RADPS, "R": OMEGA_E_GLO_RADPS,
+}

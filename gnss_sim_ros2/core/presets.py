@@ -55,6 +55,8 @@ effects are measured by ``gnss-sim bench`` (README trade table) and
 """
 from __future__ import annotations
 
+from .vocabulary import FOLIAGE_MODES, IONOSPHERE_MODELS, ORBIT_MODES, TRANSMIT_TIME_MODES, TROPOSPHERE_MODELS
+
 #: the switches every preset sets (see the module docstring)
 SWITCHES = ("orbit", "transmit_time", "light_time_iterations", "ionosphere", "troposphere", "noise",
             "fresnel_rays", "foliage", "epoch_interval_s")
@@ -71,9 +73,8 @@ PRESETS: dict[str, dict] = {
                  "foliage": "path", "epoch_interval_s": 1.0},
 }
 
-_CHOICES = {"orbit": ("broadcast", "precise"), "transmit_time": ("recompute", "expansion"),
-            "ionosphere": ("auto", "nequick", "klobuchar", "none"), "troposphere": ("saastamoinen", "none"),
-            "foliage": ("path", "touch")}
+_CHOICES = {"orbit": ORBIT_MODES, "transmit_time": TRANSMIT_TIME_MODES, "ionosphere": IONOSPHERE_MODELS,
+            "troposphere": TROPOSPHERE_MODELS, "foliage": FOLIAGE_MODES}
 
 
 def preset(name: str, overrides: dict | None = None) -> dict:

@@ -19,7 +19,6 @@ Model switches come from the preset (core/presets.py) with
 """
 from __future__ import annotations
 
-import csv
 import shutil
 import sys
 import time
@@ -33,11 +32,12 @@ from .ephemeris.provider import open_ephemeris
 from .ephemeris.states import SatelliteStates
 from .frames import az_el_from_ecef, geodetic_to_ecef
 from .presets import preset as preset_switches
-from .receiver.engine import ATTENUATED, BLOCKED, VISIBLE, Receiver, ReceiverConfig
-from .receiver.outputs import epoch_arrays, header, obs_types_for, position_fix, rinex_name, write_navigation
-from .rinex_obs import RinexObsWriter
+from .receiver.chain import ChainSettings, ReceiverChain, VisibilityOptions
+from .receiver.engine import ATTENUATED, BLOCKED, VISIBLE
+from .receiver.outputs import rinex_name, write_navigation
 from .time import GnssTime
 from .trajectory import Trajectory
+from .vocabulary import SYSTEMS
 
 
 @dataclass
@@ -47,7 +47,7 @@ class SimulationSetup:
     interval_s: float
     out_dir: Path
     trajectory: Trajectory
-    systems: str = "GRECJI"
+    systems: str = SYSTEMS
     elevation_mask_deg: float = 10.0
     source: str = "synthetic"
     nav_files: list = field(default_factory=list)
@@ -58,7 +58,11 @@ class SimulationSetup:
     materials_file: str = ""
     preset: str = "balanced"
     fresnel_rays: int = -1
-    receiver: dict = field(default_factory=dict)   # ReceiverConfig overrides
+    use_visuals: bool = False
+    #: the receiver node's other parameters (profile, noise, ionosphere, troposphere, cn0_*, write_nmea_file;
+    #: parameters.py); absent ones take the receiver model's defaults
+    params: dict = field(default_factory=dict)
+    receiver: dict = field(default_factory=dict)   # ReceiverConfig overrides (benchmarks, tests)
     marker_name: str = "GSIM"
     seed: int = 1
     progress: bool = False
@@ -75,6 +79,33 @@ class SimulationSetup:
     #: already opened ephemerides by source name: {"broadcast": (provider, nav_paths), "sp3": ...};
     #: used instead of opening the files again (benchmarks running one scenario many times)
     ephemeris: dict = field(default_factory=dict)
+
+
+def setup_from_config(cfg, out_dir: Path, trajectory: Trajectory | None = None, **extra) -> SimulationSetup:
+    """The offline run of one configuration (``parameters.load_config``): the values the nodes get.
+
+    ``trajectory``: the antenna's path (static position, CSV); None: the trajectory player's path
+    (``trajectory_file``, ``waypoints`` or the demo path) with its ``antenna_offset_m``, in the world
+    given (the demo courtyard when none is).  ``extra``: other SimulationSetup fields.
+    """
+    from .scene.demo_world import demo_world_path
+    from .trajectory import antenna_path, robot_path
+
+    eph, vis, rcv, trj = cfg.node("ephemeris"), cfg.node("visibility"), cfg.node("receiver"), cfg.node("trajectory")
+    world, mesh = vis["world_file"], vis["mesh_file"]
+    if trajectory is None:
+        trajectory = antenna_path(robot_path(trj), trj["antenna_offset_m"])
+        if not world and not mesh:
+            world = str(demo_world_path())
+    own = {"profile", "noise", "ionosphere", "troposphere", "cn0_acquire_dbhz", "cn0_lose_dbhz", "write_nmea_file"}
+    return SimulationSetup(
+        start=GnssTime.from_iso(rcv["start_time"]), duration_s=eph["duration_s"], interval_s=1.0 / rcv["rate_hz"],
+        out_dir=Path(out_dir), trajectory=trajectory, systems=rcv["systems"],
+        elevation_mask_deg=rcv["elevation_mask_deg"], source=eph["source"], nav_files=list(eph["nav_files"]),
+        sp3_files=list(eph["sp3_files"]), clk_files=list(eph["clk_files"]), world_file=world, mesh_file=mesh,
+        materials_file=vis["materials_file"], preset=rcv["preset"], fresnel_rays=vis["fresnel_rays"],
+        use_visuals=vis["use_visuals"], params={k: v for k, v in rcv.items() if k in own},
+        marker_name=rcv["marker_name"], seed=rcv["seed"], **extra)
 
 
 @dataclass
@@ -101,15 +132,16 @@ class SimulationResult:
         return self.sim_s / self.wall_s if self.wall_s > 0 else float("inf")
 
 
-def load_scene(world_file: str = "", mesh_file: str = "", materials_file: str = ""):
-    """The raycasting scene from an exported mesh or an SDF world (None when neither is given)."""
+def load_scene(world_file: str = "", mesh_file: str = "", materials_file: str = "", use_visuals: bool = False):
+    """The raycasting scene from an exported mesh or an SDF world (None when neither is given);
+    ``use_visuals``: an SDF world's visual geometry instead of its collision geometry."""
     if not world_file and not mesh_file:
         return None
     from .scene.visibility import Scene
 
     if mesh_file:
         return Scene.load(mesh_file)
-    return Scene.from_sdf(world_file, materials_yaml=materials_file or None)
+    return Scene.from_sdf(world_file, materials_yaml=materials_file or None, use_visuals=use_visuals)
 
 
 def crop_world_mesh(world, antenna_world_m, mask_deg: float, margin_deg: float = 0.0):
@@ -191,35 +223,49 @@ def orbit_source(setup: SimulationSetup, sw: dict | None = None) -> str:
     return setup.source
 
 
-def receiver_config(setup: SimulationSetup) -> ReceiverConfig:
+def receiver_params(setup: SimulationSetup, interval_s: float) -> dict:
+    """The receiver node's parameters that this setup stands for (the chain is built from them)."""
+    return {**setup.params, "systems": setup.systems, "elevation_mask_deg": setup.elevation_mask_deg,
+            "seed": setup.seed, "preset": setup.preset, "marker_name": setup.marker_name,
+            "rate_hz": 1.0 / interval_s, "output_dir": str(setup.out_dir)}
+
+
+def chain_settings(setup: SimulationSetup, interval_s: float | None = None) -> ChainSettings:
     sw = switches(setup)
-    kw = {"systems": setup.systems, "elevation_mask_deg": setup.elevation_mask_deg, "seed": setup.seed,
-          "transmit_time": sw["transmit_time"], "light_time_iterations": sw["light_time_iterations"],
-          "ionosphere": sw["ionosphere"], "troposphere": sw["troposphere"], "noise": sw["noise"]}
-    kw.update({k: v for k, v in setup.receiver.items() if v is not None and v != ""})
-    return ReceiverConfig(**kw)
+    interval_s = interval_s if interval_s is not None else _interval_s(setup, sw)
+    return ChainSettings.from_params(receiver_params(setup, interval_s), switches=sw, interval_s=interval_s,
+                                     receiver_overrides=setup.receiver, have_ephemeris=True)
+
+
+def visibility_options(setup: SimulationSetup) -> VisibilityOptions:
+    return VisibilityOptions.from_params({"elevation_mask_deg": setup.elevation_mask_deg, "preset": setup.preset,
+                                          "fresnel_rays": setup.fresnel_rays, "use_visuals": setup.use_visuals},
+                                         switches(setup))
+
+
+def _interval_s(setup: SimulationSetup, sw: dict) -> float:
+    interval_s = float(setup.interval_s) if setup.interval_s > 0 else float(sw["epoch_interval_s"])
+    if not np.isfinite(interval_s):
+        raise ValueError(f"interval_s = {setup.interval_s!r}: must be a finite number of seconds")
+    return interval_s
 
 
 def run_simulation(setup: SimulationSetup) -> SimulationResult:
     t_setup0 = time.perf_counter()
     sw = switches(setup)
-    interval_s = float(setup.interval_s) if setup.interval_s > 0 else float(sw["epoch_interval_s"])
-    if not np.isfinite(interval_s):
-        raise ValueError(f"interval_s = {setup.interval_s!r}: must be a finite number of seconds")
+    interval_s = _interval_s(setup, sw)
     if int(setup.batch_epochs) < 1:
         raise ValueError(f"batch_epochs = {setup.batch_epochs!r}: must be >= 1")
-    out = Path(setup.out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    for old in list(out.glob("*_MO.rnx")) + list(out.glob("*_MN.rnx")):
-        old.unlink()  # exactly one observation and one navigation file per run
     n_epochs = int(np.floor(setup.duration_s / interval_s + 1e-9)) + 1
+    vis_opt = visibility_options(setup)
     scene = setup.scene if setup.scene is not None else load_scene(setup.world_file, setup.mesh_file,
-                                                                   setup.materials_file)
+                                                                   setup.materials_file, vis_opt.use_visuals)
     path = AntennaPath(setup.trajectory, scene)
-    fresnel = setup.fresnel_rays if setup.fresnel_rays >= 0 else sw["fresnel_rays"]
     if scene is not None and setup.crop_scene:
-        scene = _cropped_scene(scene, path, n_epochs, interval_s, setup.elevation_mask_deg, fresnel)
+        scene = _cropped_scene(scene, path, n_epochs, interval_s, setup.elevation_mask_deg, vis_opt.fresnel_rays)
         path = AntennaPath(setup.trajectory, scene)
+    settings = chain_settings(setup, interval_s)
+    out = Path(setup.out_dir)
 
     source = orbit_source(setup, sw)
     if source in setup.ephemeris:
@@ -232,16 +278,10 @@ def run_simulation(setup: SimulationSetup) -> SimulationResult:
         brdc, brdc_paths = setup.ephemeris.get("broadcast") or open_ephemeris(
             "broadcast", setup.start, setup.duration_s, setup.systems, setup.nav_files)
         provider, nav_paths = PreciseWithBroadcastGroupDelay(provider, brdc, setup.start, setup.duration_s), brdc_paths
-    cfg = receiver_config(setup)
-    if source == "sp3" and "sisre_m" not in setup.receiver:
-        # observations from precise orbits are the truth: the broadcast message's own error is then real
-        # (what a receiver using the navigation file sees), so no synthetic SISRE is drawn on top
-        cfg.sisre_m = {s: 0.0 for s in cfg.sisre_m}
-    rx = Receiver(cfg, provider, getattr(provider, "iono", None))
 
-    ecef0, _ = path.at(0.0)
-    obs_types = obs_types_for(cfg.profile, setup.systems)
-    obs_path = out / rinex_name(setup.marker_name, setup.start, setup.duration_s, interval_s, "MO")
+    out.mkdir(parents=True, exist_ok=True)
+    for old in list(out.glob("*_MO.rnx")) + list(out.glob("*_MN.rnx")):
+        old.unlink()  # exactly one observation and one navigation file per run
     nav_path = out / rinex_name(setup.marker_name, setup.start, setup.duration_s, interval_s, "MN")
     nav_written = write_navigation(nav_path, provider, setup.systems)
     if nav_written is None and nav_paths:
@@ -252,46 +292,31 @@ def run_simulation(setup: SimulationSetup) -> SimulationResult:
     for sv, ch in zip(st0.sv, st0.glo_channel):
         if sv[0] == "R":
             glo_slots[str(sv)] = int(ch)
-    hdr = header(obs_types, setup.marker_name, ecef0, interval_s, glo_slots,
-                 comments=[f"gnss_sim simulate, preset {setup.preset}, source {source}",
-                           f"seed {setup.seed}; noise {'on' if cfg.noise else 'off'}"])
-    fix_path = out / "fix.csv"
-    res = SimulationResult(obs_path, nav_written, fix_path, 0, 0, [], [], [], [], [], 0.0, 0.0,
+    chain = ReceiverChain(settings, provider, duration_s=setup.duration_s, glonass_slots=glo_slots,
+                          comment=f"gnss_sim simulate, source {source}")
+    res = SimulationResult(None, nav_written, out / "fix.csv", 0, 0, [], [], [], [], [], 0.0, 0.0,
                            interval_s=interval_s, orbit_source=source)
     svs_all = np.asarray(provider.svs(setup.systems), dtype="<U3")
-    digits = 3 if interval_s < 1 else 0
     fix_est, fix_true = [], []
     wall0 = time.perf_counter()
     cpu0 = time.process_time()
     res.setup_s = wall0 - t_setup0
-    prior = None
-    with RinexObsWriter(obs_path, hdr) as writer, open(fix_path, "w", newline="") as fcsv:
-        w = csv.writer(fcsv)
-        w.writerow(["time", "lat_deg", "lon_deg", "h_m", "n_sats", "status"])
+    mask = setup.elevation_mask_deg
+    try:
         for i0 in range(0, n_epochs, int(setup.batch_epochs)):
             t_rel = np.arange(i0, min(i0 + int(setup.batch_epochs), n_epochs)) * interval_s
-            block = _EpochBlock(setup, provider, svs_all, path, scene, t_rel, interval_s, fresnel, sw["foliage"])
+            block = _EpochBlock(setup, provider, svs_all, path, scene, t_rel, interval_s, vis_opt)
             for b in range(len(t_rel)):
                 i = i0 + b
                 t, ecef, states, vis_state, att = block.epoch(b)
-                obs = rx.epoch(t, ecef, states, vis_state, att)
-                sol = position_fix(obs, cfg.profile, prior)
-                stamp = t.isoformat(digits=digits)
+                ep = chain.step(t, ecef, states, vis_state, att)
+                obs, sol = ep.obs, ep.sol
                 if sol.is_fix:
-                    prior = sol.pos_ecef_m
-                    res.fixes += 1
                     fix_est.append(sol.pos_ecef_m)
                     fix_true.append(ecef)
-                    w.writerow([stamp, f"{sol.lat_deg:.9f}", f"{sol.lon_deg:.9f}", f"{sol.h_m:.4f}", sol.n_used,
-                                "fix"])
-                else:
-                    w.writerow([stamp, "", "", "", sol.n_used, "no_fix"])
-                if len(obs.sv):
-                    writer.write_epoch(t, epoch_arrays(obs, obs_types))
                 if setup.observer is not None:
                     setup.observer(t, ecef, obs, sol)
-                res.epochs += 1
-                above = obs.sat_el_deg >= setup.elevation_mask_deg
+                above = obs.sat_el_deg >= mask
                 res.tracked_per_epoch.append(obs.n_tracked_sats)
                 res.visible_per_epoch.append(int(np.sum(above & (obs.sat_vis_state == VISIBLE))))
                 res.blocked_per_epoch.append(int(np.sum(above & (obs.sat_vis_state == BLOCKED))))
@@ -301,8 +326,11 @@ def run_simulation(setup: SimulationSetup) -> SimulationResult:
                     print(f"\r[simulate] epoch {i + 1}/{n_epochs}  {obs.n_tracked_sats} sats tracked  "
                           f"{(t_rel[b] + interval_s) / max(el, 1e-9):.0f}x real time", end="", file=sys.stderr,
                           flush=True)
+    finally:
+        chain.close()
     if setup.progress:
         print(file=sys.stderr)
+    res.obs_path, res.epochs, res.fixes = chain.obs_path, chain.epochs, chain.fixes
     if fix_est:
         res.horizontal_error_m = horizontal_errors_m(np.array(fix_est), np.array(fix_true)).tolist()
     res.wall_s = time.perf_counter() - wall0
@@ -315,7 +343,7 @@ def run_simulation(setup: SimulationSetup) -> SimulationResult:
 class _EpochBlock:
     """Satellite states, elevations and visibility of a block of epochs, computed at once."""
 
-    def __init__(self, setup, provider, svs_all, path, scene, t_rel, interval_s, fresnel, foliage):
+    def __init__(self, setup, provider, svs_all, path, scene, t_rel, interval_s, vis_opt: VisibilityOptions):
         k, n = len(t_rel), len(svs_all)
         self.t = setup.start + t_rel                                   # GnssTime (K,)
         self.ecef, world = path.at_many(t_rel)
@@ -339,10 +367,7 @@ class _EpochBlock:
         self.row, self.states = row, st
         self.vis = self.att = None
         if scene is not None:
-            v = scene.visibility_ecef(world, sat, mask_deg=setup.elevation_mask_deg, fresnel_rays=fresnel,
-                                      foliage=foliage)
-            self.vis = np.where(v.state < 0, VISIBLE, v.state)
-            self.att = v.attenuation_db + v.diffraction_db
+            self.vis, self.att, _ = vis_opt.cast(scene, world, sat)
 
     def epoch(self, b: int):
         """(t, antenna ECEF, SatelliteStates, visibility state or None, attenuation or None) of epoch b."""
@@ -387,11 +412,3 @@ def horizontal_errors_m(est_ecef_m, true_ecef_m) -> np.ndarray:
     e = -np.sin(lo) * d[:, 0] + np.cos(lo) * d[:, 1]
     n = -np.sin(la) * np.cos(lo) * d[:, 0] - np.sin(la) * np.sin(lo) * d[:, 1] + np.cos(la) * d[:, 2]
     return np.hypot(e, n)
-
-
-def _horizontal_error(est_ecef, true_ecef) -> float:
-    from .frames import ecef_to_enu, ecef_to_geodetic
-
-    lat, lon, h = ecef_to_geodetic(*true_ecef)
-    d = ecef_to_enu(est_ecef, lat, lon, h)
-    return float(np.hypot(d[0], d[1]))

@@ -164,3 +164,29 @@ DEMO_WAYPOINTS = [
 
 def demo_trajectory(loop: bool = False) -> Trajectory:
     return Trajectory.from_waypoints(DEMO_WAYPOINTS, loop=loop, where="demo path")
+
+
+def robot_path(p: dict, where: str = "node gnss_sim_trajectory_player") -> Trajectory:
+    """The robot's (base frame's) path from the trajectory player's parameters: ``trajectory_file``, else
+    ``waypoints``, else the demo path; ``loop``."""
+    if p["trajectory_file"]:
+        return Trajectory.from_csv(p["trajectory_file"], loop=p["loop"])
+    if p["waypoints"]:
+        return Trajectory.from_waypoints(p["waypoints"], loop=p["loop"], where=f"{where}: parameter 'waypoints'")
+    return demo_trajectory(loop=p["loop"])
+
+
+def antenna_path(base: Trajectory, offset_m) -> Trajectory:
+    """The antenna's path: ``offset_m`` (x forward, y left, z up in the base frame, REP-103) turned by the
+    heading at each point of a world-frame path and added to it.  Exact for a vertical offset; a horizontal
+    one is exact at the points and linear between them (as the TF player's samples are)."""
+    off = np.asarray(offset_m, dtype=float).reshape(3)
+    if base.frame != "world":
+        if np.any(off):
+            raise ValueError(f"an antenna offset {off.tolist()} needs a path in the world frame (t_s,e_m,n_m,u_m)")
+        return base
+    yaw = np.radians(base.yaw_deg)
+    d = np.stack([np.cos(yaw) * off[0] - np.sin(yaw) * off[1], np.sin(yaw) * off[0] + np.cos(yaw) * off[1],
+                  np.full(len(yaw), off[2])], axis=-1)
+    return Trajectory(base.t_s.copy(), base.pos + d, "world", base.yaw_deg.copy() if base.yaw_given else None,
+                      base.loop)

@@ -12,7 +12,7 @@ from rclpy.lifecycle import LifecycleNode, TransitionCallbackReturn
 from rclpy.parameter import Parameter
 
 from gnss_sim_ros2.core.time import GnssTime, gnss_to_ros_time, ros_time_to_gnss
-from gnss_sim_ros2.parameters import NODE_NAMES, params_of
+from gnss_sim_ros2.parameters import NODE_NAMES, params_of, validate_node
 
 _KIND_TYPES = {
     "bool": (ParameterType.PARAMETER_BOOL, Parameter.Type.BOOL),
@@ -115,8 +115,8 @@ class GnssSimNode(LifecycleNode):
                 value = list(p.default) if isinstance(p.default, list) else p.default
             if isinstance(value, tuple) or type(value).__name__ == "array":
                 value = list(value)
-            out[p.name] = p.check(value, where)
-        return out
+            out[p.name] = value
+        return validate_node(self.PARAMS_KEY, out, where)
 
     # ----------------------------------------------------------- lifecycle
     def on_configure(self, state) -> TransitionCallbackReturn:

@@ -20,8 +20,6 @@ from gnss_sim_ros2.conversions import states_to_msg
 from gnss_sim_ros2.core.time import GnssTime
 from gnss_sim_ros2.nodes.common import GnssSimNode, TimeMapping, run_node, run_origin_ns
 
-SYSTEMS = set("GRECJI")
-
 
 class EphemerisNode(GnssSimNode):
     PARAMS_KEY = "ephemeris"
@@ -35,15 +33,15 @@ class EphemerisNode(GnssSimNode):
         self.next_k = 0
         self.published = 0
         self.late_epochs = 0
+        self.period_s = 1.0
+        self.nav_paths: list = []     # navigation files the provider read
+        self.nav_path = None          # the RINEX navigation file written into output_dir
         self._tmp = None
 
     def configure(self, p):
-        bad = set(p["systems"]) - SYSTEMS
-        if not p["systems"] or bad:
-            raise ValueError(f"node {self.get_name()}: parameter 'systems' is {p['systems']!r}; "
-                             f"use letters of GRECJI")
         from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris
 
+        self.next_k = self.published = self.late_epochs = 0   # a reconfigured node starts clean
         self.mapping = TimeMapping(p["start_time"], p["time_mapping"])
         self._tmp = tempfile.TemporaryDirectory(prefix="gnss_sim_eph_")
         self.provider, self.nav_paths = open_ephemeris(
@@ -71,7 +69,8 @@ class EphemerisNode(GnssSimNode):
 
     def cleanup(self):
         self.pub = self.diag_pub = None
-        self.provider = None
+        self.provider = self.mapping = self.nav_path = None
+        self.nav_paths = []
         if self._tmp is not None:
             self._tmp.cleanup()
             self._tmp = None

@@ -11,14 +11,15 @@ ENU covariance from the solution scaled by its a-posteriori variance),
 sentences; nmea_msgs is not available on PyPI) and diagnostics; and writes
 the RINEX observation file epoch by epoch into ``output_dir``.
 
-The node has the states at the epoch, not the ephemeris: it goes back to the
+The epoch's work is core/receiver/chain.py's ReceiverChain, the same object
+``gnss-sim simulate`` steps: this node only converts messages.  The node has
+the states at the epoch, not the ephemeris: the chain goes back to the
 transmit time with the second-order expansion (sub-millimetre over 0.07 s,
 see test_propagation), whatever the preset says.
 """
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -27,7 +28,7 @@ from sensor_msgs.msg import NavSatFix, NavSatStatus
 from std_msgs.msg import Header, String
 
 from gnss_sim_ros2.conversions import iono_from_msg, states_from_msg
-from gnss_sim_ros2.core.presets import preset as preset_switches
+from gnss_sim_ros2.core.vocabulary import VisibilityState
 from gnss_sim_ros2.nodes.common import GnssSimNode, run_node
 
 SERVICE_FLAGS = {"G": NavSatStatus.SERVICE_GPS, "J": NavSatStatus.SERVICE_GPS, "R": NavSatStatus.SERVICE_GLONASS,
@@ -39,43 +40,23 @@ class ReceiverNode(GnssSimNode):
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
-        self.rx = None
-        self.writer = None
-        self.nmea_file = None
-        self.pubs = {}
+        self.chain = None              # core.receiver.chain.ReceiverChain (configure .. cleanup)
+        self.pubs: dict = {}
         self.states: dict[tuple, object] = {}
         self.vis: dict[tuple, object] = {}
         self.last_stamp = None
-        self.epochs = 0
-        self.fixes = 0
-        self.prior = None
-        self.pos_prev = None
 
     def configure(self, p):
-        from gnss_sim_ros2.core.receiver.engine import Receiver, ReceiverConfig
-        from gnss_sim_ros2.core.receiver.outputs import obs_types_for
-        from gnss_sim_ros2.core.receiver.tracking import TrackingConfig
-
-        if p["cn0_lose_dbhz"] > p["cn0_acquire_dbhz"]:
-            raise ValueError(f"node {self.get_name()}: parameter 'cn0_lose_dbhz' ({p['cn0_lose_dbhz']}) exceeds "
-                             f"'cn0_acquire_dbhz' ({p['cn0_acquire_dbhz']})")
-        if not p["systems"] or set(p["systems"]) - set("GRECJI"):
-            raise ValueError(f"node {self.get_name()}: parameter 'systems' is {p['systems']!r}; use letters of GRECJI")
-        sw = preset_switches(p["preset"])
-        self.cfg = ReceiverConfig(
-            profile=p["profile"], systems=p["systems"], elevation_mask_deg=p["elevation_mask_deg"], noise=p["noise"],
-            ionosphere=p["ionosphere"] or sw["ionosphere"], troposphere=p["troposphere"] or sw["troposphere"],
-            transmit_time="expansion", light_time_iterations=sw["light_time_iterations"], seed=p["seed"],
-            tracking=TrackingConfig(acquisition_cn0_dbhz=p["cn0_acquire_dbhz"],
-                                    tracking_cn0_dbhz=p["cn0_lose_dbhz"]))
-        self.rx = Receiver(self.cfg, None, None)
-        self.iono = None  # the navigation header's coefficients, from the first states message carrying them
-        self.obs_types = obs_types_for(self.cfg.profile, p["systems"])
-        self.out_dir = Path(p["output_dir"]) if p["output_dir"] else None
-        if self.out_dir is not None:
-            self.out_dir.mkdir(parents=True, exist_ok=True)
         from gnss_sim_msgs.msg import Observations, ReceiverStatus
 
+        from gnss_sim_ros2.core.receiver.chain import ChainSettings, ReceiverChain
+
+        try:
+            settings = ChainSettings.from_params(p)
+        except ValueError as exc:
+            raise ValueError(f"node {self.get_name()}: {exc}") from None
+        self.chain = ReceiverChain(settings, None, nmea=True, comment="gnss_sim receiver node")
+        self.last_stamp = None
         self.pubs = {
             "obs": self.lifecycle_publisher(Observations, "observations", 100),
             "fix": self.lifecycle_publisher(NavSatFix, "fix", 100),
@@ -97,13 +78,10 @@ class ReceiverNode(GnssSimNode):
 
     def cleanup(self):
         self.pubs = {}
-        if self.writer is not None:
-            self.writer.close()
-            self.writer = None
-        if self.nmea_file is not None:
-            self.nmea_file.close()
-            self.nmea_file = None
-        self.rx = None
+        if self.chain is not None:
+            self.chain.close()       # RINEX closed with its last epoch
+            self.chain = None
+        self.last_stamp = None
 
     # ------------------------------------------------------------------
     @staticmethod
@@ -131,53 +109,24 @@ class ReceiverNode(GnssSimNode):
                 del d[key]
 
     def process(self, states_msg, vis_msg):
-        from gnss_sim_ros2.core.receiver.outputs import epoch_arrays, position_fix
-
         t, states = states_from_msg(states_msg)
-        iono = iono_from_msg(states_msg)
-        if iono != self.iono:
-            self.iono = iono
-            self.rx.set_iono_coefficients(iono)
+        self.chain.set_iono_coefficients(iono_from_msg(states_msg))
         a = vis_msg.antenna_ecef_m
         ecef = np.array([a.x, a.y, a.z])
         by_sv = {s.sv: s for s in vis_msg.satellites}
-        vis_state = np.array([by_sv[sv].state if sv in by_sv else 1 for sv in states.sv], dtype=np.int64)
+        blocked = int(VisibilityState.BLOCKED)   # below the horizon: not in the visibility message
+        vis_state = np.array([by_sv[sv].state if sv in by_sv else blocked for sv in states.sv], dtype=np.int64)
         att = np.array([by_sv[sv].attenuation_db if sv in by_sv else 0.0 for sv in states.sv])
-        vel = None
-        if self.pos_prev is not None:
-            dt = t - self.pos_prev[0]
-            vel = (ecef - self.pos_prev[1]) / dt if dt > 0 else None
-        self.pos_prev = (t, ecef)
-        obs = self.rx.epoch(t, ecef, states, vis_state, att, antenna_vel_ecef_mps=vel)
-        sol = position_fix(obs, self.cfg.profile, self.prior)
-        self.epochs += 1
-        if sol.is_fix:
-            self.fixes += 1
-            self.prior = sol.pos_ecef_m
+        ep = self.chain.step(t, ecef, states, vis_state, att)
+        obs, sol = ep.obs, ep.sol
         header = Header(stamp=states_msg.header.stamp, frame_id=self.params["antenna_frame"])
         self.pubs["obs"].publish(self._observations_msg(header, t, obs))
         self.pubs["fix"].publish(self._fix_msg(header, sol))
         self.pubs["vel"].publish(self._vel_msg(header, sol))
         self.pubs["status"].publish(self._status_msg(header, obs, sol))
-        self._nmea(t, sol, obs)
-        if self.out_dir is not None and len(obs.sv):
-            self._writer(t, ecef, states).write_epoch(t, epoch_arrays(obs, self.obs_types))
-        if self.epochs % 10 == 1:
+        self.pubs["nmea"].publish(String(data=ep.nmea))
+        if self.chain.epochs % 10 == 1:
             self._diagnose(obs, sol)
-
-    def _writer(self, t, ecef, states):
-        if self.writer is None:
-            from gnss_sim_ros2.core.receiver.outputs import header, rinex_name
-            from gnss_sim_ros2.core.rinex_obs import RinexObsWriter
-
-            p = self.params
-            name = rinex_name(p["marker_name"], t, None, 1.0 / p["rate_hz"], "MO")
-            slots = {str(sv): int(ch) for sv, ch in zip(states.sv, states.glo_channel) if sv[0] == "R"}
-            hdr = header(self.obs_types, p["marker_name"], ecef, 1.0 / p["rate_hz"], slots,
-                         comments=[f"gnss_sim receiver node, preset {p['preset']}"])
-            self.writer = RinexObsWriter(self.out_dir / name, hdr)
-            self.rinex_path = self.out_dir / name
-        return self.writer
 
     def _observations_msg(self, header, t, obs):
         from gnss_sim_msgs.msg import Observations, SignalObservation
@@ -226,7 +175,7 @@ class ReceiverNode(GnssSimNode):
     def _status_msg(self, header, obs, sol):
         from gnss_sim_msgs.msg import ReceiverStatus
 
-        above = obs.sat_el_deg >= self.cfg.elevation_mask_deg
+        above = obs.sat_el_deg >= self.chain.settings.receiver.elevation_mask_deg
         return ReceiverStatus(
             header=header, satellites_visible=int(np.sum(above & (obs.sat_vis_state != 1))),
             satellites_tracked=int(obs.n_tracked_sats), satellites_used=int(sol.n_used),
@@ -236,24 +185,13 @@ class ReceiverNode(GnssSimNode):
             solution_type=ReceiverStatus.SOLUTION_SINGLE if sol.is_fix else ReceiverStatus.SOLUTION_NONE,
             reason="" if sol.is_fix else sol.reason)
 
-    def _nmea(self, t, sol, obs):
-        from gnss_sim_ros2.core.nmea import join_sentences, sentences_from_solution
-        from gnss_sim_ros2.core.receiver.outputs import spp_rows
-
-        rows = spp_rows(obs, self.cfg.profile)
-        text = join_sentences(sentences_from_solution(t, sol, cn0_dbhz=obs.cn0_dbhz[rows]))
-        self.pubs["nmea"].publish(String(data=text))
-        if self.params["write_nmea_file"] and self.out_dir is not None:
-            if self.nmea_file is None:
-                self.nmea_file = open(self.out_dir / "gnss_sim.nmea", "a", buffering=1)  # noqa: SIM115
-            self.nmea_file.write(text)
-
     def _diagnose(self, obs, sol):
         level = DiagnosticStatus.OK if sol.is_fix else DiagnosticStatus.WARN
         status = DiagnosticStatus(name=f"{self.get_name()}: receiver", hardware_id="gnss_sim", level=level,
                                   message=f"{'fix' if sol.is_fix else 'no fix: ' + sol.reason}, "
                                           f"{obs.n_tracked_sats} satellites tracked")
-        status.values = [KeyValue(key="epochs", value=str(self.epochs)), KeyValue(key="fixes", value=str(self.fixes)),
+        status.values = [KeyValue(key="epochs", value=str(self.chain.epochs)),
+                         KeyValue(key="fixes", value=str(self.chain.fixes)),
                          KeyValue(key="hdop", value=f"{sol.hdop:.2f}")]
         self.pubs["diag"].publish(DiagnosticArray(header=Header(stamp=self.get_clock().now().to_msg()),
                                                   status=[status]))

@@ -17,7 +17,7 @@ from geometry_msgs.msg import TransformStamped
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.time import Time
 
-from gnss_sim_ros2.core.trajectory import Trajectory, demo_trajectory
+from gnss_sim_ros2.core.trajectory import Trajectory, robot_path
 from gnss_sim_ros2.nodes.common import GnssSimNode, run_node, run_origin_ns
 
 STATIC_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
@@ -51,18 +51,10 @@ class TrajectoryPlayer(GnssSimNode):
         self.next_tick = None
 
     def configure(self, p):
-        if p["trajectory_file"]:
-            self.path = Trajectory.from_csv(p["trajectory_file"], loop=p["loop"])
-        elif p["waypoints"]:
-            self.path = Trajectory.from_waypoints(p["waypoints"], loop=p["loop"],
-                                                  where=f"node {self.get_name()}: parameter 'waypoints'")
-        else:
-            self.path = demo_trajectory(loop=p["loop"])
+        self.path = robot_path(p, f"node {self.get_name()}")
         if self.path.frame != "world":
             raise ValueError(f"node {self.get_name()}: the trajectory player moves {p['base_frame']} in the world "
                              f"frame; {p['trajectory_file']} is in {self.path.frame} coordinates (use t_s,e_m,n_m,u_m)")
-        if len(p["antenna_offset_m"]) != 3:
-            raise ValueError(f"node {self.get_name()}: parameter 'antenna_offset_m' needs 3 numbers")
         self.period_ns = int(round(1e9 / p["publish_rate_hz"]))
         self.tf_pub = self.lifecycle_publisher(_tf_type(), "/tf", 100)
         self.static_pub = self.lifecycle_publisher(_tf_type(), "/tf_static", STATIC_QOS)

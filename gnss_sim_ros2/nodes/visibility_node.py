@@ -21,7 +21,6 @@ from sensor_msgs.msg import Image
 from std_msgs.msg import Header
 
 from gnss_sim_ros2.conversions import states_from_msg
-from gnss_sim_ros2.core.presets import preset as preset_switches
 from gnss_sim_ros2.nodes.common import GnssSimNode, run_node
 from gnss_sim_ros2.nodes.tf_source import TfSource
 
@@ -36,7 +35,8 @@ class VisibilityNode(GnssSimNode):
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
-        self.scene = None
+        self.scene = None             # core.scene.visibility.Scene (configure .. cleanup)
+        self.options = None           # core.receiver.chain.VisibilityOptions
         self.tf = None
         self.pub = self.image_pub = self.diag_pub = None
         self.queue: collections.deque = collections.deque()
@@ -46,22 +46,22 @@ class VisibilityNode(GnssSimNode):
         self._horizon = None
 
     def configure(self, p):
+        from gnss_sim_ros2.core.receiver.chain import VisibilityOptions
+        from gnss_sim_ros2.core.scene.demo_world import demo_world_path
         from gnss_sim_ros2.core.simulation import load_scene
 
-        world = p["world_file"]
-        if not world and not p["mesh_file"]:
-            from gnss_sim_ros2.commands.simulate import default_world
-
-            world = str(default_world())
         try:
-            self.scene = load_scene(world, p["mesh_file"], p["materials_file"])
+            self.options = VisibilityOptions.from_params(p)
+            world = p["world_file"] if p["world_file"] or p["mesh_file"] else str(demo_world_path())
+            self.scene = load_scene(world, p["mesh_file"], p["materials_file"], self.options.use_visuals)
         except ValueError as exc:
             raise ValueError(f"node {self.get_name()}: {exc}") from None
         if self.scene.spherical is None:
             raise ValueError(f"node {self.get_name()}: the world has no spherical_coordinates: it cannot be placed "
                              f"on the Earth (parameter world_file/mesh_file)")
-        self.fresnel_rays = p["fresnel_rays"] if p["fresnel_rays"] >= 0 else preset_switches(p["preset"])[
-            "fresnel_rays"]
+        self.processed = self.dropped = 0
+        self._last_image_s = -1e9
+        self._horizon = None
         from gnss_sim_msgs.msg import Visibility
 
         self.pub = self.lifecycle_publisher(Visibility, "visibility", 100)
@@ -84,7 +84,8 @@ class VisibilityNode(GnssSimNode):
         if self.tf is not None:
             self.tf.close()
             self.tf = None
-        self.scene = None
+        self.scene = self.options = None
+        self._horizon = None
 
     # ------------------------------------------------------------------
     def _on_states(self, msg):
@@ -121,13 +122,12 @@ class VisibilityNode(GnssSimNode):
                          antenna_ecef_m=Point(x=float(ecef[0]), y=float(ecef[1]), z=float(ecef[2])))
         sats = []
         if len(states):
-            v = self.scene.visibility_ecef(antenna_world_m, states.pos_ecef_m, mask_deg=0.0,
-                                           fresnel_rays=self.fresnel_rays)
+            state, att, v = self.options.cast(self.scene, antenna_world_m, states.pos_ecef_m)
             above = v.el_deg >= 0.0
             for i in np.flatnonzero(above):
                 sats.append(SatelliteVisibility(
                     sv=str(states.sv[i]), azimuth_deg=float(v.az_deg[i]), elevation_deg=float(v.el_deg[i]),
-                    state=int(max(v.state[i], 0)), attenuation_db=float(v.attenuation_db[i] + v.diffraction_db[i]),
+                    state=int(state[i]), attenuation_db=float(att[i]),
                     extra_path_m=float(v.extra_path_m[i]), fraction_blocked=float(v.fraction_blocked[i])))
         out.satellites = sats
         self.pub.publish(out)

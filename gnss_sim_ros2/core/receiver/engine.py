@@ -55,20 +55,16 @@ from ..frames import az_el_at, ecef_to_geodetic
 from ..nequick import NeQuickG
 from ..nequick import available as nequick_available
 from ..time import GnssTime
+from ..vocabulary import IONOSPHERE_MODELS, TRANSMIT_TIME_MODES, TROPOSPHERE_MODELS, VisibilityState
 from . import cn0 as cn0_model
 from . import hardware_bias
 from . import noise as noise_model
 from .clock import ClockConfig, ReceiverClock
 from .tracking import Tracker, TrackingConfig
 
-OMEGA_BY_SYSTEM = {
-    "G": k.OMEGA_E_GPS_RADPS, "J": k.OMEGA_E_GPS_RADPS, "I": k.OMEGA_E_GPS_RADPS,
-    "E": k.OMEGA_E_GAL_RADPS, "C": k.OMEGA_E_BDS_RADPS, "R": k.OMEGA_E_GLO_RADPS,
-}
-#: the receiver's ionosphere settings (ReceiverConfig.ionosphere)
-IONOSPHERE_MODELS = ("auto", "nequick", "klobuchar", "none")
 #: visibility states (gnss_sim_msgs/SatelliteVisibility)
-VISIBLE, BLOCKED, ATTENUATED, REFLECTED_ONLY = 0, 1, 2, 3
+VISIBLE, BLOCKED, ATTENUATED, REFLECTED_ONLY = (VisibilityState.VISIBLE, VisibilityState.BLOCKED,
+                                                VisibilityState.ATTENUATED, VisibilityState.REFLECTED_ONLY)
 
 
 #: default SISRE [m] per system (see ReceiverConfig.sisre_m): broadcast vs precise orbit+clock, global
@@ -127,9 +123,9 @@ class ReceiverConfig:
             raise ValueError(f"receiver: parameter 'ionosphere' = {self.ionosphere!r} (one of {IONOSPHERE_MODELS})")
         if isinstance(self.iono_error_frac, (int, float)):
             self.iono_error_frac = {"klobuchar": float(self.iono_error_frac), "nequick": float(self.iono_error_frac)}
-        if self.troposphere not in ("saastamoinen", "none"):
+        if self.troposphere not in TROPOSPHERE_MODELS:
             raise ValueError(f"receiver: parameter 'troposphere' = {self.troposphere!r} (saastamoinen or none)")
-        if self.transmit_time not in ("recompute", "expansion"):
+        if self.transmit_time not in TRANSMIT_TIME_MODES:
             raise ValueError(f"receiver: parameter 'transmit_time' = {self.transmit_time!r}")
         bad = {s: v for s, v in dict(self.sisre_m).items() if not (np.isfinite(v) and v >= 0)}
         if bad:
@@ -246,7 +242,7 @@ class Receiver:
         rows.lam = k.C_MPS / freq
         rows.gd_factor = _group_delay_factor(systems, codes, freq)
         rows.p_min, rows.el_min = cn0_model.power_params(systems, codes) if len(codes) else (np.zeros(0), np.zeros(0))
-        rows.omega = np.array([OMEGA_BY_SYSTEM.get(s[0], k.OMEGA_E_GPS_RADPS) for s in svs], dtype=float)
+        rows.omega = np.array([k.OMEGA_BY_SYSTEM.get(s[0], k.OMEGA_E_GPS_RADPS) for s in svs], dtype=float)
         rows.sv_j = np.asarray(svs)[sat_i]
         rows.code_bias_m = hardware_bias.code_bias_m(self.cfg.code_bias_m, rows.sv_j, codes)
         rows.sisre_sigma = np.array([self.cfg.sisre_m.get(sv[0], 0.0) for sv in svs], dtype=float)

@@ -1,0 +1,251 @@
+"""One receiver chain: what every front end runs for one epoch.
+
+``gnss-sim simulate`` (core/simulation.py), ``gnss-sim bench``, ``gnss-sim run``
+and the ROS nodes all build the same two objects from the parameter table
+(``parameters.py``) and the preset (``core/presets.py``):
+
+- :class:`VisibilityOptions` -- how the scene is cast (mask, Fresnel rays,
+  foliage model, visual or collision geometry); the visibility node and the
+  offline loop call :meth:`VisibilityOptions.cast`;
+- :class:`ReceiverChain` -- receiver, tracking, solver (with the elevation
+  mask), NMEA and the output writers (RINEX observation file, ``fix.csv``,
+  optional NMEA file), with one :meth:`ReceiverChain.step` per epoch::
+
+      (t, antenna ECEF [+ velocity], satellite states, visibility) -> EpochProducts
+
+The antenna velocity, when the caller has none (a TF lookup gives positions
+only), is the backward difference of the antenna positions of consecutive
+epochs, in both front ends, so that one configuration gives one answer.
+"""
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from ..presets import preset as preset_switches
+from ..solver import PvtSolution, SolverConfig
+from ..time import GnssTime
+from ..vocabulary import VisibilityState
+from .engine import EpochObservations, Receiver, ReceiverConfig
+from .outputs import epoch_arrays, header, obs_types_for, position_fix, rinex_name, spp_rows
+from .tracking import TrackingConfig
+
+
+@dataclass(frozen=True)
+class VisibilityOptions:
+    """How the scene is cast for one epoch (visibility node and offline loop alike)."""
+
+    mask_deg: float = 10.0
+    fresnel_rays: int = 0
+    foliage: str = "path"
+    use_visuals: bool = False
+
+    @classmethod
+    def from_params(cls, p: dict, switches: dict | None = None) -> VisibilityOptions:
+        """From the visibility node's parameters (shared ones included) and the preset's switches."""
+        sw = switches if switches is not None else preset_switches(p["preset"])
+        fresnel = p.get("fresnel_rays", -1)
+        return cls(mask_deg=float(p["elevation_mask_deg"]),
+                   fresnel_rays=int(fresnel if fresnel >= 0 else sw["fresnel_rays"]),
+                   foliage=sw["foliage"], use_visuals=bool(p.get("use_visuals", False)))
+
+    def cast(self, scene, antenna_world_m, sat_ecef_m):
+        """(state, attenuation_db, VisibilityResult) of satellites (N, 3) or (M, N, 3) seen from the antenna(s).
+
+        ``state`` uses VisibilityState; satellites below the mask are not cast and count as visible (the
+        receiver does not track them)."""
+        v = scene.visibility_ecef(antenna_world_m, sat_ecef_m, mask_deg=self.mask_deg,
+                                  fresnel_rays=self.fresnel_rays, foliage=self.foliage)
+        state = np.where(v.state < 0, int(VisibilityState.VISIBLE), v.state).astype(np.int64)
+        return state, v.attenuation_db + v.diffraction_db, v
+
+
+@dataclass
+class ChainSettings:
+    """Everything one receiver chain needs, from the receiver node's parameters and the preset."""
+
+    receiver: ReceiverConfig
+    solver: SolverConfig
+    interval_s: float
+    marker_name: str = "GSIM"
+    preset: str = "balanced"
+    output_dir: Path | None = None
+    write_nmea_file: bool = False
+    #: preset switches (after overrides) the chain was built with
+    switches: dict = field(default_factory=dict)
+    #: the SISRE was set explicitly (kept even for precise orbits)
+    sisre_given: bool = False
+
+    @classmethod
+    def from_params(cls, p: dict, *, switches: dict | None = None, interval_s: float | None = None,
+                    receiver_overrides: dict | None = None, have_ephemeris: bool = False) -> ChainSettings:
+        """From the receiver node's parameters (``parameters.validate_node("receiver", ...)`` values).
+
+        ``switches``: the preset's switches with overrides (default: the preset's own);
+        ``interval_s``: the epoch interval (default ``1 / rate_hz``);
+        ``receiver_overrides``: ReceiverConfig fields set last (benchmarks, tests);
+        ``have_ephemeris``: the chain may evaluate the ephemeris at transmit time (offline); a node
+        has the states at the epoch only and always uses the second-order expansion.
+        """
+        sw = switches if switches is not None else preset_switches(p["preset"])
+        kw = {"systems": p["systems"], "elevation_mask_deg": p["elevation_mask_deg"], "seed": p["seed"],
+              "transmit_time": sw["transmit_time"] if have_ephemeris else "expansion",
+              "light_time_iterations": sw["light_time_iterations"],
+              "ionosphere": p.get("ionosphere") or sw["ionosphere"],
+              "troposphere": p.get("troposphere") or sw["troposphere"],
+              "noise": bool(p.get("noise", True)) and bool(sw["noise"])}
+        if "profile" in p:
+            kw["profile"] = p["profile"]
+        if "cn0_acquire_dbhz" in p:
+            kw["tracking"] = TrackingConfig(acquisition_cn0_dbhz=p["cn0_acquire_dbhz"],
+                                            tracking_cn0_dbhz=p["cn0_lose_dbhz"])
+        kw.update({k: v for k, v in (receiver_overrides or {}).items() if v is not None and v != ""})
+        out_dir = p.get("output_dir", "")
+        return cls(receiver=ReceiverConfig(**kw), solver=SolverConfig(elevation_mask_deg=p["elevation_mask_deg"]),
+                   interval_s=float(interval_s if interval_s is not None else 1.0 / p["rate_hz"]),
+                   marker_name=p.get("marker_name", "GSIM"), preset=p["preset"],
+                   output_dir=Path(out_dir) if out_dir else None,
+                   write_nmea_file=bool(p.get("write_nmea_file", False)), switches=dict(sw),
+                   sisre_given="sisre_m" in (receiver_overrides or {}))
+
+
+@dataclass
+class EpochProducts:
+    """What one epoch of the chain produced."""
+
+    t: GnssTime
+    antenna_ecef_m: np.ndarray
+    obs: EpochObservations
+    sol: PvtSolution
+    nmea: str = ""
+
+
+class ReceiverChain:
+    """Receiver + solver + writers of one simulated receiver, stepped epoch by epoch.
+
+    ``provider``: the ephemeris (offline) or None (a node, which gets the states in messages);
+    ``duration_s``: the span of the run, for the RINEX file name (None: "00U", unknown);
+    ``glonass_slots``: GLONASS frequency channels for the RINEX header (None: from the first epoch's states);
+    ``nmea``: produce NMEA text every epoch (a node publishes it); the NMEA file follows ``write_nmea_file``;
+    ``comment``: who wrote the files (first RINEX header comment).
+    """
+
+    def __init__(self, settings: ChainSettings, provider=None, *, duration_s: float | None = None,
+                 glonass_slots: dict | None = None, nmea: bool = False, comment: str = "gnss_sim"):
+        self.settings = settings
+        self.provider = provider
+        self.duration_s = duration_s
+        self.glonass_slots = glonass_slots
+        self.want_nmea = nmea or settings.write_nmea_file
+        self.comment = comment
+        self.rx: Receiver | None = None
+        self.iono: dict | None = getattr(provider, "iono", None)
+        self.obs_types = obs_types_for(settings.receiver.profile, settings.receiver.systems)
+        self.obs_path: Path | None = None
+        self.fix_path: Path | None = None
+        self._writer = None
+        self._fix_file = None
+        self._fix_csv = None
+        self._nmea_file = None
+        self.reset()
+
+    # ------------------------------------------------------------------ state of one run
+    def reset(self):
+        """Forget everything of the previous run (a reconfigured node starts clean); files closed."""
+        self.close()
+        self.rx = None
+        self.prior_ecef_m = None
+        self._pos_prev = None
+        self.epochs = 0
+        self.fixes = 0
+
+    def set_iono_coefficients(self, iono: dict | None):
+        """The navigation header's ionosphere coefficients (a node gets them with the states)."""
+        if iono != self.iono:
+            self.iono = iono
+            if self.rx is not None:
+                self.rx.set_iono_coefficients(iono)
+
+    def _receiver(self, states) -> Receiver:
+        cfg = self.settings.receiver
+        if states.source.startswith("sp3") and not self.settings.sisre_given:
+            # observations from precise orbits are the truth: the broadcast message's own error is then real
+            # (what a receiver using the navigation file sees), so no synthetic SISRE is drawn on top
+            cfg = replace(cfg, sisre_m={s: 0.0 for s in cfg.sisre_m})
+        return Receiver(cfg, self.provider, self.iono)
+
+    # ------------------------------------------------------------------ one epoch
+    def step(self, t: GnssTime, antenna_ecef_m, states, vis_state=None, attenuation_db=None,
+             antenna_vel_ecef_mps=None) -> EpochProducts:
+        ecef = np.asarray(antenna_ecef_m, dtype=float)
+        if antenna_vel_ecef_mps is None and self._pos_prev is not None:
+            dt = float(t - self._pos_prev[0])
+            antenna_vel_ecef_mps = (ecef - self._pos_prev[1]) / dt if dt > 0 else None
+        self._pos_prev = (t, ecef)
+        if self.rx is None:
+            self.rx = self._receiver(states)
+        obs = self.rx.epoch(t, ecef, states, vis_state, attenuation_db, antenna_vel_ecef_mps=antenna_vel_ecef_mps)
+        sol = position_fix(obs, self.settings.receiver.profile, self.prior_ecef_m, self.settings.solver)
+        self.epochs += 1
+        if sol.is_fix:
+            self.fixes += 1
+            self.prior_ecef_m = sol.pos_ecef_m
+        text = ""
+        if self.want_nmea:
+            from ..nmea import join_sentences, sentences_from_solution
+
+            text = join_sentences(sentences_from_solution(t, sol, cn0_dbhz=obs.cn0_dbhz[
+                spp_rows(obs, self.settings.receiver.profile)]))
+        if self.settings.output_dir is not None:
+            self._write(t, ecef, states, obs, sol, text)
+        return EpochProducts(t, ecef, obs, sol, text)
+
+    # ------------------------------------------------------------------ files
+    def _open(self, t: GnssTime, ecef, states):
+        from ..rinex_obs import RinexObsWriter
+
+        s = self.settings
+        out = s.output_dir
+        out.mkdir(parents=True, exist_ok=True)
+        slots = self.glonass_slots
+        if slots is None:
+            slots = {str(sv): int(ch) for sv, ch in zip(states.sv, states.glo_channel) if sv[0] == "R"}
+        cfg = s.receiver
+        hdr = header(self.obs_types, s.marker_name, ecef, s.interval_s, slots,
+                     comments=[f"{self.comment}, preset {s.preset}",
+                               f"seed {cfg.seed}; noise {'on' if cfg.noise else 'off'}"])
+        self.obs_path = out / rinex_name(s.marker_name, t, self.duration_s, s.interval_s, "MO")
+        self._writer = RinexObsWriter(self.obs_path, hdr)
+        self.fix_path = out / "fix.csv"
+        self._fix_file = open(self.fix_path, "w", newline="", buffering=1)  # noqa: SIM115 - closed in close()
+        self._fix_csv = csv.writer(self._fix_file)
+        self._fix_csv.writerow(["time", "lat_deg", "lon_deg", "h_m", "n_sats", "status"])
+        if s.write_nmea_file:
+            self._nmea_file = open(out / "gnss_sim.nmea", "a", buffering=1)  # noqa: SIM115 - closed in close()
+
+    def _write(self, t, ecef, states, obs, sol, nmea_text):
+        if self._writer is None:
+            self._open(t, ecef, states)
+        stamp = t.isoformat(digits=3 if self.settings.interval_s < 1 else 0)
+        if sol.is_fix:
+            self._fix_csv.writerow([stamp, f"{sol.lat_deg:.9f}", f"{sol.lon_deg:.9f}", f"{sol.h_m:.4f}", sol.n_used,
+                                    "fix"])
+        else:
+            self._fix_csv.writerow([stamp, "", "", "", sol.n_used, "no_fix"])
+        if len(obs.sv):
+            self._writer.write_epoch(t, epoch_arrays(obs, self.obs_types))
+        if self._nmea_file is not None:
+            self._nmea_file.write(nmea_text)
+
+    def close(self):
+        """Close the files (RINEX gets its TIME OF LAST OBS); idempotent."""
+        if self._writer is not None:
+            self._writer.close()
+            self._writer = None
+        for f in (self._fix_file, self._nmea_file):
+            if f is not None:
+                f.close()
+        self._fix_file = self._fix_csv = self._nmea_file = None
