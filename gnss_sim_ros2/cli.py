@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import re
 import sys
 
 from . import __version__
@@ -42,6 +43,36 @@ def build_parser(load_all: bool = True) -> argparse.ArgumentParser:
     return parser
 
 
+#: a value that starts with a minus sign: -5, -3976219.5082,3382372.5671,3652512.9849, -.5, -1e-3
+_NEGATIVE_VALUE = re.compile(r"^-(\d|\.\d)[\d.,eE+\-]*$")
+
+
+def _attach_negative_values(parser: argparse.ArgumentParser, argv: list[str]) -> list[str]:
+    """``--opt -3976219.5,...`` -> ``--opt=-3976219.5,...`` for every option of ``parser`` (and its
+    subcommands) that takes a value, so numbers and X,Y,Z / LAT,LON,H triples west of Greenwich or
+    south of the equator can be typed after a space, as users do.  argparse alone takes them for options."""
+    takes_value = set()
+    stack = [parser]
+    while stack:
+        p = stack.pop()
+        for action in p._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                stack.extend(action.choices.values())
+            elif action.option_strings and action.nargs != 0:
+                takes_value.update(action.option_strings)
+    out: list[str] = []
+    i = 0
+    while i < len(argv):
+        a = argv[i]
+        if a in takes_value and i + 1 < len(argv) and _NEGATIVE_VALUE.match(argv[i + 1]):
+            out.append(f"{a}={argv[i + 1]}")
+            i += 2
+            continue
+        out.append(a)
+        i += 1
+    return out
+
+
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     # Only the chosen subcommand's module is imported.
@@ -53,7 +84,7 @@ def main(argv=None) -> int:
         module.add_arguments(sub.choices[chosen])
     else:
         parser = build_parser(load_all=False)
-    args = parser.parse_args(argv)
+    args = parser.parse_args(_attach_negative_values(parser, argv))
     if args.command is None:
         parser.print_help()
         return 0
@@ -63,6 +94,16 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
+    except OSError as exc:   # unwritable folder, a path under a regular file, disk full: one line, no traceback
+        print(f"gnss-sim {args.command}: error: {os_error_text(exc)}", file=sys.stderr)
+        return 1
+
+
+def os_error_text(exc: OSError) -> str:
+    """``path: reason`` of an operating-system error (both paths of a rename)."""
+    where = " -> ".join(str(p) for p in (exc.filename, exc.filename2) if p)
+    reason = exc.strerror or str(exc)
+    return f"{where}: {reason}" if where else reason
 
 
 if __name__ == "__main__":

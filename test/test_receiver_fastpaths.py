@@ -20,7 +20,8 @@ from scipy.optimize import brentq
 from test_propagation import CircularOrbits, _rz  # the same independent reference orbits
 
 from gnss_sim_ros2.core import propagation as prop
-from gnss_sim_ros2.core.receiver.engine import OMEGA_BY_SYSTEM, Receiver, ReceiverConfig
+from gnss_sim_ros2.core.constants import OMEGA_BY_SYSTEM
+from gnss_sim_ros2.core.receiver.engine import Receiver, ReceiverConfig
 from gnss_sim_ros2.core.receiver.outputs import epoch_arrays, obs_types_for
 from gnss_sim_ros2.core.receiver.tracking import LLI_LOSS_OF_LOCK, Tracker
 from gnss_sim_ros2.core.solver import solve_pvt
