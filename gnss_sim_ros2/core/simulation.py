@@ -35,7 +35,7 @@ from .frames import az_el_from_ecef, geodetic_to_ecef
 from .presets import preset as preset_switches
 from .receiver.engine import ATTENUATED, BLOCKED, VISIBLE, Receiver, ReceiverConfig
 from .receiver.outputs import epoch_arrays, header, obs_types_for, position_fix, rinex_name, write_navigation
-from .rinex_obs import RinexObsWriter
+from .rinex.obs_write import RinexObsWriter
 from .time import GnssTime
 from .trajectory import Trajectory
 

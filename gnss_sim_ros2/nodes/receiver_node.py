@@ -168,7 +168,7 @@ class ReceiverNode(GnssSimNode):
     def _writer(self, t, ecef, states):
         if self.writer is None:
             from gnss_sim_ros2.core.receiver.outputs import header, rinex_name
-            from gnss_sim_ros2.core.rinex_obs import RinexObsWriter
+            from gnss_sim_ros2.core.rinex.obs_write import RinexObsWriter
 
             p = self.params
             name = rinex_name(p["marker_name"], t, None, 1.0 / p["rate_hz"], "MO")
