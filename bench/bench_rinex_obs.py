@@ -14,7 +14,7 @@ import time
 
 import numpy as np
 
-from gnss_sim_ros2.core.rinex_obs import EpochArrays, RinexObsHeader, RinexObsWriter, ssi_from_cn0
+from gnss_sim_ros2.core.rinex.obs_write import EpochArrays, RinexObsHeader, RinexObsWriter, ssi_from_cn0
 from gnss_sim_ros2.core.time import GnssTime
 
 SIGNALS = {"G": ("1C", "2W", "5X"), "R": ("1C", "2C", "3X"), "E": ("1X", "5X", "7X"), "C": ("2I", "7I", "6I")}

@@ -28,7 +28,7 @@ import numpy as np
 import pytest
 
 from gnss_sim_ros2.cli import main
-from gnss_sim_ros2.core.compare import compare, load_observations, write_report
+from gnss_sim_ros2.core.comparison import compare, load_observations, write_report
 
 SYN_POSITION = "59.9,10.75,60"      # geodetic, synthetic constellation
 OPEC_ECEF = "3149785.9652,598260.8822,5495348.4927"   # OPEC header APPROX POSITION XYZ (data README)
@@ -302,7 +302,7 @@ def test_opec_against_real_receiver(opec_dir, tmp_path):
 
 
 def test_truth_csv_interpolates(tmp_path):
-    from gnss_sim_ros2.core.compare import truth_from_csv
+    from gnss_sim_ros2.core.comparison.truth import truth_from_csv
     from gnss_sim_ros2.core.frames import geodetic_to_ecef
 
     f = tmp_path / "truth.csv"
@@ -337,7 +337,7 @@ _BODY = "> 2022 01 01 00 00 00.0000000  0  1\r\nC20  22103073.242   115096519.13
 def test_rtklib_copy_renames_beidou_b1i_only(tmp_path):
     """BeiDou band-2 codes with attribute X become I in the obs types and phase shifts (not B1C "1X", not
     "7X", not GPS); every other byte, CRLF line ends included, is the original's."""
-    from gnss_sim_ros2.core.compare import rtklib_observation_copy
+    from gnss_sim_ros2.core.rtklib import rtklib_observation_copy
 
     src = tmp_path / "in" / "a_MO.rnx"
     src.parent.mkdir()
@@ -352,7 +352,7 @@ def test_rtklib_copy_renames_beidou_b1i_only(tmp_path):
 def test_rtklib_copy_leaves_files_alone(tmp_path):
     """Nothing to rename (C2I already there beside C2X: no duplicate code; no BeiDou X code; not RINEX 3
     text): the original path comes back and nothing is written."""
-    from gnss_sim_ros2.core.compare import rtklib_observation_copy
+    from gnss_sim_ros2.core.rtklib import rtklib_observation_copy
 
     both = tmp_path / "both.rnx"
     both.write_text(_HDR.replace("C5X L5X", "C2I L2I") + _BODY)

@@ -17,7 +17,7 @@ import georinex  # noqa: E402
 import numpy as np
 import pytest
 
-from gnss_sim_ros2.core.ephemeris.rinex_nav_writer import FIELDS, d19, records_from_georinex, write_rinex3_nav
+from gnss_sim_ros2.core.rinex.nav_write import FIELDS, d19, records_from_georinex, write_rinex3_nav
 
 STATION_ECEF_M = np.array([3149785.9652, 598260.8822, 5495348.4927])  # OPEC header / data README
 NAV = "OPEC00NOR_S_20220010000_01D_{}N.rnx"

@@ -117,7 +117,7 @@ def test_offline_velocity_of_a_moving_antenna(tmp_path):
     v = np.array(vel[1:])                    # the first epoch has no previous position
     speed_err = np.abs(np.hypot(v[:, 0], v[:, 1]) - 3.0)
     print(f"offline velocity: {len(v)} epochs, mean {v.mean(axis=0).round(3)} m/s ENU, horizontal speed error "
-          f"95 % {np.percentile(speed_err, 95):.3f} m/s, 3D error max {np.linalg.norm(v - [3, 0, 0], axis=1).max():.3f}")
+          f"95 % {np.percentile(speed_err, 95):.3f} m/s")
     assert len(v) >= 110
     assert np.linalg.norm(v.mean(axis=0) - [3.0, 0.0, 0.0]) <= 0.02      # no bias (0 m/s before: 3 m/s off)
     assert np.percentile(speed_err, 95) <= 0.05

@@ -50,8 +50,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gnss_sim_ros2.core.compare import rtklib_observation_copy
 from gnss_sim_ros2.core.frames import ecef_to_enu, ecef_to_geodetic, enu_to_ecef
+from gnss_sim_ros2.core.rtklib import rtklib_observation_copy
 
 OPEC_ECEF_M = np.array([3149785.9652, 598260.8822, 5495348.4927])   # RINEX header APPROX POSITION XYZ
 START = "2022-01-01T00:00:00"
@@ -145,8 +145,8 @@ def elevation_table(opec_dir: Path, times, svs) -> np.ndarray:
     and validity windows widened to 8 h (for the mask only: a satellite the real receiver tracked needs an
     elevation even when it is flagged unhealthy or between two records of this station's file)."""
     from gnss_sim_ros2.core.ephemeris.broadcast import BroadcastEphemeris
-    from gnss_sim_ros2.core.ephemeris.rinex_nav import read_nav_files
     from gnss_sim_ros2.core.frames import az_el_from_ecef
+    from gnss_sim_ros2.core.rinex.nav_read import read_nav_files
     from gnss_sim_ros2.core.time import GnssTime
 
     nav = read_nav_files(nav_files(opec_dir))
@@ -237,8 +237,8 @@ def test_spp_default_errors_realistic(opec_runs, real_antenna_ecef_m, systems):
 
 def _zero_beidou_tgd1(nav_path: Path, out: Path) -> Path:
     """A copy of a navigation file with every BeiDou TGD1 set to zero (our reader and writer)."""
-    from gnss_sim_ros2.core.ephemeris.rinex_nav import header_dict, read_nav_files, records_as_dicts
-    from gnss_sim_ros2.core.ephemeris.rinex_nav_writer import write_rinex3_nav
+    from gnss_sim_ros2.core.rinex.nav_read import header_dict, read_nav_files, records_as_dicts
+    from gnss_sim_ros2.core.rinex.nav_write import write_rinex3_nav
 
     nav = read_nav_files([nav_path])
     recs = records_as_dicts(nav, "GEC")

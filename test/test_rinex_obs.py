@@ -21,7 +21,7 @@ import georinex  # noqa: E402
 import numpy as np
 import pytest
 
-from gnss_sim_ros2.core.rinex_obs import (
+from gnss_sim_ros2.core.rinex.obs_write import (
     EpochArrays,
     RinexObsHeader,
     RinexObsWriter,
@@ -86,7 +86,7 @@ CHILD = r"""
 import sys, time
 sys.path.insert(0, {repo!r}); sys.path.insert(0, {testdir!r})
 from test_rinex_obs import synthetic_epoch, SYN_TYPES, T0
-from gnss_sim_ros2.core.rinex_obs import RinexObsWriter, RinexObsHeader
+from gnss_sim_ros2.core.rinex.obs_write import RinexObsWriter, RinexObsHeader
 w = RinexObsWriter({path!r}, RinexObsHeader(obs_types=SYN_TYPES, interval_s=1.0))
 for k in range(100000):
     w.write_epoch(T0 + k, synthetic_epoch(k)[0], clock_offset_s=1e-6 * k)
@@ -96,7 +96,7 @@ for k in range(100000):
 
 
 def test_vectorised_f14_3_matches_python_formatting():
-    from gnss_sim_ros2.core.rinex_obs import _f14_3_chars
+    from gnss_sim_ros2.core.rinex.obs_write import _f14_3_chars
 
     rng = np.random.default_rng(7)
     v = np.concatenate([rng.uniform(-999999999.0, 999999999.0, 20000), rng.uniform(-10, 10, 20000),

@@ -7,7 +7,7 @@ Inputs: RINEX 3 observation files or rosbag2 bags holding gnss_sim_msgs/Observat
 (``gnss-sim run``'s ``bag/``).  Writes ``DIR/report.md`` (per system and per satellite
 pseudorange, time-differenced carrier phase, Doppler and C/N0 differences after removing
 the receiver clock; satellites seen by one side only; position solutions of both files
-against each other and the truth) and PNG figures beside it.  Method: core/compare.py.
+against each other and the truth) and PNG figures beside it.  Method: core/comparison/.
 The real file is read over the simulated span only.  Without ``--nav`` there are no
 positions and no elevations.  Truth: ``--truth`` (ECEF m), ``--truth-csv`` (time and
 x_m,y_m,z_m or lat_deg,lon_deg,h_m, e.g. a simulation's fix.csv) or, by default, the
@@ -37,7 +37,7 @@ def add_arguments(p):
 
 
 def run(args) -> int:
-    from gnss_sim_ros2.core.compare import compare, write_report
+    from gnss_sim_ros2.core.comparison import compare, write_report
 
     try:
         truth = parse_triple(args.truth, "--truth (ECEF X,Y,Z [m])") if args.truth else None

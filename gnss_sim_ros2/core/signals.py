@@ -202,3 +202,19 @@ def validate_profile(prof: dict[str, list[str]]) -> None:
     for sys_, codes in prof.items():
         for c in codes:
             signal(sys_, c)
+
+
+def group_delay_factor(systems, codes, freq):
+    """Factor on the broadcast group delay (TGD/BGD) in the satellite clock of each signal (arrays of system
+    letters, band+attribute codes "1C", carrier frequencies [Hz]): GPS/QZSS TGD scaled by (f_L1/f)^2 on L1/L2
+    (IS-GPS-200N 20.3.3.3.3.2); Galileo BGD(E1,E5a) by (f_E1/f)^2 on E1/E5a/E5b (OS SIS ICD 5.1.5); BeiDou
+    TGD1 on B1I (BDS-SIS-ICD-B1I 5.2.4.10); 0 elsewhere (inter-signal corrections not modelled)."""
+    systems = np.asarray(systems)
+    band = np.array([c[0] for c in codes])
+    f = np.zeros(len(codes))
+    gps_like = (systems == "G") | (systems == "J")
+    f = np.where(gps_like & ((band == "1") | (band == "2")), (k.F_L1_HZ / freq) ** 2, f)
+    gal = (systems == "E") & ((band == "1") | (band == "5") | (band == "7"))
+    f = np.where(gal, (k.F_L1_HZ / freq) ** 2, f)
+    f = np.where((systems == "C") & (band == "2"), 1.0, f)
+    return f

@@ -1,6 +1,6 @@
 """Broadcast ephemeris provider: RINEX navigation files -> satellite states at any instant.
 
-Layers (as RTKLIB): records (rinex_nav.py) -> selection per satellite and
+Layers (as RTKLIB): records (core/rinex/nav_read.py) -> selection per satellite and
 instant (select.py) -> states (kepler.py, glonass.py) -> SatelliteStates.
 
     eph = BroadcastEphemeris.from_files(["brdc.rnx"], start=t0, end=t1)
@@ -18,10 +18,10 @@ from pathlib import Path
 
 import numpy as np
 
+from ..rinex.nav_read import KEPLER_SYSTEMS, SUPPORTED_SYSTEMS, NavData, read_nav_files
 from ..time import GnssTime
 from . import glonass as glo
 from .kepler import KeplerParams
-from .rinex_nav import KEPLER_SYSTEMS, SUPPORTED_SYSTEMS, NavData, read_nav_files
 from .select import EphemerisDiagnostics, build_timeline, validity_windows_s
 from .states import SatelliteStates
 

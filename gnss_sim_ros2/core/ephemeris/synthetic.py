@@ -70,8 +70,8 @@ from pathlib import Path
 import numpy as np
 
 from .. import constants as K
+from ..rinex.nav_write import write_rinex3_nav
 from ..time import GPS_EPOCH, SYSTEM_SCALE, GnssTime, gps_minus_utc_at_gps
-from .rinex_nav_writer import write_rinex3_nav
 
 #: reference epoch of the nominal elements: GPS SPS PS table 3-1 epoch (1993-07-01 00:00, read as GPST)
 T_REF = GnssTime.from_iso("1993-07-01T00:00:00", "GPS")

@@ -205,7 +205,7 @@ class ReceiverChain:
 
     # ------------------------------------------------------------------ files
     def _open(self, t: GnssTime, ecef, states):
-        from ..rinex_obs import RinexObsWriter
+        from ..rinex.obs_write import RinexObsWriter
 
         s = self.settings
         out = s.output_dir

@@ -240,7 +240,7 @@ class Receiver:
                             np.array(chip, dtype=float), np.array(systems, dtype="<U1"))
         sat_i, codes, freq, chip, systems = rows.signal_rows
         rows.lam = k.C_MPS / freq
-        rows.gd_factor = _group_delay_factor(systems, codes, freq)
+        rows.gd_factor = sig.group_delay_factor(systems, codes, freq)
         rows.p_min, rows.el_min = cn0_model.power_params(systems, codes) if len(codes) else (np.zeros(0), np.zeros(0))
         rows.omega = np.array([k.OMEGA_BY_SYSTEM.get(s[0], k.OMEGA_E_GPS_RADPS) for s in svs], dtype=float)
         rows.sv_j = np.asarray(svs)[sat_i]
@@ -531,18 +531,6 @@ def _array_key(a) -> tuple:
     """Hashable key of an array's contents (dtype, shape, bytes)."""
     a = np.ascontiguousarray(a)
     return (a.dtype.str, a.shape, a.tobytes())
-
-
-def _group_delay_factor(systems, codes, freq):
-    """Factor on the broadcast group delay for each signal (see module doc)."""
-    band = np.array([c[0] for c in codes])
-    f = np.zeros(len(codes))
-    gps_like = (systems == "G") | (systems == "J")
-    f = np.where(gps_like & ((band == "1") | (band == "2")), (k.F_L1_HZ / freq) ** 2, f)
-    gal = (systems == "E") & ((band == "1") | (band == "5") | (band == "7"))
-    f = np.where(gal, (k.F_L1_HZ / freq) ** 2, f)
-    f = np.where((systems == "C") & (band == "2"), 1.0, f)
-    return f
 
 
 def _truth_model(setting: str, iono: dict | None) -> str:

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import constants as k
-from ..rinex_obs import EpochArrays, RinexObsHeader, ssi_from_cn0
+from ..rinex.obs_write import EpochArrays, RinexObsHeader, ssi_from_cn0
 from ..solver import PvtSolution, SolverConfig, solve_pvt
 from ..time import GnssTime
 from .engine import EpochObservations
@@ -144,7 +144,7 @@ def write_navigation(path: Path, provider, systems: str) -> Path | None:
     nav = getattr(provider, "nav", None)
     if nav is None:
         return None
-    from ..ephemeris.rinex_nav import header_dict, records_as_dicts
-    from ..ephemeris.rinex_nav_writer import write_rinex3_nav
+    from ..rinex.nav_read import header_dict, records_as_dicts
+    from ..rinex.nav_write import write_rinex3_nav
 
     return write_rinex3_nav(path, records_as_dicts(nav, systems), header_dict(nav))

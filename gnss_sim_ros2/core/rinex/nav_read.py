@@ -707,7 +707,7 @@ def _dedupe(tab: SystemTable) -> SystemTable:
 
 
 # ----------------------------------------------------------------------------------------------
-# back to georinex-named dicts (for core/ephemeris/rinex_nav_writer.write_rinex3_nav)
+# back to georinex-named dicts (for core/rinex/nav_write.write_rinex3_nav)
 # ----------------------------------------------------------------------------------------------
 def records_as_dicts(nav: NavData, systems: str = SUPPORTED_SYSTEMS) -> dict[str, list[dict]]:
     """Records as ``{system letter: [dict, ...]}`` for ``write_rinex3_nav``.

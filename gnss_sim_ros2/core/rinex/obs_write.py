@@ -42,7 +42,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .time import GPS_EPOCH, GnssTime, gps_minus_utc_at_gps
+from ..time import GPS_EPOCH, GnssTime, gps_minus_utc_at_gps
 
 RINEX_VERSION = 3.04
 #: systems RINEX 3.04 knows (section 3.5): GPS, GLONASS, Galileo, BeiDou, QZSS, NavIC, SBAS

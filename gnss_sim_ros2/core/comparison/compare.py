@@ -1,0 +1,344 @@
+"""Compare simulated and real GNSS observations (the thesis's comparison chapter, as a tool).
+
+Inputs are RINEX 3 observation files (read with georinex) or rosbag2 bags
+holding ``gnss_sim_msgs/Observations`` (read with rosbags); both become one
+:class:`ObsTable`: epochs (GPS time) x satellites, one (epoch, sv) array per
+RINEX observation code ("C1C", "L1C", "D1C", "S1C"), NaN where absent.
+
+Method (:func:`compare`):
+
+* Epochs are matched by time (to 1 ms), satellites by id, signals by RINEX
+  band and tracking attribute: the same code first, else another attribute of
+  the same band ("C1X" real against "C1C" simulated): :func:`pair_signals`.
+* Pseudorange: d = P_sim - P_real.  The receiver clocks of both receivers
+  differ per epoch; per epoch and system the median of d over the common
+  satellites of that system's reference signal (its first paired code) is
+  taken; the reference system (GPS when present) gives the clock offset of
+  the epoch, every other system one constant inter-system bias (median over
+  epochs of its median minus the reference one).  Residuals
+  d - clock(epoch) - ISB(system) are what the tables show.  A residual above
+  ``gross_m`` counts as a gross error and is left out of the statistics
+  (counted separately).
+* Carrier phase: the integer ambiguity of each track is arbitrary, so phases
+  are compared **time-differenced** (delta range): dL = lambda (L(e) - L(e-1))
+  between consecutive common epochs, sim minus real, with the same per-epoch
+  median removal (the receiver clock change).  Cycle slips show up as outliers.
+* Doppler: as range rate -lambda D [m/s] (so that bands share the receiver
+  clock drift), sim minus real, per-epoch median removed (clock drift).
+* C/N0: S observations, sim minus real [dB-Hz], nothing removed.
+  Doppler and C/N0 are reported *unavailable* when one side has none (the
+  OPEC real file has neither): never as zero.
+* Visibility: per epoch the satellites with a code observation, on the
+  systems both files observe (optionally above an elevation mask computed
+  from the navigation data): seen by both / only simulated / only real and
+  the Jaccard index |both| / |union| over (epoch, satellite) pairs.
+* Positions: single point solutions of both files with the same solver
+  (:func:`spp_solutions`: our :func:`~gnss_sim_ros2.core.solver.solve_pvt`
+  with the broadcast ephemeris, Klobuchar ionosphere and Saastamoinen/Niell
+  troposphere; or RTKLIB rnx2rtkp with the same models), against each other
+  and against a ground truth (default: the real file's APPROX POSITION).
+
+:func:`write_report` writes ``report.md`` and PNG figures (matplotlib Agg).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .. import constants as k
+from ..rinex.obs_table import GPS_EPOCH_NP, ObsTable, match_epochs
+from ..rtklib import rtklib_solutions
+from ..spp import Solutions, spp_solutions
+from ..time import GnssTime
+from .pairing import SignalPair, pair_signals
+from .sources import load_observations
+from .statistics import (
+    GROSS_LIMITS,
+    KINDS,
+    KindResult,
+    enu_errors_m,
+    position_stats,
+    remove_common_offsets,
+    summary_stats,
+)
+from .truth import truth_from_csv
+
+
+@dataclass
+class Comparison:
+    """Everything :func:`write_report` needs (arrays over common epochs x ``sv``)."""
+
+    sim: ObsTable
+    real: ObsTable
+    time: np.ndarray                     #: (E,) common epochs
+    sv: np.ndarray                       #: (S,) satellites of the common systems (union of both)
+    systems: str                         #: systems observed by both
+    systems_only_sim: str
+    systems_only_real: str
+    epochs_only_sim: int
+    epochs_only_real: int
+    pairs: list[SignalPair]
+    kinds: dict[str, KindResult]         #: "code" | "phase" | "doppler" | "cn0"
+    seen_sim: np.ndarray                 #: (E, S) bool, above the mask
+    seen_real: np.ndarray
+    el_deg: np.ndarray | None            #: (E, S) elevation at the truth position (None without nav)
+    mask_deg: float
+    sim_cn0: dict[SignalPair, np.ndarray] = field(default_factory=dict)    #: (E, S) raw S of each side
+    real_cn0: dict[SignalPair, np.ndarray] = field(default_factory=dict)
+    truth_ecef_m: np.ndarray | None = None   #: (E, 3)
+    truth_label: str = ""
+    sol_sim: Solutions | None = None
+    sol_real: Solutions | None = None
+    position_note: str = ""
+
+    # ------------------------------------------------------------------ summaries
+    def sys_of_col(self) -> np.ndarray:
+        return np.array([s[0] for s in self.sv.tolist()])
+
+    def stats(self, kind: str, pair: SignalPair, sv: str | None = None) -> dict:
+        kr = self.kinds[kind]
+        d = kr.residuals.get(pair)
+        if d is None:
+            return summary_stats(np.zeros(0), GROSS_LIMITS[kind])
+        d = d[:, self.sv == sv] if sv is not None else d[:, self.sys_of_col() == pair.system]
+        return summary_stats(d, GROSS_LIMITS[kind])
+
+    def system_stats(self, kind: str, system: str) -> dict:
+        """Statistics of every pair of ``system`` together."""
+        kr = self.kinds[kind]
+        cols = self.sys_of_col() == system
+        parts = [kr.residuals[p][:, cols].ravel() for p in self.pairs if p.system == system and p in kr.residuals]
+        return summary_stats(np.concatenate(parts) if parts else np.zeros(0), GROSS_LIMITS[kind])
+
+    def per_satellite(self, kind: str, pair: SignalPair) -> dict[str, dict]:
+        out = {}
+        for s in self.sv.tolist():
+            if s[0] == pair.system:
+                st = self.stats(kind, pair, s)
+                if st["n"] or st["n_gross"]:
+                    out[s] = st
+        return out
+
+    def visibility(self) -> dict:
+        """Jaccard per system and overall, satellites seen by one side only, per-satellite epoch counts."""
+        both = self.seen_sim & self.seen_real
+        only_s = self.seen_sim & ~self.seen_real
+        only_r = self.seen_real & ~self.seen_sim
+        sysc = self.sys_of_col()
+        jac = {}
+        for s in self.systems:
+            c = sysc == s
+            u = (self.seen_sim | self.seen_real)[:, c].sum()
+            jac[s] = float(both[:, c].sum() / u) if u else math.nan
+        u = (self.seen_sim | self.seen_real).sum()
+        jac["all"] = float(both.sum() / u) if u else math.nan
+        per_sv = {s: {"both": int(both[:, j].sum()), "only_sim": int(only_s[:, j].sum()),
+                      "only_real": int(only_r[:, j].sum())} for j, s in enumerate(self.sv.tolist())}
+        never_real = [s for s, c in per_sv.items() if c["only_sim"] and not c["both"]]
+        never_sim = [s for s, c in per_sv.items() if c["only_real"] and not c["both"]]
+        return {"jaccard": jac, "per_sv": per_sv, "only_sim_svs": never_real, "only_real_svs": never_sim,
+                "n_both": int(both.sum()), "n_only_sim": int(only_s.sum()), "n_only_real": int(only_r.sum())}
+
+    def positions(self) -> dict:
+        out = {}
+        if self.sol_sim is None or self.sol_real is None:
+            return out
+        if self.truth_ecef_m is not None:
+            out["sim_vs_truth"] = position_stats(enu_errors_m(self.sol_sim.pos_ecef_m, self.truth_ecef_m))
+            out["real_vs_truth"] = position_stats(enu_errors_m(self.sol_real.pos_ecef_m, self.truth_ecef_m))
+        out["sim_vs_real"] = position_stats(enu_errors_m(self.sol_sim.pos_ecef_m, self.sol_real.pos_ecef_m))
+        return out
+
+
+def _elevations(eph, times: np.ndarray, svs: np.ndarray, rx_ecef: np.ndarray) -> np.ndarray:
+    """(E, S) elevation [deg] from the broadcast ephemeris at ``rx_ecef`` ((E, 3)); NaN without a record."""
+    from ..frames import az_el_from_ecef
+
+    col = {s: j for j, s in enumerate(svs.tolist())}
+    el = np.full((len(times), len(svs)), np.nan)
+    systems = "".join(sorted({s[0] for s in svs.tolist()} & set("GRECJI")))
+    if not systems:
+        return el
+    for i, t in enumerate(times):
+        if not np.all(np.isfinite(rx_ecef[i])):
+            continue
+        ns = int((t.astype("datetime64[ns]") - GPS_EPOCH_NP) / np.timedelta64(1, "ns"))
+        st = eph.states(GnssTime(ns // 1_000_000_000, (ns % 1_000_000_000) * 1e-9), systems=systems)
+        if not len(st):
+            continue
+        _, e, _ = az_el_from_ecef(rx_ecef[i], st.pos_ecef_m)
+        for s, v in zip(st.sv.tolist(), np.atleast_1d(e)):
+            if s in col:
+                el[i, col[s]] = v
+    return el
+
+
+def _kind_diffs(c: str, sim: ObsTable, real: ObsTable, pairs, svs, i_sim, i_real) -> dict[SignalPair, np.ndarray]:
+    """Raw sim - real of observation kind ``c`` per pair over (common epoch, svs) (phase: time-differenced,
+    metres; Doppler: range rate m/s)."""
+    js = {s: j for j, s in enumerate(sim.sv.tolist())}
+    jr = {s: j for j, s in enumerate(real.sv.tolist())}
+    out = {}
+    for p in pairs:
+        a = np.full((len(i_sim), len(svs)), np.nan)
+        b = np.full((len(i_sim), len(svs)), np.nan)
+        cs, cr = sim.values.get(c + p.sim_code), real.values.get(c + p.real_code)
+        if cs is None or cr is None:
+            continue
+        for j, s in enumerate(svs.tolist()):
+            if s[0] != p.system or s not in js or s not in jr:
+                continue
+            x, y = cs[i_sim, js[s]], cr[i_real, jr[s]]
+            if c in "LD":   # to metres (phase) and m/s (Doppler, as -lambda D)
+                lam_s = k.C_MPS / sim.frequency_hz(s, p.sim_code)
+                lam_r = k.C_MPS / real.frequency_hz(s, p.real_code)
+                x, y = x * lam_s, y * lam_r
+                if c == "D":
+                    x, y = -x, -y
+            a[:, j], b[:, j] = x, y
+        if c == "L":
+            a = np.vstack([np.full((1, a.shape[1]), np.nan), np.diff(a, axis=0)])
+            b = np.vstack([np.full((1, b.shape[1]), np.nan), np.diff(b, axis=0)])
+        out[p] = a - b
+    return out
+
+
+def compare(sim_path, real_path, nav_paths=None, truth_ecef_m=None, truth_csv=None, mask_deg: float = 0.0,
+            solver: str = "ours", restrict_real_to_sim_span: bool = True, workdir=None) -> Comparison:
+    """Compare two observation sources (RINEX or bag).  ``nav_paths``: broadcast navigation files for
+    elevations and positions (none: no positions, no elevations); ``truth_ecef_m`` (3,) or ``truth_csv``
+    (default truth: the real file's APPROX POSITION, else the simulated one's); ``mask_deg`` applies to
+    the visibility sets where an elevation is known; ``solver`` "ours" | "rtklib" (RINEX inputs only)."""
+    if solver not in ("ours", "rtklib"):
+        raise ValueError(f"solver {solver!r}: expected 'ours' or 'rtklib'")
+    if truth_ecef_m is not None and truth_csv is not None:
+        raise ValueError("give either truth_ecef_m or truth_csv, not both")
+    sim = load_observations(sim_path)
+    if not len(sim.time):
+        raise ValueError(f"{sim_path}: no observation epochs")
+    tlim = (sim.time[0] - np.timedelta64(1, "s"), sim.time[-1] + np.timedelta64(1, "s")) \
+        if restrict_real_to_sim_span else None
+    real = load_observations(real_path, tlim)
+    if not len(real.time):
+        raise ValueError(f"{real_path}: no observation epochs"
+                         + (" within the simulated span" if restrict_real_to_sim_span else ""))
+    i_sim, i_real = match_epochs(sim.time, real.time)
+    if not len(i_sim):
+        raise ValueError(f"{sim_path} ({sim.time[0]} .. {sim.time[-1]}) and {real_path} "
+                         f"({real.time[0]} .. {real.time[-1]}) have no common epoch")
+    sys_s, sys_r = sim.systems, real.systems
+    systems = "".join(s for s in sys_s if s in sys_r)
+    svs = np.array(sorted({s for s in sim.sv.tolist() + real.sv.tolist() if s[0] in systems}), dtype="<U3")
+    pairs = pair_signals(sim, real, systems)
+    sysc = np.array([s[0] for s in svs.tolist()])
+    times = sim.time[i_sim]
+
+    kinds = {}
+    for c, name in KINDS.items():
+        ps = [p for p in pairs if sim.has_data(c + p.sim_code) and real.has_data(c + p.real_code)]
+        if not ps:
+            lacking = [lab for lab, t in (("simulated", sim), ("real", real))
+                       if not any(t.has_data(c + (p.sim_code if t is sim else p.real_code)) for p in pairs)]
+            why = (f"the {' and the '.join(lacking)} file{'s have' if len(lacking) > 1 else ' has'} no "
+                   f"{c} ({name}) observations" if lacking else f"no signal has {c} observations on both sides")
+            kinds[name] = KindResult(name, False, why, {})
+            continue
+        raw = _kind_diffs(c, sim, real, ps, svs, i_sim, i_real)
+        if name == "cn0":
+            kinds[name] = KindResult(name, True, "", raw)
+        else:
+            res, clock, isb, ref = remove_common_offsets(raw, sysc)
+            kinds[name] = KindResult(name, True, "", res, clock, isb, ref)
+
+    def seen(tab: ObsTable, idx):
+        j = {s: i for i, s in enumerate(tab.sv.tolist())}
+        out = np.zeros((len(idx), len(svs)), dtype=bool)
+        codes = [c for c in tab.values if c[0] == "C"]
+        for col, s in enumerate(svs.tolist()):
+            if s in j:
+                out[:, col] = np.any([np.isfinite(tab.values[c][idx, j[s]]) for c in codes], axis=0) if codes else False
+        return out
+
+    seen_sim, seen_real = seen(sim, i_sim), seen(real, i_real)
+
+    # truth
+    truth_label = ""
+    truth = None
+    if truth_csv is not None:
+        truth = truth_from_csv(truth_csv, times)
+        truth_label = f"CSV {truth_csv}"
+    elif truth_ecef_m is not None:
+        truth = np.tile(np.asarray(truth_ecef_m, float).reshape(1, 3), (len(times), 1))
+        truth_label = "given ECEF " + ", ".join(f"{v:.3f}" for v in np.ravel(truth_ecef_m))
+    elif real.approx_pos_ecef_m is not None:
+        truth = np.tile(real.approx_pos_ecef_m, (len(times), 1))
+        truth_label = "real file header APPROX POSITION XYZ"
+    elif sim.approx_pos_ecef_m is not None:
+        truth = np.tile(sim.approx_pos_ecef_m, (len(times), 1))
+        truth_label = "simulated file header APPROX POSITION XYZ"
+
+    cmp = Comparison(sim, real, times, svs, systems, "".join(s for s in sys_s if s not in sys_r),
+                     "".join(s for s in sys_r if s not in sys_s), len(sim.time) - len(i_sim),
+                     len(real.time) - len(i_real), pairs, kinds, seen_sim, seen_real, None, mask_deg,
+                     truth_ecef_m=truth, truth_label=truth_label)
+    # raw C/N0 for the figure
+    for p in pairs:
+        for tab, idx, dst, code in ((sim, i_sim, cmp.sim_cn0, p.sim_code), (real, i_real, cmp.real_cn0, p.real_code)):
+            a = tab.values.get("S" + code)
+            if a is None or not np.isfinite(a).any():
+                continue
+            j = {s: i for i, s in enumerate(tab.sv.tolist())}
+            m = np.full((len(idx), len(svs)), np.nan)
+            for col, s in enumerate(svs.tolist()):
+                if s in j and s[0] == p.system:
+                    m[:, col] = a[idx, j[s]]
+            dst[p] = m
+
+    if nav_paths:
+        from ..ephemeris.broadcast import BroadcastEphemeris
+
+        nav_paths = [str(p) for p in nav_paths]
+        for p in nav_paths:
+            if not Path(p).is_file():
+                raise ValueError(f"--nav {p}: no such file")
+        eph = BroadcastEphemeris.from_files(nav_paths)
+        rx = truth if truth is not None else None
+        sys_nav = "".join(s for s in systems if s in "GRECJI" and eph.svs(s))
+        ref = {}        # per system its first signal with pseudoranges on both sides
+        for p in pairs:
+            if (p.system in sys_nav and p.system not in ref and sim.has_data("C" + p.sim_code)
+                    and real.has_data("C" + p.real_code)):
+                ref[p.system] = p
+        code_sim = {s: p.sim_code for s, p in ref.items()}
+        code_real = {s: p.real_code for s, p in ref.items()}
+        if solver == "rtklib" and not (sim.kind == real.kind == "rinex"):
+            cmp.position_note = "RTKLIB needs RINEX inputs: gnss_sim solve_pvt used instead"
+            solver = "ours"
+        if solver == "rtklib":
+            from ..receiver.outputs import write_navigation
+
+            wd = Path(workdir) if workdir is not None else Path(sim_path).parent
+            wd.mkdir(parents=True, exist_ok=True)
+            # RTKLIB gets the navigation data as our reader understood it (one merged RINEX 3.04 file):
+            # some published files need repairs it does not make (BeiDou angles in semicircles)
+            merged = write_navigation(wd / "rtklib_nav.rnx", eph, "".join(ref))
+            cmp.sol_sim = rtklib_solutions(sim_path, [merged], "".join(ref), times, wd / "rtklib_sim")
+            cmp.sol_real = rtklib_solutions(real_path, [merged], "".join(ref), times, wd / "rtklib_real")
+            cmp.position_note = "; ".join(n for n in (cmp.sol_sim.note, cmp.sol_real.note) if n)
+        elif ref:
+            prior = truth[0] if truth is not None and np.all(np.isfinite(truth[0])) else None
+            cmp.sol_sim = spp_solutions(sim, eph, code_sim, i_sim, prior)
+            cmp.sol_real = spp_solutions(real, eph, code_real, i_real, prior)
+        if rx is None and cmp.sol_real is not None:
+            rx = cmp.sol_real.pos_ecef_m
+        if rx is not None:
+            cmp.el_deg = _elevations(eph, times, svs, rx)
+            if mask_deg > 0:
+                low = np.isfinite(cmp.el_deg) & (cmp.el_deg < mask_deg)
+                cmp.seen_sim = cmp.seen_sim & ~low
+                cmp.seen_real = cmp.seen_real & ~low
+    return cmp

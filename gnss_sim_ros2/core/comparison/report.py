@@ -1,0 +1,272 @@
+"""The comparison report: ``report.md`` and its PNG figures (matplotlib Agg)."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from .compare import Comparison
+from .statistics import DESCRIPTION, GROSS_LIMITS, UNITS, enu_errors_m
+
+
+def _f(v, digits=3) -> str:
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return "-"
+    return f"{0.0 if abs(v) < 0.5 * 10.0**-digits else v:.{digits}f}"
+
+
+def _md_table(header: list[str], rows: list[list]) -> list[str]:
+    out = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
+    out += ["| " + " | ".join(str(c) for c in r) + " |" for r in rows]
+    return out + [""]
+
+
+def write_figures(cmp: Comparison, out_dir) -> dict[str, Path]:
+    """PNG figures; returns name -> path of those written."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.dates as mdates
+    import matplotlib.pyplot as plt
+    from matplotlib.colors import ListedColormap
+
+    out_dir = Path(out_dir)
+    figs: dict[str, Path] = {}
+    t = cmp.time.astype("datetime64[ms]").astype(object)
+    sysc = cmp.sys_of_col()
+
+    # pseudorange residual vs time per satellite (reference signal of each system)
+    code = cmp.kinds["code"]
+    if code.available:
+        refs = []
+        for p in cmp.pairs:
+            if p in code.residuals and p.system not in [q.system for q in refs]:
+                refs.append(p)
+        if refs:
+            fig, axes = plt.subplots(len(refs), 1, figsize=(10, 3.0 * len(refs)), sharex=True, squeeze=False)
+            for ax, p in zip(axes[:, 0], refs):
+                d = code.residuals[p]
+                for j in np.flatnonzero(sysc == p.system):
+                    if np.isfinite(d[:, j]).any():
+                        ax.plot(t, d[:, j], ".-", ms=3, lw=0.8, label=cmp.sv[j])
+                ax.set_ylabel(f"{p.label} [m]")
+                ax.grid(alpha=0.3)
+                ax.legend(fontsize=6, ncol=8, loc="upper right")
+            axes[0, 0].set_title("pseudorange sim - real (receiver clock and ISB removed)")
+            axes[-1, 0].xaxis.set_major_formatter(mdates.DateFormatter("%H:%M"))
+            axes[-1, 0].set_xlabel("GPS time")
+            fig.tight_layout()
+            figs["code"] = out_dir / "code_difference.png"
+            fig.savefig(figs["code"], dpi=110)
+            plt.close(fig)
+
+    # C/N0 vs elevation
+    if (cmp.sim_cn0 or cmp.real_cn0) and cmp.el_deg is not None:
+        fig, ax = plt.subplots(figsize=(7, 4.5))
+        for lab, dd, mk in (("simulated", cmp.sim_cn0, "o"), ("real", cmp.real_cn0, "x")):
+            seen_sys = set()
+            for p, m in dd.items():
+                if p.system in seen_sys:
+                    continue            # the first (reference) signal of each system
+                seen_sys.add(p.system)
+                ok = np.isfinite(m) & np.isfinite(cmp.el_deg)
+                ax.plot(cmp.el_deg[ok], m[ok], mk, ms=3, alpha=0.5, label=f"{lab} {p.label}")
+        ax.set_xlabel("elevation [deg]")
+        ax.set_ylabel("C/N0 [dB-Hz]")
+        if not cmp.real_cn0:
+            ax.set_title("C/N0 vs elevation (the real file has no C/N0)")
+        elif not cmp.sim_cn0:
+            ax.set_title("C/N0 vs elevation (the simulated file has no C/N0)")
+        else:
+            ax.set_title("C/N0 vs elevation, simulated and real")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+        fig.tight_layout()
+        figs["cn0"] = out_dir / "cn0_elevation.png"
+        fig.savefig(figs["cn0"], dpi=110)
+        plt.close(fig)
+
+    # visibility timeline: 0 none, 1 both, 2 only sim, 3 only real
+    state = np.zeros(cmp.seen_sim.shape, dtype=int)
+    state[cmp.seen_sim & cmp.seen_real] = 1
+    state[cmp.seen_sim & ~cmp.seen_real] = 2
+    state[~cmp.seen_sim & cmp.seen_real] = 3
+    keep = state.any(axis=0)
+    if keep.any():
+        st = state[:, keep].T
+        fig, ax = plt.subplots(figsize=(10, max(3.0, 0.18 * st.shape[0] + 1.2)))
+        cmap = ListedColormap(["white", "tab:green", "tab:blue", "tab:red"])
+        x0, x1 = mdates.date2num(t[0]), mdates.date2num(t[-1])
+        if x1 == x0:
+            x1 = x0 + 1e-5
+        ax.imshow(st, aspect="auto", interpolation="nearest", cmap=cmap, vmin=0, vmax=3,
+                  extent=(x0, x1, st.shape[0] - 0.5, -0.5))
+        ax.xaxis_date()
+        ax.xaxis.set_major_formatter(mdates.DateFormatter("%H:%M"))
+        ax.set_yticks(range(st.shape[0]))
+        ax.set_yticklabels(cmp.sv[keep], fontsize=6)
+        from matplotlib.patches import Patch
+
+        ax.legend(handles=[Patch(color="tab:green", label="both"), Patch(color="tab:blue", label="only simulated"),
+                           Patch(color="tab:red", label="only real")], fontsize=7, loc="upper right",
+                  bbox_to_anchor=(1.0, 1.12), ncol=3)
+        ax.set_xlabel("GPS time")
+        ax.set_title("tracked satellites" + (f" above {cmp.mask_deg:g} deg" if cmp.mask_deg > 0 else ""), loc="left")
+        fig.tight_layout()
+        figs["visibility"] = out_dir / "visibility.png"
+        fig.savefig(figs["visibility"], dpi=110)
+        plt.close(fig)
+
+    # horizontal positions
+    if cmp.sol_sim is not None and cmp.sol_real is not None:
+        ref = cmp.truth_ecef_m if cmp.truth_ecef_m is not None else cmp.sol_real.pos_ecef_m
+        fig, ax = plt.subplots(figsize=(6, 6))
+        for lab, sol, mk in (("simulated", cmp.sol_sim, "o"), ("real", cmp.sol_real, "x")):
+            enu = enu_errors_m(sol.pos_ecef_m, ref)
+            ok = np.all(np.isfinite(enu), axis=1)
+            ax.plot(enu[ok, 0], enu[ok, 1], mk, ms=4, alpha=0.7, label=f"{lab} ({ok.sum()} fixes)")
+        ax.plot([0], [0], "k+", ms=14, mew=2, label="truth" if cmp.truth_ecef_m is not None else "real solution")
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.set_xlabel("east [m]")
+        ax.set_ylabel("north [m]")
+        ax.set_title(f"single point solutions ({cmp.sol_sim.solver})")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+        fig.tight_layout()
+        figs["positions"] = out_dir / "positions.png"
+        fig.savefig(figs["positions"], dpi=110)
+        plt.close(fig)
+    return figs
+
+
+def write_report(cmp: Comparison, out_dir) -> Path:
+    """``out_dir/report.md`` with its figures; returns the report path."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    figs = write_figures(cmp, out_dir)
+    L = ["# Simulated vs real observations", ""]
+    L += [f"- simulated: `{cmp.sim.source}` ({cmp.sim.kind}, {len(cmp.sim.time)} epochs, systems {cmp.sim.systems})",
+          f"- real: `{cmp.real.source}` ({cmp.real.kind}, {len(cmp.real.time)} epochs read, systems "
+          f"{cmp.real.systems})",
+          f"- common epochs: {len(cmp.time)} ({str(cmp.time[0])[:19]} .. {str(cmp.time[-1])[:19]} GPS); "
+          f"only simulated {cmp.epochs_only_sim}, only real {cmp.epochs_only_real} (real read over the simulated "
+          f"span)",
+          f"- systems compared: {cmp.systems or '-'}; only simulated: {cmp.systems_only_sim or '-'}; "
+          f"only real: {cmp.systems_only_real or '-'}", ""]
+    L += ["## Signals", ""]
+    L += _md_table(["system", "simulated", "real"], [[p.system, p.sim_code, p.real_code] for p in cmp.pairs])
+    L += ["## Method", ""]
+    for name, kr in cmp.kinds.items():
+        L.append(f"- **{name}** [{UNITS[name]}]: {DESCRIPTION[name]}."
+                 + ("" if kr.available else f" **Unavailable**: {kr.reason}."))
+    code = cmp.kinds["code"]
+    if code.available:
+        L.append(f"- Receiver clock reference system: {code.ref_system}; inter-system biases (code, m): "
+                 + ", ".join(f"{s} {_f(v)}" for s, v in code.isb.items()) + ".")
+        clk = code.clock[np.isfinite(code.clock)]
+        if clk.size:
+            L.append(f"- Removed per-epoch code offset (sim - real receiver clock): median {_f(np.median(clk))} m, "
+                     f"span {_f(clk.max() - clk.min())} m.")
+    L.append("- Signals other than the first of each system keep the inter-frequency (differential code) bias "
+             "between the two receivers: it shows as their mean.")
+    if cmp.mask_deg > 0:
+        L.append(f"- Tracked-satellite sets: above {cmp.mask_deg:g} deg where the broadcast ephemeris gives an "
+                 "elevation; satellites without a healthy record keep every epoch.")
+    L.append("- Statistics leave out gross errors (|residual| above "
+             + ", ".join(f"{k_} {v:g} {UNITS[k_]}" for k_, v in GROSS_LIMITS.items() if math.isfinite(v))
+             + "), counted in column 'gross'.")
+    L.append("")
+
+    L += ["## Differences per system and signal", ""]
+    rows = []
+    for name, kr in cmp.kinds.items():
+        if not kr.available:
+            rows.append([name, "all", "unavailable", "", "", "", "", ""])
+            continue
+        for s in cmp.systems:
+            for p in cmp.pairs:
+                if p.system != s or p not in kr.residuals:
+                    continue
+                st = cmp.stats(name, p)
+                rows.append([name, p.label, st["n"], st["n_gross"], _f(st["mean"]), _f(st["rms"]), _f(st["std"]),
+                             UNITS[name]])
+            st = cmp.system_stats(name, s)
+            if st["n"] or st["n_gross"]:
+                rows.append([name, f"**{s} all**", st["n"], st["n_gross"], _f(st["mean"]), _f(st["rms"]),
+                             _f(st["std"]), UNITS[name]])
+    L += _md_table(["kind", "signal", "count", "gross", "mean", "RMS", "std", "unit"], rows)
+
+    L += ["## Differences per satellite", ""]
+    for s in cmp.systems:
+        rows = []
+        for p in cmp.pairs:
+            if p.system != s:
+                continue
+            for sv in [v for v in cmp.sv.tolist() if v[0] == s]:
+                cells = [sv, p.label]
+                any_ = False
+                for name, kr in cmp.kinds.items():
+                    if not kr.available or p not in kr.residuals:
+                        cells += ["-", "-", "-"]
+                        continue
+                    st = cmp.stats(name, p, sv)
+                    any_ |= bool(st["n"] or st["n_gross"])
+                    cells += [st["n"] + st["n_gross"], _f(st["mean"]), _f(st["rms"])]
+                if any_:
+                    rows.append(cells)
+        if rows:
+            L += [f"### {s}", ""]
+            hdr = ["sv", "signal"]
+            for name in cmp.kinds:
+                hdr += [f"{name} n", f"{name} mean", f"{name} RMS"]
+            L += _md_table(hdr, rows)
+
+    vis = cmp.visibility()
+    L += ["## Tracked satellites", ""]
+    L.append("Satellite-epochs with a code observation" + (f", above {cmp.mask_deg:g} deg elevation where the "
+                                                           "ephemeris gives one" if cmp.mask_deg > 0 else "")
+             + f": both {vis['n_both']}, only simulated {vis['n_only_sim']}, only real {vis['n_only_real']}.")
+    L.append("")
+    L += _md_table(["system", "Jaccard"], [[s, _f(v)] for s, v in vis["jaccard"].items()])
+    L.append(f"- Seen only by the simulation (never by the real receiver): {', '.join(vis['only_sim_svs']) or 'none'}")
+    L.append(f"- Seen only by the real receiver (never simulated): {', '.join(vis['only_real_svs']) or 'none'}")
+    L.append("")
+    rows = [[s, c["both"], c["only_sim"], c["only_real"]] for s, c in vis["per_sv"].items()
+            if c["only_sim"] or c["only_real"]]
+    if rows:
+        L += ["Satellites with epochs seen by one side only:", ""]
+        L += _md_table(["sv", "both", "only sim", "only real"], rows)
+
+    L += ["## Positions", ""]
+    if cmp.sol_sim is None:
+        L += ["No position solutions (give broadcast navigation files with --nav).", ""]
+    else:
+        L.append(f"Single point solutions of both files by {cmp.sol_sim.solver} (broadcast ephemeris, Klobuchar "
+                 "ionosphere, Saastamoinen troposphere, 10 deg mask) over the common epochs. "
+                 + (f"Truth: {cmp.truth_label}." if cmp.truth_label else "No truth."))
+        if cmp.position_note:
+            L.append(cmp.position_note)
+        L.append("")
+        rows = []
+        for lab, st in cmp.positions().items():
+            if st.get("n"):
+                rows.append([lab.replace("_", " "), st["n"], _f(st["mean_e_m"]), _f(st["mean_n_m"]),
+                             _f(st["mean_u_m"]), _f(st["rms_h_m"]), _f(st["rms_v_m"]), _f(st["p95_h_m"])])
+            else:
+                rows.append([lab.replace("_", " "), 0, "-", "-", "-", "-", "-", "-"])
+        L += _md_table(["solutions", "epochs", "mean E [m]", "mean N [m]", "mean U [m]", "RMS horizontal [m]",
+                        "RMS vertical [m]", "95 % horizontal [m]"], rows)
+
+    L += ["## Figures", ""]
+    captions = {"code": "Pseudorange difference per satellite", "cn0": "C/N0 against elevation",
+                "visibility": "Tracked satellites (green both, blue only simulated, red only real)",
+                "positions": "Horizontal positions"}
+    for key, path in figs.items():
+        L += [f"![{captions[key]}]({path.name})", ""]
+    if "cn0" not in figs:
+        L += ["(No C/N0 figure: " + ("no C/N0 on either side" if not (cmp.sim_cn0 or cmp.real_cn0)
+                                     else "no elevations without --nav") + ".)", ""]
+    path = out_dir / "report.md"
+    path.write_text("\n".join(L))
+    return path
