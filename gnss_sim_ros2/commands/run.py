@@ -40,20 +40,25 @@ def add_arguments(p):
     p.add_argument("--quiet", action="store_true")
 
 
+#: command-line option -> parameter (errors name the option)
+OPTION_PARAMS = {"--systems": "systems", "--rate": "rate_hz", "--antenna-frame": "antenna_frame",
+                 "--duration": "duration_s", "--world": "world_file", "--mesh": "mesh_file"}
+
+
 def _overrides(args) -> dict:
     shared = {}
-    if args.systems:
+    if args.systems is not None:
         shared["systems"] = args.systems
-    if args.rate:
+    if args.rate is not None:
         shared["rate_hz"] = args.rate
-    if args.antenna_frame:
+    if args.antenna_frame is not None:
         shared["antenna_frame"] = args.antenna_frame
     out = {"/**": shared}
     if args.world:
         out["visibility"] = {"world_file": str(Path(args.world).resolve()), "mesh_file": ""}
     if args.mesh:
         out["visibility"] = {"mesh_file": str(Path(args.mesh).resolve()), "world_file": ""}
-    if args.duration:
+    if args.duration is not None:
         out["ephemeris"] = {"duration_s": args.duration}
     return out
 
@@ -62,14 +67,14 @@ def run(args) -> int:
     from gnss_sim_ros2.parameters import load_config
 
     out = Path(args.out).resolve()
-    out.mkdir(parents=True, exist_ok=True)
     try:
         ov = _overrides(args)
         ov["/**"]["output_dir"] = str(out)
-        cfg = load_config(args.config, ov)
+        cfg = load_config(args.config, ov, OPTION_PARAMS)
     except ValueError as exc:
         print(f"gnss-sim run: error: {exc}", file=sys.stderr)
         return 2
+    out.mkdir(parents=True, exist_ok=True)
     for old in list(out.glob("*.rnx")):
         old.unlink()
     import yaml

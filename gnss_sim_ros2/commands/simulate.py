@@ -125,5 +125,9 @@ def run(args) -> int:
         print(f"horizontal error against the true path: RMS {np.sqrt(np.mean(e**2)):.2f} m, "
               f"95 % {np.percentile(e, 95):.2f} m")
     print(f"{res.sim_s:.0f} s simulated in {res.wall_s:.1f} s: {res.realtime_factor:.0f}x real time")
-    print(f"wrote {res.obs_path}\nwrote {res.nav_path}\nwrote {res.fix_path}")
+    if res.obs_path is None:
+        print("no observation file written: no epoch was simulated", file=sys.stderr)
+    for path in (res.obs_path, res.nav_path, res.fix_path):
+        if path is not None and Path(path).is_file() and Path(path).stat().st_size > 0:
+            print(f"wrote {path}")
     return 0

@@ -44,12 +44,6 @@ MS_S = 1.0e-3
 STEERING_MODES = ("ms_jump", "continuous", "none")
 
 
-def allan_variance(tau_s, h0, h_m2):
-    """Allan variance implied by h0 and h_-2: h0/(2 tau) + (2 pi^2/3) h_-2 tau."""
-    tau = np.asarray(tau_s, dtype=np.float64)
-    return h0 / (2.0 * tau) + (2.0 * np.pi**2 / 3.0) * h_m2 * tau
-
-
 def process_noise(dt_s, h0, h_m2):
     """Discrete process-noise covariance Q (2x2) of [bias_s, drift_sps] over ``dt_s``."""
     sf = h0 / 2.0
