@@ -177,6 +177,8 @@ NODE_PARAMS: dict[str, list[Param]] = {
         Param("materials_file", "", "YAML of material classes by name pattern"),
         Param("use_visuals", False, "export visual instead of collision geometry"),
         Param("fresnel_rays", -1, "rays over the first Fresnel zone per satellite (0 off; -1 from preset)", min=-1),
+        Param("tf_timeout_s", 5.0, "wall-clock seconds an epoch waits for the antenna's transform before it is "
+              "dropped (and `gnss-sim run` fails, naming the frames)", min=0.1, max=600.0),
     ],
     "receiver": [
         Param("profile", "geodetic", "signals tracked", choices=PROFILES),

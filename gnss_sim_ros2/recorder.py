@@ -7,12 +7,23 @@ ROS 2 install.  Message definitions of the standard types come from rosbags'
 Kilted type store; gnss_sim_msgs and tf2_msgs are registered from their .msg
 files.  On a ROS install, ``ros2 bag record`` does the same job; gnss-sim run
 uses this recorder in both worlds so that a run records the same way.
+
+A bag survives SIGKILL as rosbag2's split files do (``ros2 bag record
+--max-bag-duration``): messages go into a split (``bag_<i>.mcap``) that is
+closed every ``split_s`` seconds of wall time, and ``metadata.yaml`` is
+rewritten (atomically) after each closed split, listing the closed splits.
+A killed recorder thus leaves a bag that rosbags (and ``ros2 bag``) read up
+to its last closed split; the split being written when the process died
+stays in a hidden ``.open_split`` folder, outside the bag.
 """
 from __future__ import annotations
 
+import os
+import shutil
 import time
 from pathlib import Path
 
+import yaml
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from gnss_sim_ros2.graph import RECORDED
@@ -40,25 +51,91 @@ def typestore():
 
 
 class BagRecorder:
-    """Subscribe to ``topics`` on ``node`` and write every message into ``bag_dir``."""
+    """Subscribe to ``topics`` on ``node`` and write every message into the rosbag2 folder ``bag_dir``,
+    in splits of ``split_s`` seconds (wall time), each listed in metadata.yaml once closed."""
 
-    def __init__(self, node, bag_dir: Path, topics=RECORDED):
-        from rosbags.rosbag2 import StoragePlugin, Writer
-
+    def __init__(self, node, bag_dir: Path, topics=RECORDED, split_s: float = 5.0):
         self.node = node
         self.store = typestore()
         self.bag_dir = Path(bag_dir)
         if self.bag_dir.exists():
             raise ValueError(f"bag folder {self.bag_dir} exists already (rosbag2 does not overwrite)")
-        self.writer = Writer(self.bag_dir, version=8, storage_plugin=StoragePlugin.MCAP)
-        self.writer.open()
+        self.bag_dir.mkdir(parents=True)
+        self.split_s = float(split_s)
+        self.topics = list(topics)
         self.counts: dict[str, int] = {}
-        self.connections = {}
         self.subs = []
         self.closed = False
-        for topic, ros_type in topics:  # before any node publishes: the first epoch is recorded too
+        self._splits: list[dict] = []      # metadata of the closed splits
+        self._writer = None
+        self._conns: dict = {}
+        self._split_started = 0.0
+        self._open_split()
+        for topic, ros_type in self.topics:  # before any node publishes: the first epoch is recorded too
             self._subscribe(topic, ros_type)
+        from rclpy.clock import Clock, ClockType
 
+        # a split also closes when no message comes (a slow or stalled run loses at most split_s)
+        self._timer = node.create_timer(min(1.0, self.split_s / 2), self._rotate_if_due,
+                                        clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    def _rotate_if_due(self):
+        if not self.closed and self._split_messages and time.monotonic() - self._split_started >= self.split_s:
+            self._close_split()
+            self._open_split()
+
+    # ------------------------------------------------------------------ splits
+    def _open_split(self):
+        from rosbags.rosbag2 import StoragePlugin, Writer
+
+        tmp = self.bag_dir / ".open_split"
+        if tmp.exists():
+            shutil.rmtree(tmp)
+        self._writer = Writer(tmp, version=8, storage_plugin=StoragePlugin.MCAP)
+        self._writer.open()
+        self._conns = {topic: self._writer.add_connection(topic, ros_type, typestore=self.store)
+                       for topic, ros_type in self.topics}
+        self._split_messages = 0
+        self._split_started = time.monotonic()
+
+    def _close_split(self):
+        """Close the open split, move its file into the bag and rewrite metadata.yaml."""
+        self._writer.close()
+        self._writer = None
+        tmp = self.bag_dir / ".open_split"
+        if self._split_messages:
+            name = f"bag_{len(self._splits)}.mcap"
+            os.replace(tmp / ".open_split.mcap", self.bag_dir / name)
+            info = yaml.safe_load((tmp / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+            info["relative_file_paths"] = [name]
+            for f in info["files"]:
+                f["path"] = name
+            self._splits.append(info)
+            self._write_metadata()
+        shutil.rmtree(tmp, ignore_errors=True)
+
+    def _write_metadata(self):
+        first = self._splits[0]
+        topics: dict[str, dict] = {}
+        for sp in self._splits:
+            for t in sp["topics_with_message_count"]:
+                name = t["topic_metadata"]["name"]
+                if name in topics:
+                    topics[name]["message_count"] += t["message_count"]
+                else:
+                    topics[name] = {"message_count": t["message_count"], "topic_metadata": t["topic_metadata"]}
+        files = [f for sp in self._splits for f in sp["files"]]
+        start = min(f["starting_time"]["nanoseconds_since_epoch"] for f in files)
+        end = max(f["starting_time"]["nanoseconds_since_epoch"] + f["duration"]["nanoseconds"] for f in files)
+        info = dict(first, relative_file_paths=[f["path"] for f in files], files=files,
+                    message_count=sum(f["message_count"] for f in files), starting_time={
+                        "nanoseconds_since_epoch": start}, duration={"nanoseconds": end - start},
+                    topics_with_message_count=list(topics.values()))
+        tmp = self.bag_dir / ".metadata.yaml.tmp"
+        tmp.write_text(yaml.safe_dump({"rosbag2_bagfile_information": info}, sort_keys=False))
+        os.replace(tmp, self.bag_dir / "metadata.yaml")   # a reader sees the old or the new list, never half
+
+    # ------------------------------------------------------------------ recording
     def _subscribe(self, topic: str, ros_type: str):
         import importlib
 
@@ -67,14 +144,14 @@ class BagRecorder:
         static = topic == "/tf_static"
         qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.TRANSIENT_LOCAL if static else DurabilityPolicy.VOLATILE)
-        conn = self.writer.add_connection(topic, ros_type, typestore=self.store)
-        self.connections[topic] = conn
         self.counts[topic] = 0
 
-        def cb(data, topic=topic, conn=conn):
+        def cb(data, topic=topic):
             if self.closed:
                 return
-            self.writer.write(conn, self.node.get_clock().now().nanoseconds or time.time_ns(), data)
+            self._rotate_if_due()
+            self._writer.write(self._conns[topic], self.node.get_clock().now().nanoseconds or time.time_ns(), data)
+            self._split_messages += 1
             self.counts[topic] += 1
 
         self.subs.append(self.node.create_subscription(cls, topic, cb, qos, raw=True))
@@ -83,9 +160,19 @@ class BagRecorder:
         if self.closed:
             return
         self.closed = True
+        self.node.destroy_timer(self._timer)
         for s in self.subs:
             self.node.destroy_subscription(s)
-        self.writer.close()
+        self._close_split()
+        if not self._splits:        # nothing recorded: still a valid, empty bag
+            self._open_split()
+            self._writer.close()
+            tmp = self.bag_dir / ".open_split"
+            os.replace(tmp / "metadata.yaml", self.bag_dir / "metadata.yaml")
+            os.replace(tmp / ".open_split.mcap", self.bag_dir / "bag_0.mcap")
+            meta = (self.bag_dir / "metadata.yaml").read_text().replace(".open_split.mcap", "bag_0.mcap")
+            (self.bag_dir / "metadata.yaml").write_text(meta)
+            shutil.rmtree(tmp, ignore_errors=True)
 
 
 def count_messages(bag_dir) -> dict[str, int]:

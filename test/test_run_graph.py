@@ -89,12 +89,13 @@ def test_killed_run_leaves_valid_rinex_and_bag(tmp_path):
 
     from gnss_sim_ros2.recorder import count_messages
 
-    proc = subprocess.Popen(CLI + ["run", "--out", str(tmp_path), "--duration", "3000", "--systems", "G"],
+    out = tmp_path / "o"
+    proc = subprocess.Popen(CLI + ["run", "--out", str(out), "--duration", "3000", "--systems", "G"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=_env())
     deadline = time.monotonic() + 120
     obs = None
     while time.monotonic() < deadline:
-        found = list(tmp_path.glob("*_MO.rnx"))
+        found = list(tmp_path.glob(".o.partial-*/*_MO.rnx"))    # written beside --out, moved there at the end
         if found and found[0].stat().st_size > 20_000:
             obs = found[0]
             break
@@ -102,10 +103,11 @@ def test_killed_run_leaves_valid_rinex_and_bag(tmp_path):
     assert obs is not None, "the run wrote no RINEX epochs"
     proc.send_signal(signal.SIGTERM)
     proc.wait(timeout=60)
+    obs = out / obs.name
     ds = georinex.load(obs, use="G")
     n_rinex = ds.time.size
     assert 3 <= n_rinex < 3001
-    counts = count_messages(tmp_path / "bag")
+    counts = count_messages(out / "bag")
     # the bag holds every epoch up to the kill (the last one may be cut between topics)
     assert abs(counts["/gnss/fix"] - n_rinex) <= 1
     assert abs(counts["/gnss/observations"] - n_rinex) <= 1

@@ -37,6 +37,10 @@ def add_arguments(p):
     p.add_argument("--no-autostart", action="store_true",
                    help="do not configure/activate the nodes (leave them to another lifecycle manager)")
     p.add_argument("--antenna-frame", default=None, help="TF frame of the antenna [from config]")
+    p.add_argument("--no-trajectory-player", action="store_true",
+                   help="do not move the robot here: its TF comes from elsewhere (Gazebo + ros_gz_bridge)")
+    p.add_argument("--domain-id", type=int, default=None, metavar="N",
+                   help="ROS_DOMAIN_ID of the run's graph (default: a free one of its own, printed at the start)")
     p.add_argument("--quiet", action="store_true")
 
 
@@ -65,39 +69,60 @@ def _overrides(args) -> dict:
 
 def run(args) -> int:
     from gnss_sim_ros2.parameters import load_config
+    from gnss_sim_ros2.run_isolation import OutputBusy, OutputFolder, choose_domain_id
 
-    out = Path(args.out).resolve()
+    folder = OutputFolder(Path(args.out))
     try:
         ov = _overrides(args)
-        ov["/**"]["output_dir"] = str(out)
+        ov["/**"]["output_dir"] = str(folder.staging)
         cfg = load_config(args.config, ov, OPTION_PARAMS)
+        if args.domain_id is not None and not 0 <= args.domain_id <= 232:
+            raise ValueError(f"option --domain-id is {args.domain_id}; a ROS domain id is 0..232")
     except ValueError as exc:
         print(f"gnss-sim run: error: {exc}", file=sys.stderr)
         return 2
-    out.mkdir(parents=True, exist_ok=True)
-    for old in list(out.glob("*.rnx")):
-        old.unlink()
+    try:
+        staging = folder.acquire()
+        if args.domain_id is None:
+            user = os.environ.get("ROS_DOMAIN_ID", "")
+            domain, _domain_lock = choose_domain_id(avoid={int(user)} if user.isdigit() else set())
+        else:
+            domain = args.domain_id
+    except OutputBusy as exc:
+        print(f"gnss-sim run: error: {exc}", file=sys.stderr)
+        return 1
+    os.environ["ROS_DOMAIN_ID"] = str(domain)   # this process and its node processes
     import yaml
 
-    params_file = out / "params.yaml"
+    params_file = staging / "params.yaml"
     params_file.write_text(yaml.safe_dump(cfg.ros_parameter_file_dict(), sort_keys=False))
-    bag_dir = out / "bag"
-    if bag_dir.exists():
-        import shutil
+    runner = Runner(cfg, staging, params_file, args)
+    runner.domain_id = domain
+    for old in folder.stale:
+        runner.warn(f"note: {old} holds the outputs of a run that was killed; left as it is")
+    stop = {"flag": False, "signal": 0}
 
-        shutil.rmtree(bag_dir)
-    runner = Runner(cfg, out, params_file, args)
-    stop = {"flag": False}
-
-    def on_signal(*_):
+    def on_signal(signum, _frame):
         stop["flag"] = True
+        stop["signal"] = signum
 
     signal.signal(signal.SIGTERM, on_signal)
     signal.signal(signal.SIGINT, on_signal)
+    code = 1
     try:
-        return runner.run(stop)
+        code = runner.run(stop)
     finally:
         runner.close()
+        if runner.epochs_done > 0:
+            folder.commit()
+            runner.log(f"outputs in {folder.final}")
+        else:
+            folder.abandon()
+            if folder.final.exists():
+                runner.log(f"nothing produced: the previous results in {folder.final} are left untouched")
+    if stop["signal"] and code == 0:
+        return 128 + stop["signal"]       # the convention: 130 after SIGINT, 143 after SIGTERM
+    return code
 
 
 class Runner:
@@ -109,10 +134,18 @@ class Runner:
         self.recorder = None
         self.manager = None
         self.started = False
+        self.epochs_done = 0
+        self.domain_id = None
+        self.foreign: dict = {}
 
     def log(self, text: str):
         if not self.args.quiet:
             print(f"[gnss-sim run] {text}", file=sys.stderr, flush=True)
+
+    @staticmethod
+    def warn(text: str):
+        """Printed even with --quiet."""
+        print(f"[gnss-sim run] {text}", file=sys.stderr, flush=True)
 
     # ------------------------------------------------------------------ graph
     def start(self):
@@ -123,7 +156,9 @@ class Runner:
         from gnss_sim_ros2 import graph
         from gnss_sim_ros2.nodes.manager import LocalNodes, RemoteNodes
 
-        rclpy.init()
+        # our own SIGINT/SIGTERM handlers end the loop (summary, sky plot, files closed); rclpy's would shut
+        # the context down under the running executor
+        rclpy.init(signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
         self.rclpy = rclpy
         self.executor = SingleThreadedExecutor()
         self.driver = rclpy.create_node("gnss_sim_run")
@@ -135,12 +170,14 @@ class Runner:
             from gnss_sim_ros2.recorder import BagRecorder
 
             self.recorder = BagRecorder(self.driver, self.out / "bag")
-        specs = graph.nodes()
+        specs = graph.nodes(not self.args.no_trajectory_player)
         if self.args.processes:
+            from gnss_sim_ros2.run_isolation import die_with_parent
+
             env = dict(os.environ)
             for spec in specs:
                 cmd = [sys.executable, "-m", spec.module] + graph.ros_args(spec, str(self.params_file), True)
-                self.procs.append(subprocess.Popen(cmd, env=env))
+                self.procs.append(subprocess.Popen(cmd, env=env, preexec_fn=die_with_parent))
             self.manager = RemoteNodes(self.driver, [s.name for s in specs], self.executor)
             self.manager.wait_for_services()
         else:
@@ -218,8 +255,9 @@ class Runner:
         duration = eph["duration_s"]
         period = 1.0 / eph["rate_hz"]
         n_epochs = int(np.floor(duration / period + 1e-9)) + 1
+        tf_timeout_s = self.cfg.node("visibility")["tf_timeout_s"]
         self.log(f"starting {'one process per node' if self.args.processes else 'all nodes in one process'}; "
-                 f"{n_epochs} epochs of {period:g} s; output {self.out}")
+                 f"{n_epochs} epochs of {period:g} s; ROS_DOMAIN_ID={self.domain_id}; output {self.out}")
         try:
             self.start()
             if self.args.no_autostart:
@@ -233,6 +271,9 @@ class Runner:
             print(f"gnss-sim run: error: {exc}", file=sys.stderr)
             return 3
         self.spin(0.3)  # let the recorder find the topics and TF static latch
+        self.foreign = self.foreign_publishers()
+        for topic, nodes in self.foreign.items():
+            self.warn(f"warning: {topic} has publishers outside this run's graph: {', '.join(nodes)}")
         wall0 = time.perf_counter()
         dropped = 0
         k_done = 0
@@ -246,12 +287,28 @@ class Runner:
                     self.set_clock(time.perf_counter() - wall0)
                     self.spin(0.002)
             self.set_clock(t_s)
-            deadline = time.monotonic() + 10.0
-            while not any(abs(s - t_s) < 1e-6 for s in list(self.status)[-3:]) and time.monotonic() < deadline:
+            t_wait = time.monotonic()
+            deadline = t_wait + max(10.0, tf_timeout_s + 2.0)
+            while (not any(abs(s - t_s) < 1e-6 for s in list(self.status)[-3:]) and time.monotonic() < deadline
+                   and not stop["flag"]):
                 self.executor.spin_once(timeout_sec=0.001)
+                if (time.monotonic() - t_wait > tf_timeout_s + 1.0
+                        and not any(abs(s - t_s) < 1e-6 for s in list(self.truth)[-3:])):
+                    vis = self.cfg.node("visibility")
+                    print(f"\ngnss-sim run: error: no transform from '{vis['world_frame']}' to "
+                          f"'{vis['antenna_frame']}' in TF within tf_timeout_s = {tf_timeout_s:g} s (wall time) at "
+                          f"epoch {k} (t = {t_s:g} s): nothing publishes the robot's TF (the trajectory player, "
+                          f"or Gazebo through ros_gz_bridge) or the frames are misnamed (parameters world_frame, "
+                          f"antenna_frame)", file=sys.stderr)
+                    self.epochs_done = k_done
+                    return 1
+            if stop["flag"] and not any(abs(s - t_s) < 1e-6 for s in self.status):
+                self.log(f"stopped after {k_done} epochs")
+                break
             if not any(abs(s - t_s) < 1e-6 for s in self.status):
                 dropped += 1
             k_done = k + 1
+            self.epochs_done = k_done
             if not self.args.quiet and (k % max(1, n_epochs // 20) == 0 or k == n_epochs - 1):
                 st = self.status.get(t_s)
                 el = time.perf_counter() - wall0
@@ -264,6 +321,19 @@ class Runner:
         wall = time.perf_counter() - wall0
         self.finish(k_done, dropped, wall, period)
         return 0
+
+    def foreign_publishers(self) -> dict[str, list[str]]:
+        """{topic: nodes} of publishers on the run's topics that are not nodes of its graph."""
+        from gnss_sim_ros2 import graph
+
+        ours = {s.name for s in graph.nodes()} | {"gnss_sim_run"}
+        out = {}
+        for _, topic in graph.REMAPPINGS:
+            others = sorted({f"{i.node_namespace.rstrip('/')}/{i.node_name}"
+                             for i in self.driver.get_publishers_info_by_topic(topic) if i.node_name not in ours})
+            if others:
+                out[topic] = others
+        return out
 
     def finish(self, n_epochs: int, dropped: int, wall_s: float, period: float):
         """Close the files (nodes cleaned up), then summary, sky plot and bag counts."""
@@ -316,13 +386,15 @@ class Runner:
             "latency_ms_median": round(float(np.median(lat_ms)), 3) if lat_ms else None,
             "latency_ms_p99": round(float(np.percentile(lat_ms, 99)), 3) if lat_ms else None,
             "mode": "processes" if self.args.processes else "composed",
+            "ros_domain_id": self.domain_id,
+            "foreign_publishers": self.foreign,
             "pace": "realtime" if self.args.realtime else "as fast as the chain answers",
             "rinex_files": rinex,
         }
         if self.recorder is not None:
             from gnss_sim_ros2.recorder import count_messages
 
-            out["bag"] = str(self.out / "bag")
+            out["bag"] = "bag"      # relative: the folder is moved into place at the end
             out["bag_messages"] = count_messages(self.out / "bag")
         return out
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import collections
 import sys
+import time
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -24,8 +25,6 @@ from gnss_sim_ros2.conversions import states_from_msg
 from gnss_sim_ros2.nodes.common import GnssSimNode, run_node
 from gnss_sim_ros2.nodes.tf_source import TfSource
 
-#: a states message waits at most this long (ROS time) for its TF before it is dropped [s]
-TF_WAIT_S = 2.0
 #: the sky view image is rendered at most this often (ROS time) [s]
 SKY_VIEW_PERIOD_S = 5.0
 
@@ -89,24 +88,26 @@ class VisibilityNode(GnssSimNode):
 
     # ------------------------------------------------------------------
     def _on_states(self, msg):
-        self.queue.append(msg)
+        self.queue.append((msg, time.monotonic()))
         self._drain()
 
     def _drain(self):
+        """Cast every queued epoch whose antenna pose TF has; one waits at most tf_timeout_s of wall time
+        (a simulated clock may stand still meanwhile), later ones wait behind it, so waits never add up."""
         p = self.params
         while self.queue:
-            msg = self.queue[0]
+            msg, arrived = self.queue[0]
             try:
                 tr, _ = self.tf.lookup(p["world_frame"], p["antenna_frame"], msg.header.stamp)
             except LookupError:
-                now = self.get_clock().now().nanoseconds * 1e-9
-                stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
-                if now - stamp > TF_WAIT_S:
+                if time.monotonic() - arrived > p["tf_timeout_s"]:
                     self.queue.popleft()
                     self.dropped += 1
-                    self.get_logger().warning(f"no TF {p['antenna_frame']} -> {p['world_frame']} at {stamp:.3f} s:"
-                                              f" epoch dropped ({self.dropped} so far)")
-                    continue
+                    stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+                    self.get_logger().error(f"no transform {p['world_frame']} -> {p['antenna_frame']} in TF within "
+                                            f"tf_timeout_s = {p['tf_timeout_s']:g} s at {stamp:.3f} s: epoch dropped "
+                                            f"({self.dropped} so far)")
+                    continue   # the epochs behind it have been waiting meanwhile: their own clocks run on
                 return
             self.queue.popleft()
             self.process(msg, np.asarray(tr))
