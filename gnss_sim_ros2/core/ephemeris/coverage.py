@@ -1,7 +1,7 @@
 """Does an ephemeris provider serve the span to simulate?  Checked before anything is written.
 
 :func:`check_coverage` samples ``provider.states(t)`` over [start, start + duration] (every
-``step_s``, 30 s by default, at most ``MAX_SAMPLES`` samples) and
+``step_s``, 60 s by default, at most ``MAX_SAMPLES`` samples) and
 
 - raises :class:`EphemerisCoverageError` (a ValueError naming the files, the span and why) when
   no satellite of the requested systems is served at any sample: all records unhealthy, records of
@@ -23,8 +23,8 @@ import numpy as np
 from ..time import GnssTime
 
 #: sampling step of the check [s] and the most samples taken (longer spans: a coarser step)
-STEP_S = 30.0
-MAX_SAMPLES = 2000
+STEP_S = 60.0
+MAX_SAMPLES = 1000
 
 
 class EphemerisCoverageError(ValueError):
@@ -137,8 +137,9 @@ def check_coverage(provider, start: GnssTime, duration_s: float, systems: str = 
         if m.any() and not m.all():
             for i0, i1 in _runs(~m):
                 by_span.setdefault(_span_text(start, cov.t_s, i0, i1), []).append(s)
-    for text, svs in by_span.items():
-        msgs.append(f"{names}: no ephemeris for {' '.join(svs)} over {text}")
+    if by_span:
+        msgs.append(f"{names}: satellites without ephemeris over part of the span: "
+                    + "; ".join(f"{' '.join(svs)} {text}" for text, svs in by_span.items()))
     listed = getattr(provider, "missing_svs", None) or getattr(getattr(provider, "precise", None), "missing_svs",
                                                                None)
     if listed is not None and listed(systems):
