@@ -44,6 +44,7 @@ Method (:func:`compare`):
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -94,6 +95,7 @@ class Comparison:
     sol_sim: Solutions | None = None
     sol_real: Solutions | None = None
     position_note: str = ""
+    warnings: list[str] = field(default_factory=list)   #: the inputs look like two sites or two days
 
     # ------------------------------------------------------------------ summaries
     def sys_of_col(self) -> np.ndarray:
@@ -152,6 +154,44 @@ class Comparison:
             out["real_vs_truth"] = position_stats(enu_errors_m(self.sol_real.pos_ecef_m, self.truth_ecef_m))
         out["sim_vs_real"] = position_stats(enu_errors_m(self.sol_sim.pos_ecef_m, self.sol_real.pos_ecef_m))
         return out
+
+
+class CompareWarning(UserWarning):
+    """The two inputs look like different sites or days: the statistics mix what should not be mixed."""
+
+
+#: farther apart than this the two files are not one site [m]
+SITE_APART_M = 5000.0
+
+
+def _first_day(tab: ObsTable, path) -> np.datetime64:
+    """Day of the first observation of a file (RINEX header TIME OF FIRST OBS, else its first epoch)."""
+    if tab.kind == "rinex":
+        from ..rinex.header import read_obs_header
+
+        first = read_obs_header(Path(path))["first_obs"]
+        if first is not None:
+            return first.astype("datetime64[D]")
+    return tab.time[0].astype("datetime64[D]")
+
+
+def _input_warnings(cmp: Comparison, sim_path, real_path) -> list[str]:
+    """Messages when the files are more than SITE_APART_M apart (headers or solutions) or of different days."""
+    out = []
+    a, b = cmp.sim.approx_pos_ecef_m, cmp.real.approx_pos_ecef_m
+    if a is not None and b is not None and np.linalg.norm(a - b) > SITE_APART_M:
+        out.append(f"{sim_path} and {real_path}: APPROX POSITION XYZ {np.linalg.norm(a - b) / 1000.0:.1f} km apart: "
+                   "not one site, the differences mix two places")
+    elif cmp.sol_sim is not None and cmp.sol_real is not None:
+        d = np.linalg.norm(cmp.sol_sim.pos_ecef_m - cmp.sol_real.pos_ecef_m, axis=1)
+        d = d[np.isfinite(d)]
+        if d.size and np.median(d) > SITE_APART_M:
+            out.append(f"{sim_path} and {real_path}: their single point positions are {np.median(d) / 1000.0:.1f} km "
+                       "apart (median): not one site, the differences mix two places")
+    day_s, day_r = _first_day(cmp.sim, sim_path), _first_day(cmp.real, real_path)
+    if day_s != day_r:
+        out.append(f"{sim_path} starts on {day_s}, {real_path} on {day_r}: files of different days")
+    return out
 
 
 def _elevations(eph, times: np.ndarray, svs: np.ndarray, rx_ecef: np.ndarray) -> np.ndarray:
@@ -341,4 +381,7 @@ def compare(sim_path, real_path, nav_paths=None, truth_ecef_m=None, truth_csv=No
                 low = np.isfinite(cmp.el_deg) & (cmp.el_deg < mask_deg)
                 cmp.seen_sim = cmp.seen_sim & ~low
                 cmp.seen_real = cmp.seen_real & ~low
+    cmp.warnings = _input_warnings(cmp, sim_path, real_path)
+    for msg in cmp.warnings:
+        warnings.warn(msg, CompareWarning, stacklevel=2)
     return cmp

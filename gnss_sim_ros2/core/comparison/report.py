@@ -154,6 +154,7 @@ def write_report(cmp: Comparison, out_dir) -> Path:
           f"span)",
           f"- systems compared: {cmp.systems or '-'}; only simulated: {cmp.systems_only_sim or '-'}; "
           f"only real: {cmp.systems_only_real or '-'}", ""]
+    L += [f"**Warning**: {w}" for w in cmp.warnings] + ([""] if cmp.warnings else [])
     L += ["## Signals", ""]
     L += _md_table(["system", "simulated", "real"], [[p.system, p.sim_code, p.real_code] for p in cmp.pairs])
     L += ["## Method", ""]

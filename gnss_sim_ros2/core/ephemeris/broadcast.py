@@ -22,6 +22,7 @@ from ..rinex.nav_read import KEPLER_SYSTEMS, SUPPORTED_SYSTEMS, NavData, read_na
 from ..time import GnssTime
 from . import glonass as glo
 from .kepler import KeplerParams
+from .sanity import drop_outliers
 from .select import EphemerisDiagnostics, build_timeline, validity_windows_s
 from .states import SatelliteStates
 
@@ -106,13 +107,14 @@ class BroadcastEphemeris:
     def from_files(cls, paths, start: GnssTime | None = None, end: GnssTime | None = None,
                    systems: str = SUPPORTED_SYSTEMS, **kwargs) -> BroadcastEphemeris:
         """Read RINEX 2/3/4 navigation files (plain or compressed); with ``start``/``end``
-        (GPS time) only records that can serve that window are kept."""
+        (GPS time) only records that can serve that window are kept.  Records inconsistent with the
+        satellite's other records are dropped with a warning (sanity.drop_outliers)."""
         if isinstance(paths, (str, Path)):
             paths = [paths]
         systems = _check_systems(systems)
         if start is not None and end is not None and end < start:
             raise ValueError(f"end {end} is before start {start}")
-        nav = read_nav_files(paths, start=start, end=end, systems=systems)
+        nav = drop_outliers(read_nav_files(paths, start=start, end=end, systems=systems))
         return cls(nav, **kwargs)
 
     # ------------------------------------------------------------------ information

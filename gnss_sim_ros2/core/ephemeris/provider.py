@@ -6,13 +6,16 @@ file, read back through the broadcast path), ``broadcast`` (RINEX navigation
 files), ``sp3`` (precise orbits and clocks; with navigation files, their
 group delays and health on top), ``download`` (daily broadcast
 files from public IGS archives, cached).  Only the time span simulated is
-loaded (with a margin for the fit intervals).
+loaded (with a margin for the fit intervals).  The provider is then checked
+against the span (coverage.check_coverage): no usable ephemeris is an error
+naming the files and the span, gaps and missing satellites are warnings.
 """
 from __future__ import annotations
 
 from pathlib import Path
 
 from ..time import GnssTime
+from .coverage import check_coverage
 
 #: loaded before/after the simulated span [s]: a 4 h fit interval plus GLONASS/BeiDou records
 LOAD_MARGIN_S = 4 * 3600.0
@@ -20,15 +23,25 @@ LOAD_MARGIN_S = 4 * 3600.0
 
 def open_ephemeris(source: str, start: GnssTime, duration_s: float, systems: str = "GRECJI",
                    nav_files=(), sp3_files=(), clk_files=(), workdir: str | Path | None = None,
-                   cache_dir: str | Path | None = None):
+                   cache_dir: str | Path | None = None, check: bool = True):
     """A provider with ``states(t, svs, systems)``/``states_at(svs, t)`` for the span.
 
     Returns (provider, nav_paths) where ``nav_paths`` are the RINEX navigation
     files behind it (to copy next to the RINEX observations); for sp3 with
     navigation files the precise orbits carry the broadcast group delays
     (precise_broadcast.PreciseWithBroadcastGroupDelay), without them none (and
-    no navigation file to write).
+    no navigation file to write).  ``check``: raise EphemerisCoverageError when nothing of ``systems`` is
+    served over the span, warn about gaps (coverage.check_coverage).
     """
+    provider, paths, files = _open(source, start, duration_s, systems, nav_files, sp3_files, clk_files, workdir,
+                                   cache_dir)
+    if check:
+        check_coverage(provider, start, duration_s, systems, files)
+    return provider, paths
+
+
+def _open(source, start, duration_s, systems, nav_files, sp3_files, clk_files, workdir, cache_dir):
+    """(provider, navigation paths, every file read) of ``source``."""
     from .broadcast import BroadcastEphemeris
 
     end = start + float(duration_s)
@@ -41,14 +54,15 @@ def open_ephemeris(source: str, start: GnssTime, duration_s: float, systems: str
         y, doy = start.to_datetime().year, start.to_datetime().timetuple().tm_yday
         path = workdir / f"SYNTHETIC_{y:04d}{doy:03d}_MN.rnx"
         write_synthetic_nav(path, start - 7200.0, float(duration_s) + 4 * 3600.0, systems=systems)
-        return BroadcastEphemeris.from_files([path], start=lo, end=hi), [path]
+        return BroadcastEphemeris.from_files([path], start=lo, end=hi), [path], [path]
     if source == "broadcast":
         if not nav_files:
             raise ValueError("ephemeris source 'broadcast' needs nav_files (RINEX navigation files)")
         for f in nav_files:
             if not Path(f).is_file():
                 raise ValueError(f"navigation file {f} does not exist (parameter nav_files)")
-        return BroadcastEphemeris.from_files(list(nav_files), start=lo, end=hi), [Path(f) for f in nav_files]
+        paths = [Path(f) for f in nav_files]
+        return BroadcastEphemeris.from_files(list(nav_files), start=lo, end=hi), paths, paths
     if source == "sp3":
         from .sp3 import Sp3Ephemeris
 
@@ -58,13 +72,14 @@ def open_ephemeris(source: str, start: GnssTime, duration_s: float, systems: str
             if not Path(f).is_file():
                 raise ValueError(f"file {f} does not exist (parameter sp3_files/clk_files)")
         precise = Sp3Ephemeris.from_files(list(sp3_files), list(clk_files), start=lo, end=hi)
+        files = [Path(f) for f in list(sp3_files) + list(clk_files)]
         if not nav_files:
-            return precise, []
+            return precise, [], files
         # with navigation files: their group delays, clock references and health on top (precise_broadcast)
         from .precise_broadcast import PreciseWithBroadcastGroupDelay
 
-        brdc, paths = open_ephemeris("broadcast", start, duration_s, systems, nav_files)
-        return PreciseWithBroadcastGroupDelay(precise, brdc, start, duration_s), paths
+        brdc, paths = open_ephemeris("broadcast", start, duration_s, systems, nav_files, check=False)
+        return PreciseWithBroadcastGroupDelay(precise, brdc, start, duration_s), paths, files + paths
     if source == "download":
         import datetime as _dt
 
@@ -75,5 +90,5 @@ def open_ephemeris(source: str, start: GnssTime, duration_s: float, systems: str
         while day <= end.to_datetime().date():
             paths.append(fetch_broadcast_nav(day, cache_dir=cache_dir))
             day += _dt.timedelta(days=1)
-        return BroadcastEphemeris.from_files(paths, start=lo, end=hi), paths
+        return BroadcastEphemeris.from_files(paths, start=lo, end=hi), paths, paths
     raise ValueError(f"unknown ephemeris source {source!r} (parameter source: synthetic, broadcast, sp3, download)")

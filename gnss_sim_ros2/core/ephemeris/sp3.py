@@ -102,12 +102,16 @@ def read_sp3(path) -> tuple[GnssTime, list[str], np.ndarray, np.ndarray]:
     rows: list[dict[str, tuple[float, float, float, float]]] = []
     svs_header: list[str] = []
     seen_c = False
+    seen_header = False
     with _open_text(path) as f:
         for lineno, line in enumerate(f, start=1):
             line = line.rstrip("\r\n")
-            if lineno == 1:
+            if not seen_header:
+                if not line.strip():
+                    continue              # blank lines before the header (seen in IGS files)
                 if not line.startswith("#") or len(line) < 3 or line[1] not in "abcd":
-                    raise ValueError(f"{path}: line 1 is not an SP3 header line (starts {line[:3]!r})")
+                    raise ValueError(f"{path}, line {lineno}: not an SP3 header line (starts {line[:3]!r})")
+                seen_header = True
                 continue
             if not line:
                 continue
@@ -144,6 +148,8 @@ def read_sp3(path) -> tuple[GnssTime, list[str], np.ndarray, np.ndarray]:
             elif line.startswith("EOF"):
                 break
             # V (velocity), EP/EV (correlations), comments: not used
+    if not seen_header:
+        raise ValueError(f"{path}: empty file (no SP3 header line)")
     if not epochs:
         raise ValueError(f"{path}: no epoch lines ('*') found")
     svs = list(dict.fromkeys(svs_header + [sv for r in rows for sv in r]))
@@ -338,13 +344,21 @@ class Sp3Ephemeris:
                 keep &= tf <= end.to_gps_seconds() + margin
             idx = np.flatnonzero(keep)
             grid, pos, clk = grid[idx], pos[idx], clk[idx]
-        return cls(grid, svs, pos, clk, clk_files=clk_files, **kwargs)
+        try:
+            return cls(grid, svs, pos, clk, clk_files=clk_files, **kwargs)
+        except ValueError as exc:
+            raise ValueError(f"{', '.join(map(str, sp3_paths))}: {exc}") from None
 
     # ----- queries -------------------------------------------------------------
     def svs(self, systems: str = "GRECJI") -> list[str]:
         """Satellites of ``systems`` with at least one valid position sample."""
         ok = self._bad_cum[-1] < len(self._tsec)
         return [str(s) for s in self._svs[ok] if s[:1] in systems]
+
+    def missing_svs(self, systems: str = "GRECJI") -> list[str]:
+        """Satellites of ``systems`` the files list (header or records) without any valid position sample."""
+        bad = self._bad_cum[-1] >= len(self._tsec)
+        return [str(s) for s in self._svs[bad] if s[:1] in systems]
 
     def time_span(self) -> tuple[GnssTime, GnssTime]:
         """(first, last) SP3 epoch: states are served inside this span only."""

@@ -49,10 +49,23 @@ from ..time import BDT_MINUS_GPST_S, GPS_EPOCH, SECONDS_PER_DAY, SECONDS_PER_WEE
 
 log = logging.getLogger(__name__)
 
+
+class NavDataWarning(UserWarning):
+    """A navigation record dropped or a file's content corrected (the message names file and line)."""
+
+
 #: systems whose broadcast ephemerides are Keplerian elements
 KEPLER_SYSTEMS = "GECJI"
 #: systems read by this module (SBAS records are skipped)
 SUPPORTED_SYSTEMS = "GRECJI"
+
+#: orbit radius (semi-major axis; GLONASS: position radius) of any GNSS satellite [m]: the lowest is GLONASS
+#: at 25,510 km (GLONASS ICD 5.1 3.1), the highest the GEO/IGSO of BeiDou, QZSS and NavIC at 42,164 km;
+#: outside 20,000..46,000 km a record is not an orbit of a navigation satellite
+ORBIT_RADIUS_RANGE_M = (2.0e7, 4.6e7)
+#: the most eccentric GNSS orbits are Galileo E14/E18 (e = 0.16, in the wrong orbit since 2014) and
+#: QZSS QZO (0.075); a broadcast eccentricity beyond this is a corrupted record
+MAX_ECCENTRICITY = 0.3
 
 #: georinex field names per system (RINEX 3.04 tables A6-A14; same order as georinex nav3)
 _GR_FIELDS_KEPLER_COMMON = [
@@ -161,6 +174,10 @@ class NavData:
     skipped: dict[str, int] = field(default_factory=dict)
     #: corrections applied to malformed input (also logged as warnings)
     notes: list[str] = field(default_factory=list)
+    #: records dropped, one message each ("file:line: G05 2022-01-01 00:00:00 dropped: reason")
+    dropped: list[str] = field(default_factory=list)
+    #: where each record came from: (sv, nav type, epoch as written) -> "file:line"
+    origin: dict[tuple, str] = field(default_factory=dict)
 
     def merge(self, other: NavData) -> NavData:
         tables = dict(self.tables)
@@ -179,7 +196,15 @@ class NavData:
             paths=self.paths + other.paths,
             skipped=skipped,
             notes=self.notes + other.notes,
+            dropped=self.dropped + other.dropped,
+            origin={**self.origin, **other.origin},
         )
+
+    def drop(self, where: str, sv: str, epoch, reason: str) -> None:
+        """Record (and warn) that the record of ``sv`` at ``epoch`` written at ``where`` is not used."""
+        msg = f"{where}: {sv} record {str(epoch).replace('T', ' ')[:19]} dropped: {reason}"
+        self.dropped.append(msg)
+        warnings.warn(msg, NavDataWarning, stacklevel=3)
 
     def records(self, system: str) -> np.ndarray:
         """Record table of ``system`` (empty table of the right dtype when absent)."""
@@ -277,26 +302,54 @@ def parse_nav_text(text: str, name: str = "<text>", start: GnssTime | None = Non
     if end is not None:
         hi = end.to_datetime("GPS") + _dt.timedelta(seconds=margin_s)
 
+    if not records and not nav.skipped:
+        raise ValueError(f"{name}: no navigation records after the header (a blank file)")
     groups: dict[tuple[str, str], dict[tuple[str, _dt.datetime], list[str]]] = {}
-    for sysid, sv, epoch, nav_type, body, _lineno in records:
-        if sysid not in systems:
-            continue
+    n_sbas = 0
+    for sysid, sv, epoch, nav_type, body, lineno in records:
         if sysid == "S":
-            nav.skipped["SBAS records"] = nav.skipped.get("SBAS records", 0) + 1
+            n_sbas += 1
+            continue
+        if sysid not in systems:
             continue
         if (lo is not None and epoch < lo) or (hi is not None and epoch > hi):
             continue
+        bad = _non_numeric_field(body, 22 if major == 2 else 23, 3 if major == 2 else 4)
+        if bad is not None:
+            k, text = bad
+            nav.drop(f"{name}:{lineno + k}", sv, epoch, f"field {text.strip()!r} is not a number")
+            continue
         # duplicates (same satellite, epoch and message type): the last in the file wins
         groups.setdefault((sysid, nav_type), {})[(sv, epoch)] = body
+        nav.origin[(sv, nav_type, epoch_key(epoch))] = f"{name}:{lineno}"
+    if n_sbas:
+        key = "SBAS records (SBAS is not simulated)"
+        nav.skipped[key] = nav.skipped.get(key, 0) + n_sbas
+        msg = f"{name}: {n_sbas} SBAS record{'s' if n_sbas > 1 else ''} skipped (SBAS is not simulated)"
+        nav.notes.append(msg)
+        warnings.warn(msg, NavDataWarning, stacklevel=2)
 
     for (sysid, nav_type), recs in sorted(groups.items()):
-        tab = _georinex_parse(sysid, nav_type, list(recs.values()), major, first, name)
+        n_dropped = len(nav.dropped)
+        tab = _georinex_parse(sysid, nav_type, list(recs.values()), major, first, name, nav)
+        have = set() if tab is None else {(str(a), epoch_key(b)) for a, b in zip(tab.rec["sv"], tab.epoch)}
+        if len(have) + len(nav.dropped) - n_dropped < len(recs):
+            gone = {m.split(": ", 1)[0] for m in nav.dropped[n_dropped:]}
+            for sv, epoch in recs:
+                where = nav.origin[(sv, nav_type, epoch_key(epoch))]
+                if (sv, epoch_key(epoch)) not in have and where not in gone:
+                    nav.drop(where, sv, epoch, "georinex could not read it")
         if tab is not None and len(tab):
             nav.tables[sysid] = SystemTable.concatenate([nav.tables[sysid], tab]) if sysid in nav.tables else tab
     for sysid, tab in nav.tables.items():
         if sysid in KEPLER_SYSTEMS:
             _fix_semicircles(tab, name, nav)
     return nav
+
+
+def epoch_key(epoch) -> str:
+    """A record epoch (datetime or datetime64) as 'YYYY-MM-DD HH:MM:SS' (dictionary key)."""
+    return str(np.datetime64(epoch, "s")).replace("T", " ")
 
 
 def _parse_float(s: str) -> float:
@@ -471,6 +524,22 @@ def _split_rinex2(lines, i0, sysid, name):
 
 
 _ZERO_FIELD = " 0.000000000000E+00"
+#: a Fortran real: mantissa, then an exponent with its letter, or without it when Fortran drops the letter of a
+#: 3-digit exponent ("0.499063314480-269", seen in IGS brdc files of 2012)
+_NUMBER = re.compile(r"^\s*[-+]?(\d+\.?\d*|\.\d+)([EeDd][-+]?\d+|[-+]\d{3})?\s*$")
+
+
+def _non_numeric_field(body: list[str], first_col: int, cont_col: int):
+    """(line offset in the record, field text) of the first 19-column field that is neither blank nor a
+    number (RINEX D19.12 / E19.12 fields); None when every field reads."""
+    for k, ln in enumerate(body):
+        c0 = first_col if k == 0 else cont_col
+        rest = ln.rstrip("\r\n")[c0:]
+        for q in range(3 if k == 0 else 4):
+            f = rest[19 * q: 19 * (q + 1)]
+            if f.strip() and not _NUMBER.match(f):
+                return k, f
+    return None
 
 
 def _normalise_body(body: list[str], first_col: int, cont_col: int) -> list[str]:
@@ -487,7 +556,7 @@ def _normalise_body(body: list[str], first_col: int, cont_col: int) -> list[str]
     return out
 
 
-def _georinex_parse(sysid, nav_type, bodies, major, first_line, name) -> SystemTable | None:
+def _georinex_parse(sysid, nav_type, bodies, major, first_line, name, nav: NavData) -> SystemTable | None:
     import georinex
 
     if major == 2:
@@ -504,10 +573,10 @@ def _georinex_parse(sysid, nav_type, bodies, major, first_line, name) -> SystemT
     except Exception as e:  # georinex raises assorted types on malformed records
         raise ValueError(f"{name}: georinex could not read the {sysid} {nav_type} records ({type(e).__name__}: {e})"
                          ) from e
-    return _dataset_to_table(ds, sysid, nav_type, name)
+    return _dataset_to_table(ds, sysid, nav_type, name, nav)
 
 
-def _dataset_to_table(ds, sysid, nav_type, name) -> SystemTable | None:
+def _dataset_to_table(ds, sysid, nav_type, name, nav: NavData) -> SystemTable | None:
     fields = [f for f in GEORINEX_FIELDS[sysid] if f in ds.data_vars]
     key = "X" if sysid == "R" else "sqrtA"
     if key not in ds.data_vars:
@@ -522,9 +591,14 @@ def _dataset_to_table(ds, sysid, nav_type, name) -> SystemTable | None:
     sv = np.array([str(s)[:3] for s in svs[si]])
     epoch = times[ti]
     if sysid == "R":
-        rec = _glonass_table(sv, epoch, raw, fields, name)
+        rec, why = _glonass_table(sv, epoch, raw, fields, name)
     else:
-        rec = _kepler_table(sysid, nav_type, sv, epoch, raw, fields, name)
+        rec, why = _kepler_table(sysid, nav_type, sv, epoch, raw, fields, name)
+    keep = np.ones(len(rec), dtype=bool)
+    for k, reason in why.items():
+        keep[k] = False
+        nav.drop(nav.origin.get((str(sv[k]), nav_type, epoch_key(epoch[k])), name), str(sv[k]), epoch[k], reason)
+    rec, raw, epoch = rec[keep], raw[keep], epoch[keep]
     order = np.lexsort((rec["toe_sec"], rec["sv"]))
     return SystemTable(sysid, rec[order], raw[order], fields, epoch[order])
 
@@ -603,9 +677,11 @@ def _kepler_table(sysid, nav_type, sv, epoch, raw, fields, name) -> np.ndarray:
     rec["toc_sec"] = toc
     # toe: the instant with broadcast time of week Toe nearest to toc (weeks of the system's scale)
     toe_tow = _col(raw, fields, "Toe")
-    if np.any(~np.isfinite(toe_tow)) or np.any((toe_tow < 0) | (toe_tow > SECONDS_PER_WEEK)):
-        bad = int(np.flatnonzero((toe_tow < 0) | (toe_tow > SECONDS_PER_WEEK) | ~np.isfinite(toe_tow))[0])
-        raise ValueError(f"{name}: {sv[bad]} record at {epoch[bad]} has Toe {toe_tow[bad]} outside 0..604800 s")
+    why: dict[int, str] = {}
+    bad_toe = ~np.isfinite(toe_tow) | (toe_tow < 0) | (toe_tow > SECONDS_PER_WEEK)
+    for k in np.flatnonzero(bad_toe).tolist():
+        why[k] = f"Toe {toe_tow[k]} s is outside 0..604800 s"
+    toe_tow = np.where(bad_toe, 0.0, toe_tow)
     toc_scale = toc + (BDT_MINUS_GPST_S if scale == "BDT" else 0)
     week = np.floor_divide(toc_scale, SECONDS_PER_WEEK)
     tow_toc = toc_scale - week * SECONDS_PER_WEEK
@@ -657,11 +733,13 @@ def _kepler_table(sysid, nav_type, sv, epoch, raw, fields, name) -> np.ndarray:
         rec["iodc"] = -1
         rec["fit_h"] = np.nan
         rec["ura"] = _col(raw, fields, "URA")
-    bad = (rec["sqrt_a"] <= 0) | (rec["e"] < 0) | (rec["e"] >= 1)
-    if np.any(bad):
-        k = int(np.flatnonzero(bad)[0])
-        raise ValueError(f"{name}: {sv[k]} record at {epoch[k]} has sqrtA={rec['sqrt_a'][k]}, e={rec['e'][k]}")
-    return rec
+    a_m = rec["sqrt_a"] ** 2
+    bad = ~((a_m >= ORBIT_RADIUS_RANGE_M[0]) & (a_m <= ORBIT_RADIUS_RANGE_M[1]) & (rec["e"] >= 0)
+            & (rec["e"] < MAX_ECCENTRICITY))
+    for k in np.flatnonzero(bad).tolist():
+        why.setdefault(k, f"impossible orbit for a GNSS satellite (sqrtA {rec['sqrt_a'][k]:.6g} m^0.5, "
+                          f"e {rec['e'][k]:.6g})")
+    return rec, why
 
 
 def _glonass_table(sv, epoch, raw, fields, name) -> np.ndarray:
@@ -686,11 +764,10 @@ def _glonass_table(sv, epoch, raw, fields, name) -> np.ndarray:
     sec_utc = (epoch - np.datetime64(GPS_EPOCH, "s")).astype(np.int64)
     rec["iode"] = ((sec_utc + 3 * 3600) % SECONDS_PER_DAY) // 900  # tb index in GLONASS day
     r = np.linalg.norm(rec["pos_m"], axis=1)
-    bad = (r < 1e6) | ~np.isfinite(r)
-    if np.any(bad):
-        k = int(np.flatnonzero(bad)[0])
-        raise ValueError(f"{name}: {sv[k]} record at {epoch[k]} has position radius {r[k]} m")
-    return rec
+    bad = ~((r >= ORBIT_RADIUS_RANGE_M[0]) & (r <= ORBIT_RADIUS_RANGE_M[1]))
+    why = {k: f"impossible orbit for a GNSS satellite (position radius {r[k]:.6g} m)"
+           for k in np.flatnonzero(bad).tolist()}
+    return rec, why
 
 
 def _dedupe(tab: SystemTable) -> SystemTable:
