@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .ephemeris.coverage import check_coverage
 from .ephemeris.precise_broadcast import PreciseWithBroadcastGroupDelay
 from .ephemeris.provider import open_ephemeris
 from .ephemeris.states import SatelliteStates
@@ -278,6 +279,9 @@ def run_simulation(setup: SimulationSetup) -> SimulationResult:
         brdc, brdc_paths = setup.ephemeris.get("broadcast") or open_ephemeris(
             "broadcast", setup.start, setup.duration_s, setup.systems, setup.nav_files)
         provider, nav_paths = PreciseWithBroadcastGroupDelay(provider, brdc, setup.start, setup.duration_s), brdc_paths
+        # the pair serves the satellites both files have: no usable one is an error before anything is written
+        check_coverage(provider, setup.start, setup.duration_s, setup.systems,
+                       list(setup.sp3_files) + list(setup.nav_files), warn=False)
 
     out.mkdir(parents=True, exist_ok=True)
     for old in list(out.glob("*_MO.rnx")) + list(out.glob("*_MN.rnx")):
