@@ -48,7 +48,7 @@ import numpy as np
 from .. import frames
 from ..constants import C_MPS, F_L1_HZ, FOLIAGE_MEDIAN_LOSS_DB
 from .raycast import RayScene
-from .sdf_world import WorldMesh
+from .world_mesh import WorldMesh
 
 STATE_BELOW_MASK = -1
 STATE_VISIBLE = 0
@@ -169,11 +169,13 @@ class Scene:
         return cls(read_scene(mesh_path), nthreads=nthreads)
 
     @classmethod
-    def from_sdf(cls, sdf_path, materials_yaml=None, use_visuals: bool = False, nthreads: int = 0) -> Scene:
-        from .sdf_world import load_sdf_world
+    def from_sdf(cls, sdf_path, materials_yaml=None, use_visuals: bool = False, nthreads: int = 0, *,
+                 keep_dynamic: bool = False, strict: bool = False, seed: int = 0) -> Scene:
+        """From an SDF world: keyword options as :func:`~.loader.load_sdf_world`."""
+        from .loader import load_sdf_world
 
-        return cls(load_sdf_world(Path(sdf_path), materials_yaml=materials_yaml, use_visuals=use_visuals),
-                   nthreads=nthreads)
+        return cls(load_sdf_world(Path(sdf_path), materials_yaml=materials_yaml, use_visuals=use_visuals,
+                                  keep_dynamic=keep_dynamic, strict=strict, seed=seed), nthreads=nthreads)
 
     @property
     def has_foliage(self) -> bool:
