@@ -58,18 +58,13 @@ def fuel_cache_roots() -> list[Path]:
     return [home / ".gz" / "fuel", home / ".ignition" / "fuel"]
 
 
-def _child_ci(folder: Path, name: str) -> Path | None:
-    """``folder/name`` matched case-insensitively (exact name first)."""
-    exact = folder / name
-    if exact.exists():
-        return exact
+def _children_ci(folder: Path, name: str) -> list[Path]:
+    """Entries of ``folder`` named ``name`` case-insensitively (the exact spelling first)."""
     if not folder.is_dir():
-        return None
+        return []
     low = name.lower()
-    for c in sorted(folder.iterdir()):
-        if c.name.lower() == low:
-            return c
-    return None
+    hits = [c for c in folder.iterdir() if c.name.lower() == low]
+    return sorted(hits, key=lambda c: (c.name != name, c.name))
 
 
 def fuel_model_dir(uri: str) -> tuple[Path | None, str, list[Path]]:
@@ -81,19 +76,18 @@ def fuel_model_dir(uri: str) -> tuple[Path | None, str, list[Path]]:
     version, sub = m.group("version"), unquote(m.group("path") or "")
     looked = []
     for root in fuel_cache_roots():
-        models = root / server
-        for part in (owner, "models", name):
-            models = _child_ci(models, part) if models is not None else None
         looked.append(root / server / owner.lower() / "models" / name.lower())
-        if models is None or not models.is_dir():
-            continue
-        versions = [d for d in models.iterdir() if d.is_dir() and d.name.isdigit()]
-        if version and version != "tip":
-            chosen = [d for d in versions if int(d.name) == int(version)]
-        else:
-            chosen = sorted(versions, key=lambda d: int(d.name))[-1:]
-        if chosen:
-            return chosen[0], sub, looked
+        folders = [root / server]
+        for part in (owner, "models", name):
+            folders = [c for d in folders for c in _children_ci(d, part)]
+        for folder in folders:
+            versions = [d for d in folder.iterdir() if d.is_dir() and d.name.isdigit()]
+            if version and version != "tip":
+                chosen = [d for d in versions if int(d.name) == int(version)]
+            else:
+                chosen = sorted(versions, key=lambda d: int(d.name))[-1:]
+            if chosen:
+                return chosen[0], sub, looked
     return None, sub, looked
 
 
