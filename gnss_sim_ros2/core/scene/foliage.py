@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-#: bounding boxes closer than this [m] join one crown
-CLUSTER_GAP_M = 0.25
+#: bounding boxes closer than this [m] join one crown (leaf cards of one tree are closer; crowns of two trees further)
+CLUSTER_GAP_M = 1.0
 
 
 def is_closed(vertices_m: np.ndarray, faces: np.ndarray) -> bool:
