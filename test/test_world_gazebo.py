@@ -435,3 +435,17 @@ def test_new_primitives_extents(tmp_path):
     np.testing.assert_allclose(ext["cone"], [[-2, -2, -2], [2, 2, 2]], atol=1e-9)       # centred (gz-common)
     np.testing.assert_allclose(ext["caps"][1], [0.5, 0.5, 1.5], atol=1e-3)
     np.testing.assert_allclose(ext["ell"][1], [1, 2, 3], atol=1e-3)
+
+
+def test_own_orchard_world(tmp_path):
+    world = export_world(REPO / "worlds" / "orchard.sdf", tmp_path / "orchard.ply", strict=True)
+    crowns = [p for p in world.parts if p["name"].endswith("::crown::collision")]
+    trunks = [p for p in world.parts if p["name"].endswith("::trunk::collision")]
+    assert len(crowns) == len(trunks) == 24 and all(p["class"] == "foliage" for p in crowns)
+    # plane + barn box + roof prism (4-gon: 2 + 2 caps + 8 sides) + 24 x (cylinder + icosphere)
+    assert world.class_counts() == {"opaque": PLANE + BOX + 12 + 24 * CYLINDER, "foliage": 24 * SPHERE}
+    c = _centres(load_sdf_world(REPO / "worlds" / "orchard.sdf"))
+    crown_c = c[[i for i, p in enumerate(world.parts) if p["name"].endswith("::crown::collision")]]
+    np.testing.assert_allclose(sorted(set(crown_c[:, 0].round(6))), [0, 5, 10, 15], atol=1e-9)
+    np.testing.assert_allclose(sorted(set(crown_c[:, 1].round(6))), [-15, -9, -3, 3, 9, 15], atol=1e-9)
+    np.testing.assert_allclose(crown_c[:, 2], 3.2, atol=1e-9)
