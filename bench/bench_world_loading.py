@@ -6,6 +6,8 @@ Cases (each loaded in a fresh process, so the peak resident memory is its own):
     primitive parts (street furniture) and, when ../shared/worlds is present, 40 pine_tree includes
     (open leaf meshes made closed crowns);
   * the same city scaled to about 2,000,000 triangles (375 building instances);
+  * a farm exported as one mesh: 100 billboard trees (400,000 open leaf triangles in one mesh node, made
+    100 closed crowns) and their trunks;
   * every world of ../shared/worlds/gz-sim (as found, without a Fuel cache: those parts are skipped)
     and a world including every model of ../shared/worlds/models (when present).
 
@@ -87,6 +89,37 @@ def write_city(folder: Path, instances: int, with_pines: bool) -> Path:
     return w
 
 
+def write_farm(folder: Path, trees: int = 100, quads: int = 2000) -> Path:
+    """A farm exported as one mesh (as Clearpath's agriculture world): one GLB whose node "Leaves" holds
+    ``trees`` x ``quads`` open leaf cards (billboard crowns of radius 3.3 m, 10 m apart) and "Trunks"."""
+    import trimesh
+
+    rng = np.random.default_rng(5)
+    verts, faces = [], []
+    for k in range(trees):
+        centre = np.array([(k % 10) * 10.0, (k // 10) * 10.0, 6.0])
+        p = rng.normal(size=(quads, 3))
+        p *= (3.0 * rng.random(quads) ** (1 / 3) / np.linalg.norm(p, axis=1))[:, None]
+        u, w = rng.normal(size=(2, quads, 3)) * 0.17
+        base = len(verts) * 4 * quads
+        q = np.stack([p, p + u, p + u + w, p + w], axis=1) + centre
+        verts.append(q.reshape(-1, 3))
+        i = base + 4 * np.arange(quads)[:, None]
+        faces.append(np.vstack([np.c_[i, i + 1, i + 2], np.c_[i, i + 2, i + 3]]))
+    trunk = trimesh.creation.cylinder(radius=0.3, height=3.0, sections=16)
+    trunks = [trunk.copy().apply_translation(((k % 10) * 10.0, (k // 10) * 10.0, 1.5)) for k in range(trees)]
+    scene = trimesh.Scene()
+    scene.add_geometry(trimesh.Trimesh(np.vstack(verts), np.vstack(faces), process=False), node_name="Leaves",
+                       geom_name="Leaves")
+    scene.add_geometry(trimesh.util.concatenate(trunks), node_name="Trunks", geom_name="Trunks")
+    scene.export(folder / "farm.glb")
+    w = folder / "farm.sdf"
+    w.write_text('<sdf version="1.9"><world name="farm"><model name="farm"><static>true</static><link name="l">'
+                 '<collision name="c"><geometry><mesh><uri>farm.glb</uri></mesh></geometry></collision></link>'
+                 '</model></world></sdf>')
+    return w
+
+
 def _measure(args):
     path, env, repeat = args
     os.environ.update(env)
@@ -127,8 +160,11 @@ def main(argv=None):
         c400 = write_city(tmp / "c400", 75, shared)
         models_2m = os.pathsep.join([str(tmp / "c2m" / "models")] + ([str(SHARED / "models")] if shared else []))
         c2m = write_city(tmp / "c2m", 375, shared)
+        (tmp / "farm").mkdir()
+        farm = write_farm(tmp / "farm")
         for name, path, env in (("city ~400k", c400, {"GZ_SIM_RESOURCE_PATH": models_path}),
-                                ("city ~2M", c2m, {"GZ_SIM_RESOURCE_PATH": models_2m})):
+                                ("city ~2M", c2m, {"GZ_SIM_RESOURCE_PATH": models_2m}),
+                                ("farm, 100 billboard trees", farm, {})):
             with ctx.Pool(1) as pool:
                 run_case(name, path, env, args.repeat, pool)
         if shared:
