@@ -345,13 +345,14 @@ def test_partial_world_skips_with_one_warning_each_and_reports(tmp_path, monkeyp
         warnings.simplefilter("always")
         world = export_world(w, tmp_path / "partial.ply")
     msgs = [str(r.message) for r in rec if issubclass(r.category, SceneWarning)]
-    assert len(msgs) == 3
-    # includes are resolved first (they name frames), then the models, then world elements
+    assert len(msgs) == 2
+    # includes are resolved first (they name frames), then the models
     assert "model://nowhere_model" in msgs[0]
-    assert "person::l::c" in msgs[1] and "person_standing.dae" in msgs[1] and "<road name='main'>" in msgs[2]
+    assert "person::l::c" in msgs[1] and "person_standing.dae" in msgs[1]
     assert len(world.triangles) == BOX + SPHERE                       # the rest of the person is kept
-    skipped = read_scene(tmp_path / "partial.ply").report["skipped"]
-    assert [s["part"].split(" ")[0] for s in skipped] == ["model://nowhere_model", "person::l::c", "<road"]
+    report = read_scene(tmp_path / "partial.ply").report
+    assert [s["part"] for s in report["skipped"]] == ["model://nowhere_model", "person::l::c"]
+    assert [s["part"] for s in report["left_out"]] == ["<road name='main'>"]         # flat, a visual in Gazebo
     with pytest.raises(ValueError, match=r"model://nowhere_model: .*cannot find.*--strict"):
         load_sdf_world(w, strict=True)
 
@@ -449,3 +450,12 @@ def test_own_orchard_world(tmp_path):
     np.testing.assert_allclose(sorted(set(crown_c[:, 0].round(6))), [0, 5, 10, 15], atol=1e-9)
     np.testing.assert_allclose(sorted(set(crown_c[:, 1].round(6))), [-15, -9, -3, 3, 9, 15], atol=1e-9)
     np.testing.assert_allclose(crown_c[:, 2], 3.2, atol=1e-9)
+
+
+def test_saved_state_places_the_models(tmp_path):
+    body = ('<model name="crate"><static>true</static><pose>0 0 0.5 0 0 0</pose><link name="l"><collision name="c">'
+            '<geometry><box><size>1 1 1</size></box></geometry></collision></link></model>'
+            '<state world_name="own"><sim_time>12 0</sim_time><model name="crate"><pose>10 -4 0.5 0 0 1.5707963'
+            '</pose><link name="l"><pose>10 -4 0.5 0 0 1.5707963</pose></link></model></state>')
+    world = load_sdf_world(own_world(tmp_path / "state.sdf", body), strict=True)
+    np.testing.assert_allclose(_centres(world)[0], [10, -4, 0.5], atol=1e-6)

@@ -12,6 +12,7 @@ followed for what matters to line-of-sight:
   model frame (the world for top-level models); a ``<frame>`` to its ``attached_to``; a
   collision/visual to its link; a joint to its child link.  ``relative_to`` may name any sibling
   frame, ``__model__``, ``world`` (at world scope) or a nested ``a::b`` name.
+* A saved world's ``<state>`` places its top-level models (their ``<pose>`` there, world frame).
 * ``<include>``: the URI is resolved as Gazebo does (:mod:`.uris`: ``model://``, Fuel from the local
   cache, ``file://``, ``package://``); ``<name>``, ``<pose>`` and ``<static>`` of the include override
   the model's own.  An include without geometry (``model://sun``, a ``<light>``) is left out quietly.
@@ -20,9 +21,9 @@ followed for what matters to line-of-sight:
   ``<submesh>`` with ``<center>``), each file read once.
 * Only static models are obstacles: a model (or include) without ``<static>true`` moves in Gazebo
   (a robot, a box that falls) and is left out unless ``keep_dynamic``; a model inside a static
-  model is static.  ``<actor>`` is left out (animated).
+  model is static.  ``<actor>`` is left out (animated), and ``<road>`` (a flat visual in Gazebo).
 * Partial worlds: a part that cannot be loaded (a missing mesh, an uncached Fuel model, an unknown
-  geometry, a ``<road>``, a ``<state>``) is skipped with one warning naming it and why, and listed in
+  geometry) is skipped with one warning naming it and why, and listed in
   the scene report (:mod:`.scene_report`); ``strict=True`` turns each skip into an :class:`SdfError`.
 
 Material classes: :mod:`.materials`; open foliage meshes become closed crowns: :mod:`.foliage`.
@@ -46,8 +47,6 @@ from .world_mesh import WorldMesh
 
 _SHAPES = {"box": box, "sphere": sphere, "cylinder": cylinder, "cone": cone, "capsule": capsule,
            "ellipsoid": ellipsoid, "plane": plane, "polyline": polylines}
-#: world elements that hold geometry Gazebo shows but this loader does not build (reported as skipped)
-_UNBUILT_WORLD_ELEMENTS = {"road": "roads are not built", "state": "a saved world <state> (poses) is not applied"}
 
 
 def is_material_tag(c) -> bool:
@@ -331,6 +330,7 @@ class _Loader:
 
     def world(self, world_el, file: Path):
         scope = _Scope(world_el, file, True, self, static=False)
+        self.apply_state(scope, world_el, file)
         for name, (kind, el, mfile, _, st) in scope.frames.items():
             if kind != "model":
                 continue
@@ -349,8 +349,21 @@ class _Loader:
                 self.population(c, file)
             elif c.tag == "actor":
                 self.report.leave_out(c.get("name") or "<actor>", "an animated <actor>, no static geometry")
-            elif c.tag in _UNBUILT_WORLD_ELEMENTS:
-                self.report.skip(f"<{c.tag} name={c.get('name')!r}> ({where(c, file)})", _UNBUILT_WORLD_ELEMENTS[c.tag])
+            elif c.tag == "road":
+                self.report.leave_out(f"<road name={c.get('name')!r}>", "a flat road surface (a visual only in "
+                                                                        "Gazebo), no obstacle")
+
+    def apply_state(self, scope: _Scope, world_el, file: Path):
+        """A saved world's ``<state>``: its top-level ``<model><pose>`` (world frame) replace the models' poses,
+        as Gazebo places them when it loads the world (the last ``<state>`` wins)."""
+        for state in children(world_el, "state"):
+            for m in children(state, "model"):
+                name, pose_el = m.get("name"), child(m, "pose")
+                if pose_el is None or name not in scope.frames:
+                    continue
+                kind, el, mfile, _, st = scope.frames[name]
+                if kind == "model":
+                    scope.frames[name] = (kind, el, file, pose_el, st)
 
     def population(self, pop_el, file: Path):
         pname = pop_el.get("name") or "population"

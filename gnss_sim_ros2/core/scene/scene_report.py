@@ -4,7 +4,7 @@
   unsupported geometry or raster): each one warning (:class:`SceneWarning`) naming the part and the
   reason; with ``strict`` each is an :class:`~.sdf_xml.SdfError` instead.
 * ``left_out``: what is left out by design and is not an error: geometry-free includes (lights),
-  non-static models and actors (they move; ``keep_dynamic`` keeps non-static models).
+  non-static models and actors (they move; ``keep_dynamic`` keeps non-static models) and roads (flat).
 """
 from __future__ import annotations
 
