@@ -8,7 +8,7 @@ Cases (each loaded in a fresh process, so the peak resident memory is its own):
   * the same city scaled to about 2,000,000 triangles (375 building instances);
   * a farm exported as one mesh: 100 billboard trees (400,000 open leaf triangles in one mesh node, made
     100 closed crowns) and their trunks;
-  * every world of ../shared/worlds/gz-sim (as found, without a Fuel cache: those parts are skipped)
+  * every world of ../shared/worlds/gz-sim (Fuel models from --fuel-cache, else those parts are skipped)
     and a world including every model of ../shared/worlds/models (when present).
 
 Figures printed: triangles, parts, load time (load_sdf_world: the first load in the process, which
@@ -16,7 +16,7 @@ includes the lazy imports of trimesh and pycollada, and the best of --repeat), p
 after loading minus before (+MB) and in all (peak MB, the interpreter and imports included).
 Targets (issue 15): 400k triangles under 5 s, 2 M under 1 GB.
 
-    .venv/bin/python bench/bench_world_loading.py [--repeat 3]
+    .venv/bin/python bench/bench_world_loading.py [--repeat 3] [--fuel-cache DIR]
 """
 from __future__ import annotations
 
@@ -120,13 +120,22 @@ def write_farm(folder: Path, trees: int = 100, quads: int = 2000) -> Path:
     return w
 
 
+def _peak_rss_mb() -> float:
+    """VmHWM of this process (Linux): its own peak, unlike ru_maxrss, which a spawned child inherits from the
+    parent it was forked from."""
+    for line in Path("/proc/self/status").read_text().splitlines():
+        if line.startswith("VmHWM:"):
+            return float(line.split()[1]) / 1024.0
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
 def _measure(args):
     path, env, repeat = args
     os.environ.update(env)
     from gnss_sim_ros2.core.scene.loader import load_sdf_world
 
     warnings.simplefilter("ignore")
-    rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    rss0 = _peak_rss_mb()
     times = []
     world = None
     for _ in range(repeat):
@@ -134,7 +143,7 @@ def _measure(args):
         t0 = time.perf_counter()
         world = load_sdf_world(path)
         times.append(time.perf_counter() - t0)
-    rss1 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    rss1 = _peak_rss_mb()
     rep = world.report
     return (len(world.triangles), len(world.parts), times[0], min(times), (rss1 - rss0, rss1), world.class_counts(),
             len(rep["skipped"]), rep["mesh_files_read"])
@@ -150,6 +159,8 @@ def run_case(name, path, env, repeat, pool):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--fuel-cache", metavar="DIR", help="local Fuel cache for the gz-sim worlds' Fuel models "
+                                                       "(e.g. the one test_world_gazebo lays out); default: none")
     args = ap.parse_args(argv)
     shared = SHARED.is_dir()
     ctx = mp.get_context("spawn")
@@ -174,7 +185,8 @@ def main(argv=None):
                 f"<include><uri>model://{n}</uri><pose>{40 * k} 0 0 0 0 0</pose></include>"
                 for k, n in enumerate(names)) + "</world></sdf>")
             cases = [("all shared models", own)] + [(p.name, p) for p in sorted((SHARED / "gz-sim").glob("*.sdf"))]
-            env = {"GAZEBO_MODEL_PATH": str(SHARED / "models"), "GZ_FUEL_CACHE_PATH": str(tmp / "no_fuel_cache")}
+            env = {"GAZEBO_MODEL_PATH": str(SHARED / "models"),
+                   "GZ_FUEL_CACHE_PATH": args.fuel_cache or str(tmp / "no_fuel_cache")}
             for name, path in cases:
                 with ctx.Pool(1) as pool:
                     run_case(name, path, env, args.repeat, pool)
