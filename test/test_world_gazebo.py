@@ -459,3 +459,19 @@ def test_saved_state_places_the_models(tmp_path):
             '</pose><link name="l"><pose>10 -4 0.5 0 0 1.5707963</pose></link></model></state>')
     world = load_sdf_world(own_world(tmp_path / "state.sdf", body), strict=True)
     np.testing.assert_allclose(_centres(world)[0], [10, -4, 0.5], atol=1e-6)
+
+
+def test_model_uri_inside_a_cached_fuel_model_is_the_model_itself(tmp_path, monkeypatch):
+    import trimesh
+
+    for var in ("GZ_SIM_RESOURCE_PATH", "IGN_GAZEBO_RESOURCE_PATH", "GAZEBO_MODEL_PATH", "SDF_PATH"):
+        monkeypatch.delenv(var, raising=False)
+    monkeypatch.setenv("GZ_FUEL_CACHE_PATH", str(tmp_path / "cache"))
+    d = tmp_path / "cache/fuel.gazebosim.org/someone/models/crate/3"
+    _model(d, "Crate", '<model name="crate"><static>true</static><link name="l"><collision name="c"><geometry>'
+           '<mesh><uri>model://Crate/meshes/crate.stl</uri></mesh></geometry></collision></link></model>')
+    (d / "meshes").mkdir()
+    trimesh.creation.box(extents=(1, 1, 1)).export(d / "meshes" / "crate.stl")
+    w = own_world(tmp_path / "crate.sdf", "<include><uri>https://fuel.gazebosim.org/1.0/someone/models/Crate</uri>"
+                                          "</include>")
+    assert len(load_sdf_world(w, strict=True).triangles) == BOX

@@ -9,6 +9,8 @@
   older ``~/.ignition/fuel``), laid out ``CACHE/SERVER/OWNER/models/NAME/VERSION/``.  Fuel stores
   owner and name in lower case; they are matched case-insensitively, ``%20`` is a space; without a
   version (or ``tip``) the highest numbered version folder is taken.  Other http(s) URIs are an error.
+  Inside a cached Fuel model, ``model://ANY/path`` not found on the resource paths is the model's own
+  ``path`` (gz-fuel-tools rewrites such URIs to the model itself on download, since Dome).
 * ``file://PATH`` or a bare path: absolute as is; relative first to the including file's folder
   (gz-sim ``asFullPath``), then to the world's folder, then to each resource folder (gz-sim's
   resource lookup strips ``file://`` and searches the resource paths).
@@ -91,6 +93,14 @@ def fuel_model_dir(uri: str) -> tuple[Path | None, str, list[Path]]:
     return None, sub, looked
 
 
+def _fuel_version_dir(folder: Path) -> Path | None:
+    """The Fuel model version folder (``.../OWNER/models/NAME/VERSION``) that holds ``folder``, if any."""
+    for p in [folder, *folder.parents]:
+        if p.name.isdigit() and p.parent.parent.name.lower() == "models" and (p / "model.config").is_file():
+            return p
+    return None
+
+
 def _package_dirs(pkg: str) -> list[Path]:
     out = [p / "share" / pkg for p in env_dirs("AMENT_PREFIX_PATH")]
     for d in env_dirs("ROS_PACKAGE_PATH"):
@@ -114,8 +124,15 @@ class UriResolver:
         if low.startswith(("http://", "https://")):
             return self._fuel(uri, at)
         if low.startswith("model://"):
-            return self._search(uri[len("model://"):], self._model_dirs(base_dir), uri, at,
-                                "set GZ_SIM_RESOURCE_PATH (or GAZEBO_MODEL_PATH) to the folder that holds the model")
+            rest = uri[len("model://"):]
+            try:
+                return self._search(rest, self._model_dirs(base_dir), uri, at, "set GZ_SIM_RESOURCE_PATH (or "
+                                    "GAZEBO_MODEL_PATH) to the folder that holds the model")
+            except SdfError:
+                own, inner = _fuel_version_dir(Path(base_dir)), rest.partition("/")[2]
+                if own is not None and inner and (own / inner).exists():
+                    return own / inner
+                raise
         if low.startswith("package://"):
             rest = uri[len("package://"):]
             pkg, _, sub = rest.partition("/")
