@@ -475,3 +475,23 @@ def test_model_uri_inside_a_cached_fuel_model_is_the_model_itself(tmp_path, monk
     w = own_world(tmp_path / "crate.sdf", "<include><uri>https://fuel.gazebosim.org/1.0/someone/models/Crate</uri>"
                                           "</include>")
     assert len(load_sdf_world(w, strict=True).triangles) == BOX
+
+
+def test_polyline_inside_another_is_a_hole(tmp_path):
+    import trimesh
+
+    def ring(pts):
+        return "<polyline>" + "".join(f"<point>{x} {y}</point>" for x, y in pts) + "<height>3</height></polyline>"
+
+    body = ('<model name="block"><static>true</static><link name="l"><collision name="c"><geometry>'
+            + ring([(0, 0), (10, 0), (10, 10), (0, 10)]) + ring([(3, 3), (3, 7), (7, 7), (7, 3)])
+            + '</geometry></collision></link></model>')
+    world = load_sdf_world(own_world(tmp_path / "yard.sdf", body), strict=True)
+    assert len(world.parts) == 1
+    m = trimesh.Trimesh(world.vertices_m, world.triangles)
+    assert m.is_watertight and m.volume == pytest.approx((100 - 16) * 3)
+    from gnss_sim_ros2.core.scene.visibility import STATE_BLOCKED, STATE_VISIBLE, Scene
+
+    s = Scene(world)
+    r = s.visibility(np.array([[5.0, 5.0, 0.5], [1.0, 1.0, 0.5]]), az_deg=[0.0], el_deg=[89.0])
+    assert list(r.state[:, 0]) == [STATE_VISIBLE, STATE_BLOCKED]          # the courtyard is open to the sky

@@ -46,7 +46,7 @@ from .uris import UriResolver, model_sdf_path
 from .world_mesh import WorldMesh
 
 _SHAPES = {"box": box, "sphere": sphere, "cylinder": cylinder, "cone": cone, "capsule": capsule,
-           "ellipsoid": ellipsoid, "plane": plane, "polyline": polylines}
+           "ellipsoid": ellipsoid, "plane": plane}
 
 
 def is_material_tag(c) -> bool:
@@ -247,8 +247,14 @@ class _Loader:
         if not shapes:
             raise SdfError(f"{where(geom_el, file)}: <geometry> holds no shape")
         out = []
+        polys = [s for s in shapes if s.tag == "polyline"]
+        if polys:                                      # all polylines of a geometry make one solid (holes)
+            m = polylines(polys, file)
+            out.append(("", np.asarray(m.vertices), np.asarray(m.faces), []))
         for s in shapes:
             kind = s.tag
+            if kind == "polyline":
+                continue
             if kind in _SHAPES:
                 m = _SHAPES[kind](s, file)
                 out.append(("", np.asarray(m.vertices), np.asarray(m.faces), []))

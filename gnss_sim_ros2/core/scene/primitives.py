@@ -3,8 +3,9 @@
 Shapes follow the SDF specification (sdformat.org, geometry.sdf, SDF 1.11) and gz-common's
 MeshManager for where each is centred: box, sphere, cylinder (axis z, centred), cone (axis z, base at
 -length/2, apex at +length/2), capsule (cylinder of ``length`` plus two half spheres), ellipsoid
-(``radii``), plane (a finite patch of ``size`` normal to ``normal``), polyline (each ``<polyline>``
-extruded from z = 0 to ``<height>``; holes are not cut) and heightmap (a grid of ``size`` centred at
+(``radii``), plane (a finite patch of ``size`` normal to ``normal``), polylines (the ``<polyline>``
+elements of one geometry extruded from z = 0 to ``<height>``, inner ones cut as holes, caps by
+mapbox-earcut) and heightmap (a grid of ``size`` centred at
 ``pos``, row 0 of the image at +y as gz-common's image heightmap with flipY; 8-bit and 16-bit images
 scale their value to ``size`` z; a single-band float raster (DEM GeoTIFF that Pillow opens) gives
 heights in metres above its lowest sample, placed with ``size`` x/y, which is then required).
@@ -91,75 +92,75 @@ def plane(s, file):
     return _trimesh().Trimesh(v, np.array([[0, 1, 2], [0, 2, 3]]), process=False)
 
 
-def polylines(s, file) -> list:
-    (h,) = child_floats(s, "height", file, 1, default=(1,))
-    pts = np.array([floats(p, file, 2, "polyline <point>") for p in children(s, "point")])
-    if len(pts) < 3:
-        raise SdfError(f"{where(s, file)}: polyline needs at least 3 <point>")
-    return extrude_polygon(pts, h)
+def polylines(els, file):
+    """The ``<polyline>`` elements of one ``<geometry>`` as one closed extruded solid (gz-common
+    ``CreateExtrudedPolyline``): a polyline inside another is a hole (even-odd nesting), caps by earcut;
+    extruded from z = 0 to the first polyline's ``<height>``."""
+    h = child_floats(els[0], "height", file, 1, default=(1,))[0]
+    _positive(els[0], file, height=h)
+    loops = []
+    for el in els:
+        pts = np.array([floats(p, file, 2, "polyline <point>") for p in children(el, "point")], dtype=np.float64)
+        if len(pts) > 2 and np.allclose(pts[0], pts[-1]):
+            pts = pts[:-1]
+        if len(pts) < 3 or abs(_area2(pts)) < 1e-12:
+            raise SdfError(f"{where(el, file)}: polyline needs at least 3 <point> enclosing an area")
+        loops.append(pts)
+    inside = [[j for j in range(len(loops)) if j != i and _point_in(loops[i][0], loops[j])] for i in range(len(loops))]
+    verts, faces, n = [], [], 0
+    for i, outer in enumerate(loops):
+        if len(inside[i]) % 2:
+            continue                                               # a hole: cut from its parent below
+        holes = [loops[k] for k in range(len(loops)) if len(inside[k]) == len(inside[i]) + 1 and i in inside[k]]
+        rings = [outer if _area2(outer) > 0 else outer[::-1]] + [hl if _area2(hl) < 0 else hl[::-1] for hl in holes]
+        v, f = _prism(rings, h)
+        verts.append(v)
+        faces.append(f + n)
+        n += len(v)
+    return _trimesh().Trimesh(np.vstack(verts), np.vstack(faces), process=False)
+
+
+def _area2(pts) -> float:
+    return float(np.sum(pts[:, 0] * np.roll(pts[:, 1], -1) - np.roll(pts[:, 0], -1) * pts[:, 1]))
+
+
+def _point_in(p, poly) -> bool:
+    """Even-odd rule (ray to +x)."""
+    x, y = poly[:, 0], poly[:, 1]
+    x2, y2 = np.roll(x, -1), np.roll(y, -1)
+    cross = (y > p[1]) != (y2 > p[1])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        xi = x + (p[1] - y) * (x2 - x) / (y2 - y)
+    return bool(np.count_nonzero(cross & (p[0] < xi)) % 2)
+
+
+def _prism(rings, height: float):
+    """Rings (outer counter-clockwise, holes clockwise) extruded from z = 0 to ``height``."""
+    import mapbox_earcut
+
+    pts = np.vstack(rings)
+    ends = np.cumsum([len(r) for r in rings]).astype(np.uint32)
+    tri = np.asarray(mapbox_earcut.triangulate_float64(pts, ends), dtype=np.int64).reshape(-1, 3)
+    a, b, c = pts[tri[:, 0]], pts[tri[:, 1]], pts[tri[:, 2]]
+    ccw = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]) > 0
+    tri = np.where(ccw[:, None], tri, tri[:, ::-1])
+    n = len(pts)
+    verts = np.vstack([np.c_[pts, np.zeros(n)], np.c_[pts, np.full(n, height)]])
+    faces = [tri[:, ::-1], tri + n]
+    start = 0
+    for r in rings:
+        i = np.arange(start, start + len(r))
+        j = np.roll(i, -1)
+        faces.append(np.c_[i, j, j + n])
+        faces.append(np.c_[i, j + n, i + n])
+        start += len(r)
+    return verts, np.vstack(faces)
 
 
 def _positive(s, file, **values):
     for k, v in values.items():
         if not v > 0:
             raise SdfError(f"{where(s, file)}: {k} must be positive, got {v}")
-
-
-def triangulate_polygon(pts: np.ndarray) -> np.ndarray:
-    """Ear clipping of a simple polygon (K, 2) -> (K-2, 3) indices, counter-clockwise triangles."""
-    n = len(pts)
-    area2 = np.sum(pts[:, 0] * np.roll(pts[:, 1], -1) - np.roll(pts[:, 0], -1) * pts[:, 1])
-    idx = list(range(n)) if area2 > 0 else list(range(n))[::-1]
-    tris = []
-
-    def cross(o, a, b):
-        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
-
-    guard = 0
-    while len(idx) > 3 and guard < 10 * n * n:
-        guard += 1
-        m = len(idx)
-        for k in range(m):
-            i0, i1, i2 = idx[(k - 1) % m], idx[k], idx[(k + 1) % m]
-            a, b, c = pts[i0], pts[i1], pts[i2]
-            if cross(a, b, c) <= 1e-12:
-                continue
-            inside = False
-            for j in idx:
-                if j in (i0, i1, i2):
-                    continue
-                p = pts[j]
-                if cross(a, b, p) >= 0 and cross(b, c, p) >= 0 and cross(c, a, p) >= 0:
-                    inside = True
-                    break
-            if not inside:
-                tris.append((i0, i1, i2))
-                idx.pop(k)
-                break
-        else:
-            break  # degenerate polygon: stop clipping
-    if len(idx) == 3:
-        tris.append(tuple(idx))
-    return np.array(tris, dtype=np.int64).reshape(-1, 3)
-
-
-def extrude_polygon(pts: np.ndarray, height: float):
-    """A closed prism: polygon (K, 2) from z = 0 to ``height``."""
-    pts = np.asarray(pts, dtype=np.float64)
-    if len(pts) > 2 and np.allclose(pts[0], pts[-1]):
-        pts = pts[:-1]
-    area2 = np.sum(pts[:, 0] * np.roll(pts[:, 1], -1) - np.roll(pts[:, 0], -1) * pts[:, 1])
-    if area2 < 0:
-        pts = pts[::-1]
-    n = len(pts)
-    tri = triangulate_polygon(pts)
-    verts = np.vstack([np.c_[pts, np.zeros(n)], np.c_[pts, np.full(n, height)]])
-    faces = [tri[:, ::-1], tri + n]
-    i = np.arange(n)
-    j = (i + 1) % n
-    faces.append(np.c_[i, j, j + n])
-    faces.append(np.c_[i, j + n, i + n])
-    return _trimesh().Trimesh(verts, np.vstack(faces), process=False)
 
 
 def heightmap_grid(heights_m: np.ndarray, size_xy, pos):
