@@ -495,3 +495,24 @@ def test_polyline_inside_another_is_a_hole(tmp_path):
     s = Scene(world)
     r = s.visibility(np.array([[5.0, 5.0, 0.5], [1.0, 1.0, 0.5]]), az_deg=[0.0], el_deg=[89.0])
     assert list(r.state[:, 0]) == [STATE_VISIBLE, STATE_BLOCKED]          # the courtyard is open to the sky
+
+
+def test_export_world_command_report_strict_and_keep_dynamic(tmp_path, capsys):
+    from gnss_sim_ros2.cli import main
+
+    body = ('<model name="robot"><link name="l"><collision name="c"><geometry><box><size>1 1 1</size></box>'
+            '</geometry></collision></link></model>'
+            '<model name="shed"><static>true</static><link name="l"><collision name="c"><geometry><mesh>'
+            '<uri>shed.obj</uri></mesh></geometry></collision><collision name="floor"><geometry><box>'
+            '<size>3 3 0.1</size></box></geometry></collision></link></model>')
+    w = own_world(tmp_path / "cli.sdf", body)
+    assert main(["export-world", str(w), "--out", str(tmp_path / "a.ply")]) == 0
+    out = capsys.readouterr().out
+    assert "12 triangles" in out and "skipped: 1" in out and "shed::l::c: " in out and "shed.obj" in out
+    assert "left out: 1" in out and "robot: not static" in out
+    assert main(["export-world", str(w), "--out", str(tmp_path / "b.ply"), "--keep-dynamic"]) == 0
+    assert "24 triangles" in capsys.readouterr().out
+    assert main(["export-world", str(w), "--out", str(tmp_path / "c.ply"), "--strict"]) == 2
+    err = capsys.readouterr().err
+    assert "error: shed::l::c: " in err and "--strict" in err and "Traceback" not in err
+    assert not (tmp_path / "c.ply").exists()

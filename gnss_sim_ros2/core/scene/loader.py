@@ -162,7 +162,7 @@ class _Loader:
             sdf_path = model_sdf_path(target, uri_el, file) if target.is_dir() else target
             root = parse_xml(sdf_path)
         except SdfError as exc:
-            self.report.skip(label, str(exc))
+            self.report.skip_error(label, exc)
             return None
         model = root if local(root.tag) == "model" else child(root, "model")
         if model is None:
@@ -309,7 +309,7 @@ class _Loader:
                 elif kind == "link":
                     self.walk_link(scope, name, cel, file, T_world_model, prefix, chain, names)
             except SdfError as exc:
-                self.report.skip(scoped_name, str(exc))
+                self.report.skip_error(scoped_name, exc)
 
     def walk_link(self, scope, name, cel, file, T_world_model, prefix, chain, names):
         T_link = T_world_model @ scope.resolve(name)
@@ -326,7 +326,7 @@ class _Loader:
                 script = _script_name(g)
                 items = self.geometry(geom, file)
             except SdfError as exc:
-                self.report.skip(scoped, str(exc))
+                self.report.skip_error(scoped, exc)
                 continue
             for label, v, f, sub_names in items:
                 part = f"{scoped}::{label}" if label else scoped
@@ -347,7 +347,7 @@ class _Loader:
                 T = scope.resolve(name)
                 self.walk_model(scope.subscope(name, name), T, name, [(el, mfile)], [name])
             except SdfError as exc:
-                self.report.skip(name, str(exc))
+                self.report.skip_error(name, exc)
         for c in world_el:
             if not isinstance(c.tag, str):
                 continue
@@ -384,7 +384,7 @@ class _Loader:
             T_model, _ = parse_pose(mpose_el, mfile)
             offsets = population_offsets(pop_el, file, self.seed)
         except SdfError as exc:
-            self.report.skip(pname, str(exc))
+            self.report.skip_error(pname, exc)
             return
         # copies are static obstacles: a population places scenery (trees, cans) where Gazebo spawns it
         for k, off in enumerate(offsets):
@@ -397,7 +397,7 @@ class _Loader:
                 sub = _Scope(mel, mfile, False, self, True, inst)
                 self.walk_model(sub, T, inst, [(pop_el, file), (mel, mfile)], [mname, pname])
             except SdfError as exc:
-                self.report.skip(inst, str(exc))
+                self.report.skip_error(inst, exc)
 
     def result(self, sph, source: str) -> WorldMesh:
         if self.verts:

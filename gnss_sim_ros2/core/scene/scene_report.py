@@ -18,6 +18,10 @@ class SceneWarning(UserWarning):
     """A part of a world was skipped (the message names it and why)."""
 
 
+class StrictSkipError(SdfError):
+    """A part that cannot be loaded, with ``strict``: passed up unchanged by the enclosing parts."""
+
+
 @dataclass
 class SceneReport:
     strict: bool = False
@@ -30,9 +34,15 @@ class SceneReport:
     def skip(self, part: str, reason: str) -> None:
         """Record a part that cannot be loaded: one warning, or an error when strict."""
         if self.strict:
-            raise SdfError(f"{part}: {reason} (--strict: a part that cannot be loaded is an error)")
+            raise StrictSkipError(f"{part}: {reason} (--strict: a part that cannot be loaded is an error)")
         self.skipped.append({"part": part, "reason": reason})
         warnings.warn(f"skipped {part}: {reason}", SceneWarning, stacklevel=3)
+
+    def skip_error(self, part: str, exc: SdfError) -> None:
+        """:meth:`skip` for an error raised while loading ``part`` (a strict error of an inner part goes on up)."""
+        if isinstance(exc, StrictSkipError):
+            raise exc
+        self.skip(part, str(exc))
 
     def leave_out(self, part: str, reason: str) -> None:
         self.left_out.append({"part": part, "reason": reason})
