@@ -147,3 +147,12 @@ def test_name_words():
     assert t.classes[t.default_for_names(["Bark_001", "pine_tree"])].name == "opaque"
     assert t.classes[t.default_for_names(["Branch", "pine_tree"])].name == "foliage"
     assert t.classes[t.default_for_names(["Cylinder002", "hedges"])].name == "foliage"
+
+
+def test_grass_ground_stays_ground(tmp_path):
+    body = ('<model name="grass_field"><static>true</static><link name="l"><collision name="c"><geometry><plane>'
+            '<normal>0 0 1</normal><size>50 50</size></plane></geometry></collision></link></model>'
+            '<model name="hedge"><static>true</static><link name="l"><collision name="c"><geometry><box>'
+            '<size>5 1 2</size></box></geometry></collision></link></model>')
+    cls = {p["name"]: p["class"] for p in load_sdf_world(world(tmp_path / "g.sdf", body), strict=True).parts}
+    assert cls == {"grass_field::l::c": "opaque", "hedge::l::c": "foliage"}

@@ -189,7 +189,10 @@ class _Loader:
         return model, sdf_path, name, pose_el, static
 
     # ------------------------------------------------------------------ materials
-    def material_for(self, scoped: str, chain: list[tuple], names_innermost_first: list[str]) -> int:
+    def material_for(self, scoped: str, chain: list[tuple], names_innermost_first: list[str],
+                     surface: bool = False) -> int:
+        """Class index of a part (rules of .materials); a ground surface (plane, heightmap) is opaque unless a
+        rule or an element says otherwise: a "grass" field is ground, not a crown."""
         if self.user_rules:
             cls = self.table.match_rules(scoped)
             if cls is not None:
@@ -208,6 +211,8 @@ class _Loader:
                                        f"{[k.name for k in self.table.classes]}; add attenuation_db_per_m=... "
                                        f"to declare it)")
                     return self.table.index(name)
+        if surface:
+            return self.table.index("opaque")
         return self.table.default_for_names(names_innermost_first)
 
     # ------------------------------------------------------------------ output
@@ -241,8 +246,9 @@ class _Loader:
         self.n_verts += len(v)
 
     # ------------------------------------------------------------------ geometry
-    def geometry(self, geom_el, file: Path) -> list[tuple[str, np.ndarray, np.ndarray, list[str]]]:
-        """``<geometry>`` -> [(submesh label, vertices, faces, names)] in the collision/visual frame."""
+    def geometry(self, geom_el, file: Path) -> list[tuple[str, np.ndarray, np.ndarray, list[str], bool]]:
+        """``<geometry>`` -> [(submesh label, vertices, faces, names, ground surface)] in the collision/visual
+        frame."""
         shapes = [c for c in geom_el if isinstance(c.tag, str) and not ns(c.tag)]
         if not shapes:
             raise SdfError(f"{where(geom_el, file)}: <geometry> holds no shape")
@@ -250,19 +256,19 @@ class _Loader:
         polys = [s for s in shapes if s.tag == "polyline"]
         if polys:                                      # all polylines of a geometry make one solid (holes)
             m = polylines(polys, file)
-            out.append(("", np.asarray(m.vertices), np.asarray(m.faces), []))
+            out.append(("", np.asarray(m.vertices), np.asarray(m.faces), [], False))
         for s in shapes:
             kind = s.tag
             if kind == "polyline":
                 continue
             if kind in _SHAPES:
                 m = _SHAPES[kind](s, file)
-                out.append(("", np.asarray(m.vertices), np.asarray(m.faces), []))
+                out.append(("", np.asarray(m.vertices), np.asarray(m.faces), [], kind == "plane"))
             elif kind == "mesh":
                 out.extend(self.mesh(s, file))
             elif kind == "heightmap":
                 m = heightmap(s, file, lambda el: self.uris.resolve(el.text, file.parent, el, file))
-                out.append(("", np.asarray(m.vertices), np.asarray(m.faces), ["terrain"]))
+                out.append(("", np.asarray(m.vertices), np.asarray(m.faces), [], True))
             elif kind == "empty":
                 continue
             else:
@@ -290,7 +296,7 @@ class _Loader:
         out = []
         for sm in subs:
             f = sm.faces[:, ::-1] if flip else sm.faces
-            out.append((sm.name if len(subs) > 1 else "", sm.vertices_m * S, f, sm.names))
+            out.append((sm.name if len(subs) > 1 else "", sm.vertices_m * S, f, sm.names, False))
         return out
 
     # ------------------------------------------------------------------ walking
@@ -328,10 +334,10 @@ class _Loader:
             except SdfError as exc:
                 self.report.skip_error(scoped, exc)
                 continue
-            for label, v, f, sub_names in items:
+            for label, v, f, sub_names, surface in items:
                 part = f"{scoped}::{label}" if label else scoped
                 inner = list(sub_names) + ([script] if script else []) + [gname, name] + names
-                mat = self.material_for(part, chain + [(cel, file), (g, file)], inner)
+                mat = self.material_for(part, chain + [(cel, file), (g, file)], inner, surface)
                 self.add(v, f, T, mat, part)
 
     def world(self, world_el, file: Path):

@@ -33,7 +33,8 @@ Assignment, first that applies wins:
    camelCase boundaries: ``PineTree/Branch`` -> pine, tree, branch); the innermost name holding a
    word of :data:`OPAQUE_NAME_KEYWORDS` (trunk, bark...) makes the part ``opaque``, one holding a
    word of :data:`FOLIAGE_NAME_KEYWORDS` (or its plural) makes it ``foliage``; else ``opaque``.
-   ``street_lamp`` is not a tree (whole words only).
+   ``street_lamp`` is not a tree (whole words only).  Ground surfaces (``<plane>``, ``<heightmap>``)
+   are opaque by default whatever their names (a "grass" field is ground, not a crown).
 """
 from __future__ import annotations
 
