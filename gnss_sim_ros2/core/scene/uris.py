@@ -32,6 +32,8 @@ from .sdf_xml import SdfError, parse_xml, where
 
 #: environment variables searched for ``model://`` URIs, in this order
 RESOURCE_PATH_VARS = ("GZ_SIM_RESOURCE_PATH", "IGN_GAZEBO_RESOURCE_PATH", "GAZEBO_MODEL_PATH", "SDF_PATH")
+#: Gazebo Classic's own model folder, always searched (its SystemPaths default), last
+CLASSIC_MODEL_DIR = Path.home() / ".gazebo" / "models"
 
 # gz-fuel-tools FuelClient kModelUrlRegexStr / kModelFileUrlRegexStr, one pattern
 _FUEL_URL = re.compile(r"^https?://(?P<server>[^/\s]+)/+(?:[0-9]+\.[0-9]+/+)?(?P<owner>[^/\s]+)/+models/+"
@@ -159,7 +161,7 @@ class UriResolver:
         return self._search(str(p), dirs, uri, at, "the path is relative to the file that names it")
 
     def _model_dirs(self, base_dir: Path) -> list[Path]:
-        return resource_dirs([Path(base_dir), self.world_dir])
+        return resource_dirs([Path(base_dir), self.world_dir, CLASSIC_MODEL_DIR])
 
     @staticmethod
     def _search(rest: str, dirs: list[Path], uri: str, at: str, advice: str) -> Path:
