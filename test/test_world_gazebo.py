@@ -529,3 +529,12 @@ def test_export_world_command_report_strict_and_keep_dynamic(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "error: shed::l::c: " in err and "--strict" in err and "Traceback" not in err
     assert not (tmp_path / "c.ply").exists()
+
+
+def test_demo_world_path(monkeypatch):
+    from gnss_sim_ros2.core.scene import demo_world
+
+    assert demo_world.demo_world_path() == REPO / "worlds" / "courtyard.sdf"
+    monkeypatch.setattr(demo_world, "DEMO_WORLD_NAME", "no_such_demo.sdf")
+    with pytest.raises(ValueError, match=r"demo world worlds/no_such_demo.sdf was not found.*give a world"):
+        demo_world.demo_world_path()
