@@ -20,7 +20,7 @@ import pytest
 
 from gnss_sim_ros2.core.scene.loader import load_sdf_world
 from gnss_sim_ros2.core.scene.mesh_io import export_world, read_scene
-from gnss_sim_ros2.core.scene.scene_report import SceneWarning
+from gnss_sim_ros2.core.scene.scene_report import LeftOutWarning, SceneWarning
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED_WORLDS = Path(os.environ.get("GNSS_SIM_SHARED_WORLDS", REPO.parent / "shared" / "worlds"))
@@ -182,6 +182,7 @@ def test_every_gz_sim_world_exports(gazebo_env, tmp_path):
     for name in worlds:
         with warnings.catch_warnings():
             warnings.simplefilter("error", SceneWarning)            # nothing may be skipped
+            warnings.simplefilter("ignore", LeftOutWarning)         # robots are left out: asserted below
             world = export_world(gazebo_env / "gz-sim" / name, tmp_path / (name + ".ply"), strict=True)
         tri, left_out = expected[name]
         if name == "levels.sdf":   # box collisions of the static models, counted from the XML
@@ -420,7 +421,8 @@ def test_submesh_with_center_and_non_static(gazebo_env, tmp_path):
             '<model name="robot"><link name="l"><visual name="v"><geometry><box><size>1 1 1</size></box></geometry>'
             '</visual></link></model>')
     w = own_world(tmp_path / "sub.sdf", body)
-    world = load_sdf_world(w, use_visuals=True)
+    with pytest.warns(LeftOutWarning, match=r"left out 1 non-static model\(s\) \(robot\).*keep_dynamic"):
+        world = load_sdf_world(w, use_visuals=True)
     by = {p["name"]: p for p in world.parts}
     assert by["pine_parts::l::bark"]["triangles"] == 136 and by["pine_parts::l::bark"]["class"] == "opaque"
     assert by["pine_parts::l::branch"]["class"] == "foliage" and by["pine_parts::l::branch"]["source_triangles"] == 540

@@ -26,12 +26,13 @@ def add_arguments(parser):
 
 def run(args) -> int:
     from gnss_sim_ros2.core.scene.mesh_io import export_world, sidecar_path
-    from gnss_sim_ros2.core.scene.scene_report import SceneWarning, report_lines
+    from gnss_sim_ros2.core.scene.scene_report import LeftOutWarning, SceneWarning, report_lines
 
     try:
         with warnings.catch_warnings():
             # each skip is listed once in the scene report below
             warnings.simplefilter("ignore", SceneWarning)
+            warnings.simplefilter("ignore", LeftOutWarning)
             world = export_world(args.world, args.out, materials_yaml=args.materials, use_visuals=args.visuals,
                                  keep_dynamic=args.keep_dynamic, strict=args.strict, seed=args.seed)
     except ValueError as exc:

@@ -412,6 +412,7 @@ class _Loader:
             mats = np.concatenate(self.mats)
         else:
             verts, tris, mats = np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros(0, np.int16)
+        self.report.warn_left_out_dynamic()
         self.report.mesh_files_read = self.meshes.reads
         self.report.mesh_cache_hits = self.meshes.hits
         world = WorldMesh(verts, tris, mats, self.table, sph, self.parts, source)

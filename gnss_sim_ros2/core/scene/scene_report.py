@@ -18,6 +18,10 @@ class SceneWarning(UserWarning):
     """A part of a world was skipped (the message names it and why)."""
 
 
+class LeftOutWarning(UserWarning):
+    """Non-static models were left out of a world (one warning a load, naming them)."""
+
+
 class StrictSkipError(SdfError):
     """A part that cannot be loaded, with ``strict``: passed up unchanged by the enclosing parts."""
 
@@ -46,6 +50,14 @@ class SceneReport:
 
     def leave_out(self, part: str, reason: str) -> None:
         self.left_out.append({"part": part, "reason": reason})
+
+    def warn_left_out_dynamic(self) -> None:
+        """One warning naming the non-static models left out (a user of simulate sees no report)."""
+        names = [it["part"] for it in self.left_out if it["reason"].startswith("not static")]
+        if names:
+            shown = ", ".join(names[:8]) + (f" and {len(names) - 8} more" if len(names) > 8 else "")
+            warnings.warn(f"left out {len(names)} non-static model(s) ({shown}): they move in Gazebo; "
+                          f"keep_dynamic (export-world --keep-dynamic) keeps them", LeftOutWarning, stacklevel=3)
 
     def to_dict(self, triangles: dict[str, int]) -> dict:
         return {"parts_loaded": self.parts_loaded, "triangles": dict(triangles),
