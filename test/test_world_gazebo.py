@@ -540,3 +540,76 @@ def test_demo_world_path(monkeypatch):
     monkeypatch.setattr(demo_world, "DEMO_WORLD_NAME", "no_such_demo.sdf")
     with pytest.raises(ValueError, match=r"demo world worlds/no_such_demo.sdf was not found.*give a world"):
         demo_world.demo_world_path()
+
+
+SKINNED_DAE = """<?xml version="1.0" encoding="utf-8"?>
+<COLLADA xmlns="http://www.collada.org/2005/11/COLLADASchema" version="1.4.1">
+  <asset><unit name="centimeter" meter="0.01"/><up_axis>Z_UP</up_axis></asset>
+  <library_geometries>
+    <geometry id="body-mesh" name="body">
+      <mesh>
+        <source id="body-pos">
+          <float_array id="body-pos-array" count="12">0 0 0 100 0 0 0 100 0 0 0 100</float_array>
+          <technique_common>
+          <accessor source="#body-pos-array" count="4" stride="3">
+            <param name="X" type="float"/><param name="Y" type="float"/><param name="Z" type="float"/>
+          </accessor></technique_common>
+        </source>
+        <vertices id="body-vtx"><input semantic="POSITION" source="#body-pos"/></vertices>
+        <triangles count="4">
+          <input semantic="VERTEX" source="#body-vtx" offset="0"/>
+          <p>0 2 1 0 1 3 0 3 2 1 2 3</p>
+        </triangles>
+      </mesh>
+    </geometry>
+  </library_geometries>
+  <library_controllers>
+    <controller id="body-skin" name="skin">
+      <skin source="#body-mesh">
+        <bind_shape_matrix>1 0 0 0 0 1 0 0 0 0 1 50 0 0 0 1</bind_shape_matrix>
+        <source id="joints"><Name_array id="joints-array" count="1">root</Name_array>
+          <technique_common>
+          <accessor source="#joints-array" count="1" stride="1">
+            <param name="JOINT" type="name"/></accessor>
+          </technique_common></source>
+        <source id="binds"><float_array id="binds-array" count="16">1 0 0 0 0 1 0 0 0 0 1 0 0 0 0 1</float_array>
+          <technique_common>
+          <accessor source="#binds-array" count="1" stride="16">
+            <param name="TRANSFORM" type="float4x4"/></accessor>
+          </technique_common></source>
+        <source id="weights"><float_array id="weights-array" count="1">1</float_array>
+          <technique_common>
+          <accessor source="#weights-array" count="1" stride="1">
+            <param name="WEIGHT" type="float"/></accessor>
+          </technique_common></source>
+        <joints><input semantic="JOINT" source="#joints"/><input semantic="INV_BIND_MATRIX" source="#binds"/></joints>
+        <vertex_weights count="4">
+          <input semantic="JOINT" source="#joints" offset="0"/><input semantic="WEIGHT" source="#weights" offset="1"/>
+          <vcount>1 1 1 1</vcount><v>0 0 0 0 0 0 0 0</v>
+        </vertex_weights>
+      </skin>
+    </controller>
+  </library_controllers>
+  <library_visual_scenes>
+    <visual_scene id="Scene" name="Scene">
+      <node id="root" name="root" type="JOINT"/>
+      <node id="Person" name="Person" type="NODE">
+        <instance_controller url="#body-skin"><skeleton>#root</skeleton></instance_controller>
+      </node>
+    </visual_scene>
+  </library_visual_scenes>
+  <scene><instance_visual_scene url="#Scene"/></scene>
+</COLLADA>
+"""
+
+
+def test_skinned_collada_mesh_in_its_bind_pose(tmp_path):
+    """A person mesh with a skin controller (citysim's people): a tetrahedron of 1 m (in cm units) bound
+    0.5 m up by its bind_shape_matrix."""
+    (tmp_path / "person.dae").write_text(SKINNED_DAE)
+    body = ('<model name="person"><static>true</static><link name="l"><collision name="c"><geometry><mesh>'
+            '<uri>person.dae</uri></mesh></geometry></collision></link></model>')
+    world = load_sdf_world(own_world(tmp_path / "people.sdf", body), strict=True)
+    assert len(world.triangles) == 4
+    np.testing.assert_allclose([world.vertices_m.min(axis=0), world.vertices_m.max(axis=0)],
+                               [[0, 0, 0.5], [1, 1, 1.5]], atol=1e-9)

@@ -7,7 +7,8 @@ geometry name (exact first, then case-insensitive, as gz-common's ``Mesh::SubMes
 and exporters vary the case); ``<center>true`` moves the picked submesh's bounding-box centre to the
 origin (gz-common ``SubMesh::Center``).
 
-COLLADA is read with pycollada (the scene's node tree, ``<unit meter>`` applied, node names kept);
+COLLADA is read with pycollada (the scene's node tree, ``<unit meter>`` applied, node names kept, a
+skinned mesh in its bind pose);
 the other formats with trimesh (its scene graph gives the node transforms and names).
 :class:`MeshCache` keeps each file's submeshes, keyed by the resolved path, so a world that uses one
 mesh in 400 places reads it once.
@@ -62,7 +63,7 @@ def _collada_submeshes(path: Path) -> list[SubMesh]:
         return out
 
     def walk(node, T, node_name):
-        from collada.scene import GeometryNode, Node, NodeNode
+        from collada.scene import ControllerNode, GeometryNode, Node, NodeNode
 
         if isinstance(node, NodeNode):
             node = node.node
@@ -71,8 +72,16 @@ def _collada_submeshes(path: Path) -> list[SubMesh]:
             name = node.name or node.id or node_name
             for c in node.children:
                 walk(c, T, name)
-        elif isinstance(node, GeometryNode):
-            geom = node.geometry
+        elif isinstance(node, (GeometryNode, ControllerNode)):
+            if isinstance(node, ControllerNode):       # a skinned mesh (a person): its bind pose
+                geom = getattr(node.controller, "geometry", None)
+                bind = getattr(node.controller, "bind_shape_matrix", None)
+                if geom is None:
+                    return
+                if bind is not None:
+                    T = T @ np.asarray(bind, dtype=np.float64).reshape(4, 4)
+            else:
+                geom = node.geometry
             mats = {m.symbol: m.target for m in node.materials}
             verts, faces, names = [], [], [node_name or "", geom.name or "", geom.id or ""]
             n = 0
