@@ -7,7 +7,7 @@ MeshManager for where each is centred: box, sphere, cylinder (axis z, centred), 
 elements of one geometry extruded from z = 0 to ``<height>``, inner ones cut as holes, caps by
 mapbox-earcut) and heightmap (a grid of ``size`` centred at
 ``pos``, row 0 of the image at +y as gz-common's image heightmap with flipY; 8-bit and 16-bit images
-scale their value to ``size`` z; a single-band float raster (DEM GeoTIFF that Pillow opens) gives
+scale the first channel's value over its type's maximum to ``size`` z (gz-common ImageHeightmap); a single-band float raster (DEM GeoTIFF that Pillow opens) gives
 heights in metres above its lowest sample, placed with ``size`` x/y, which is then required).
 """
 from __future__ import annotations
@@ -206,6 +206,8 @@ def heightmap(s, file, resolve):
         size = child_floats(s, "size", file, 3, default=(1, 1, 1))
         if img.mode in ("I;16", "I;16B", "I;16L", "I"):
             arr, full = np.asarray(img, dtype=np.float64), 65535.0
+        elif img.mode in ("L", "LA", "RGB", "RGBA"):
+            arr, full = np.asarray(img.getchannel(0), dtype=np.float64), 255.0   # gz-common: the first channel
         else:
             arr, full = np.asarray(img.convert("L"), dtype=np.float64), 255.0
         heights = arr / full * size[2]
