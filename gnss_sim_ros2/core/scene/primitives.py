@@ -5,9 +5,9 @@ MeshManager for where each is centred: box, sphere, cylinder (axis z, centred), 
 -length/2, apex at +length/2), capsule (cylinder of ``length`` plus two half spheres), ellipsoid
 (``radii``), plane (a finite patch of ``size`` normal to ``normal``), polylines (the ``<polyline>``
 elements of one geometry extruded from z = 0 to ``<height>``, inner ones cut as holes, caps by
-mapbox-earcut) and heightmap (a grid of ``size`` centred at
-``pos``, row 0 of the image at +y as gz-common's image heightmap with flipY; 8-bit and 16-bit images
-scale the first channel's value over its type's maximum to ``size`` z (gz-common ImageHeightmap); a single-band float raster (DEM GeoTIFF that Pillow opens) gives
+mapbox-earcut) and heightmap (a grid of ``size`` centred at ``pos``, row 0 of the image at +y as
+gz-common's ImageHeightmap with flipY; an 8-bit or 16-bit image gives its first channel over the
+type's maximum times ``size`` z; a single-band float raster (a DEM GeoTIFF that Pillow opens) gives
 heights in metres above its lowest sample, placed with ``size`` x/y, which is then required).
 """
 from __future__ import annotations
