@@ -15,8 +15,11 @@ import pytest
 
 from gnss_sim_ros2.core import frames
 from gnss_sim_ros2.core.constants import FOLIAGE_ATTENUATION_DB_PER_M
+from gnss_sim_ros2.core.scene.georeference import SphericalCoordinates
+from gnss_sim_ros2.core.scene.loader import load_sdf_world
 from gnss_sim_ros2.core.scene.mesh_io import export_world, read_scene, sidecar_path
-from gnss_sim_ros2.core.scene.sdf_world import SceneWarning, SdfError, SphericalCoordinates, load_sdf_world
+from gnss_sim_ros2.core.scene.scene_report import SceneWarning
+from gnss_sim_ros2.core.scene.sdf_xml import SdfError
 
 HEAD = '<?xml version="1.0"?>\n<sdf version="1.9" xmlns:gnss_sim="urn:gnss_sim">\n<world name="w">\n'
 TAIL = "</world>\n</sdf>\n"
