@@ -176,6 +176,10 @@ NODE_PARAMS: dict[str, list[Param]] = {
         Param("mesh_file", "", "mesh exported by `gnss-sim export-world` (overrides world_file)"),
         Param("materials_file", "", "YAML of material classes by name pattern"),
         Param("use_visuals", False, "export visual instead of collision geometry"),
+        Param("keep_dynamic_models", False, "also take the world's non-static models (robots, movable objects) "
+              "as static obstacles; default: only static models block"),
+        Param("strict_world", False, "a part of the world that cannot be loaded is an error instead of a warning "
+              "(CI users)"),
         Param("fresnel_rays", -1, "rays over the first Fresnel zone per satellite (0 off; -1 from preset)", min=-1),
         Param("tf_timeout_s", 5.0, "wall-clock seconds an epoch waits for the antenna's transform before it is "
               "dropped (and `gnss-sim run` fails, naming the frames)", min=0.1, max=600.0),

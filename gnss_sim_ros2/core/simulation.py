@@ -60,6 +60,8 @@ class SimulationSetup:
     preset: str = "balanced"
     fresnel_rays: int = -1
     use_visuals: bool = False
+    keep_dynamic_models: bool = False
+    strict_world: bool = False
     #: the receiver node's other parameters (profile, noise, ionosphere, troposphere, cn0_*, write_nmea_file;
     #: parameters.py); absent ones take the receiver model's defaults
     params: dict = field(default_factory=dict)
@@ -105,7 +107,8 @@ def setup_from_config(cfg, out_dir: Path, trajectory: Trajectory | None = None, 
         elevation_mask_deg=rcv["elevation_mask_deg"], source=eph["source"], nav_files=list(eph["nav_files"]),
         sp3_files=list(eph["sp3_files"]), clk_files=list(eph["clk_files"]), world_file=world, mesh_file=mesh,
         materials_file=vis["materials_file"], preset=rcv["preset"], fresnel_rays=vis["fresnel_rays"],
-        use_visuals=vis["use_visuals"], params={k: v for k, v in rcv.items() if k in own},
+        use_visuals=vis["use_visuals"], keep_dynamic_models=vis["keep_dynamic_models"],
+        strict_world=vis["strict_world"], params={k: v for k, v in rcv.items() if k in own},
         marker_name=rcv["marker_name"], seed=rcv["seed"], **extra)
 
 
@@ -133,16 +136,19 @@ class SimulationResult:
         return self.sim_s / self.wall_s if self.wall_s > 0 else float("inf")
 
 
-def load_scene(world_file: str = "", mesh_file: str = "", materials_file: str = "", use_visuals: bool = False):
-    """The raycasting scene from an exported mesh or an SDF world (None when neither is given);
-    ``use_visuals``: an SDF world's visual geometry instead of its collision geometry."""
+def load_scene(world_file: str = "", mesh_file: str = "", materials_file: str = "",
+               options: VisibilityOptions | None = None):
+    """The raycasting scene from an exported mesh or an SDF world (None when neither is given); ``options``:
+    visual or collision geometry, non-static models, strictness (VisibilityOptions; default: their defaults)."""
     if not world_file and not mesh_file:
         return None
     from .scene.visibility import Scene
 
     if mesh_file:
         return Scene.load(mesh_file)
-    return Scene.from_sdf(world_file, materials_yaml=materials_file or None, use_visuals=use_visuals)
+    o = options or VisibilityOptions()
+    return Scene.from_sdf(world_file, materials_yaml=materials_file or None, use_visuals=o.use_visuals,
+                          keep_dynamic=o.keep_dynamic, strict=o.strict_world)
 
 
 def crop_world_mesh(world, antenna_world_m, mask_deg: float, margin_deg: float = 0.0):
@@ -240,8 +246,9 @@ def chain_settings(setup: SimulationSetup, interval_s: float | None = None) -> C
 
 def visibility_options(setup: SimulationSetup) -> VisibilityOptions:
     return VisibilityOptions.from_params({"elevation_mask_deg": setup.elevation_mask_deg, "preset": setup.preset,
-                                          "fresnel_rays": setup.fresnel_rays, "use_visuals": setup.use_visuals},
-                                         switches(setup))
+                                          "fresnel_rays": setup.fresnel_rays, "use_visuals": setup.use_visuals,
+                                          "keep_dynamic_models": setup.keep_dynamic_models,
+                                          "strict_world": setup.strict_world}, switches(setup))
 
 
 def _interval_s(setup: SimulationSetup, sw: dict) -> float:
@@ -260,7 +267,7 @@ def run_simulation(setup: SimulationSetup) -> SimulationResult:
     n_epochs = int(np.floor(setup.duration_s / interval_s + 1e-9)) + 1
     vis_opt = visibility_options(setup)
     scene = setup.scene if setup.scene is not None else load_scene(setup.world_file, setup.mesh_file,
-                                                                   setup.materials_file, vis_opt.use_visuals)
+                                                                   setup.materials_file, vis_opt)
     path = AntennaPath(setup.trajectory, scene)
     if scene is not None and setup.crop_scene:
         scene = _cropped_scene(scene, path, n_epochs, interval_s, setup.elevation_mask_deg, vis_opt.fresnel_rays)

@@ -42,6 +42,9 @@ class VisibilityOptions:
     fresnel_rays: int = 0
     foliage: str = "path"
     use_visuals: bool = False
+    #: world loading: non-static models kept as obstacles; unloadable parts an error
+    keep_dynamic: bool = False
+    strict_world: bool = False
 
     @classmethod
     def from_params(cls, p: dict, switches: dict | None = None) -> VisibilityOptions:
@@ -50,7 +53,9 @@ class VisibilityOptions:
         fresnel = p.get("fresnel_rays", -1)
         return cls(mask_deg=float(p["elevation_mask_deg"]),
                    fresnel_rays=int(fresnel if fresnel >= 0 else sw["fresnel_rays"]),
-                   foliage=sw["foliage"], use_visuals=bool(p.get("use_visuals", False)))
+                   foliage=sw["foliage"], use_visuals=bool(p.get("use_visuals", False)),
+                   keep_dynamic=bool(p.get("keep_dynamic_models", False)),
+                   strict_world=bool(p.get("strict_world", False)))
 
     def cast(self, scene, antenna_world_m, sat_ecef_m):
         """(state, attenuation_db, VisibilityResult) of satellites (N, 3) or (M, N, 3) seen from the antenna(s).
