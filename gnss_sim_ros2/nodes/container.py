@@ -152,6 +152,11 @@ class ComponentManager:
         if release is not None:
             release()  # gnss_sim nodes: files closed, entities destroyed, whatever the lifecycle state
         loaded.destroy_node()
+        # rclpy's LifecycleNode.destroy_node leaves its state machine, which holds the rcl node: the node
+        # would stay in the graph (`ros2 node list`) until garbage collection; free it now
+        state_machine = getattr(loaded, "_state_machine", None)
+        if state_machine is not None:
+            state_machine.destroy_when_not_in_use()
 
     def unload_all(self):
         with self.lock:
