@@ -101,6 +101,13 @@ class Probe:
     def state(self, node: str) -> str:
         return self.call(GetState, f"/{node}/get_state", GetState.Request()).current_state.label
 
+    def state_or_none(self, node: str):
+        """The node's lifecycle state, None while it does not answer."""
+        try:
+            return self.state(node)
+        except AssertionError:
+            return None
+
     def transition(self, node: str, name: str) -> bool:
         req = ChangeState.Request()
         req.transition.id = TRANSITION_IDS[name]

@@ -12,12 +12,12 @@ import pytest
 
 srv = pytest.importorskip("composition_interfaces.srv", reason="composition_interfaces is not installed here: "
                           "make test runs this file in .venv-launch (../shared/ros2-tools)")
-from ros_helpers import rclpy  # noqa: E402  (private domain, rclpy or skip)
-
-from gnss_sim_ros2.nodes.container import ComponentManager  # noqa: E402
 from rcl_interfaces.msg import Parameter as ParameterMsg  # noqa: E402
 from rcl_interfaces.msg import ParameterType, ParameterValue  # noqa: E402
 from rclpy.executors import MultiThreadedExecutor  # noqa: E402
+from ros_helpers import rclpy  # noqa: E402  (private domain, rclpy or skip)
+
+from gnss_sim_ros2.nodes.container import ComponentManager  # noqa: E402
 
 
 @pytest.fixture

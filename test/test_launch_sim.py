@@ -81,8 +81,8 @@ class TestRunningLaunch(unittest.TestCase):
 
     def test_1_every_node_active(self, composed):
         probe = self.probe
-        ok = probe.wait_for(lambda: all(_state_or_none(probe, n) == "active" for n in NODES), 120.0)
-        self.assertTrue(ok, {n: _state_or_none(probe, n) for n in NODES})
+        ok = probe.wait_for(lambda: all(probe.state_or_none(n) == "active" for n in NODES), 120.0)
+        self.assertTrue(ok, {n: probe.state_or_none(n) for n in NODES})
         probe.start_clock()
 
     def test_2_fix_rate_and_canopy(self, composed):
@@ -130,7 +130,7 @@ class TestRunningLaunch(unittest.TestCase):
                       "-p", f"output_dir:={extra_out}", "-p", "marker_name:=XTRA", "-p", "use_sim_time:=true")
         self.assertIn("as '/gnss_sim_receiver_extra'", loaded)
         uid = loaded.split("Loaded component ")[1].split()[0]
-        self.assertEqual(_state_or_none(self.probe, "gnss_sim_receiver_extra"), "unconfigured")
+        self.assertEqual(self.probe.state_or_none("gnss_sim_receiver_extra"), "unconfigured")
         ros2("lifecycle", "set", *CLI, "/gnss_sim_receiver_extra", "configure")
         self.assertEqual(self.probe.state("gnss_sim_receiver_extra"), "inactive")
         self.assertTrue(extra_out.is_dir(), "the extra node's output_dir parameter was not applied")
@@ -162,12 +162,6 @@ class TestRunningLaunch(unittest.TestCase):
             self.assertTrue(probe.transition(n, "shutdown"), f"{n}: shutdown")
             self.assertEqual(probe.state(n), "finalized")
 
-
-def _state_or_none(probe, node):
-    try:
-        return probe.state(node)
-    except AssertionError:
-        return None
 
 
 @launch_testing.post_shutdown_test()
