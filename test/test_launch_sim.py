@@ -58,6 +58,7 @@ def _run_files(composed: str):
     return RUNS[composed]
 
 
+@pytest.mark.launch_test
 @launch_testing.parametrize("composed", ["true", "false"])
 def generate_test_description(composed):
     out, _marker, cfg = _run_files(composed)
@@ -183,7 +184,7 @@ class TestAfterSigint(unittest.TestCase):
             header, epochs = rinex_obs_epochs(path)
             self.assertEqual(header["MARKER NAME"].strip(), marker, path.name)
             self.assertAlmostEqual(float(header["INTERVAL"].split()[0]), 1.0 / RATE_HZ, msg=path.name)
-            self.assertGreater(len(epochs), 10, path.name)
+            self.assertGreaterEqual(len(epochs), 10, path.name)
             self.assertTrue(np.allclose(np.diff(epochs), 1.0 / RATE_HZ, atol=1e-6), path.name)
             self.assertGreater(epochs[0], last_end, "the second file starts after the first one")
             last_end = epochs[-1]
