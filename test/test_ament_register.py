@@ -76,3 +76,16 @@ def test_component_errors_say_why(index, package, plugin, content, message):
     with pytest.raises(components.ComponentError) as err:
         components.load_class(package, plugin)
     assert message in str(err.value)
+
+
+def test_container_without_composition_interfaces_says_what_to_install():
+    import subprocess
+    import sys
+
+    if importlib.util.find_spec("composition_interfaces") is not None:
+        pytest.skip("composition_interfaces is installed in this environment (the container runs)")
+    res = subprocess.run([sys.executable, "-m", "gnss_sim_ros2.nodes.container"], capture_output=True, text=True,
+                         timeout=60, cwd=REPO)
+    assert res.returncode == 2
+    assert "needs the composition_interfaces package" in res.stderr and "ros2-tools" in res.stderr
+    assert "Traceback" not in res.stderr
