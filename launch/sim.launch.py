@@ -51,10 +51,11 @@ def _true(v: str) -> bool:
 
 
 def _stop_launch_if_failed(action, what: str):
-    """A recorder that exits with an error ends the launch: no run without the bag asked for."""
+    """A recorder or container that exits with an error ends the launch (no run without the bag asked
+    for; no lifecycle manager waiting for nodes that will never come)."""
     def on_exit(event, _context):
         if event.returncode != 0:
-            return [EmitEvent(event=Shutdown(reason=f"{what} exited with code {event.returncode}: no bag"))]
+            return [EmitEvent(event=Shutdown(reason=f"{what} exited with code {event.returncode}"))]
         return None
 
     return RegisterEventHandler(OnProcessExit(target_action=action, on_exit=on_exit))
@@ -113,13 +114,14 @@ def _setup(context):
     if _true(a["record"]):  # first: a recorder that cannot start fails the launch before any node runs
         actions += _recorder(shared["output_dir"])
     if _true(a["composed"]):
-        actions.append(ComposableNodeContainer(
+        container = ComposableNodeContainer(
             package=graph.PACKAGE, executable="container", name=CONTAINER, namespace="", output="screen",
             parameters=[{"use_sim_time": sim_time}],
             composable_node_descriptions=[
                 ComposableNode(package=graph.PACKAGE, plugin=spec.plugin, name=spec.name, namespace="",
                                parameters=composable_params, remappings=remaps)
-                for spec in specs]))
+                for spec in specs])
+        actions += [container, _stop_launch_if_failed(container, "the component container")]
     else:
         for spec in specs:
             actions.append(LifecycleNode(package=graph.PACKAGE, executable=spec.executable, name=spec.name,

@@ -181,9 +181,16 @@ class GnssSimNode(LifecycleNode):
 
 def run_origin_ns(node) -> int:
     """ROS time [ns] at which a run's time 0 lies: 0 on a simulated clock (Gazebo, gnss-sim run
-    start their /clock at 0), the current time on a wall clock (the run starts now)."""
+    start their /clock at 0), the time of the node's first call on a wall clock (the run starts
+    then). A lifecycle cycle (deactivate, cleanup, configure, activate) continues that timeline:
+    starting it again would repeat GNSS epochs and the RINEX file names of the first activation."""
     use_sim = node.get_parameter("use_sim_time").value if node.has_parameter("use_sim_time") else False
-    return 0 if use_sim else node.get_clock().now().nanoseconds
+    if use_sim:
+        return 0
+    origin = getattr(node, "_run_origin_ns", None)
+    if origin is None:
+        origin = node._run_origin_ns = node.get_clock().now().nanoseconds
+    return origin
 
 
 class TimeMapping:
