@@ -261,10 +261,20 @@ def spin_until_stopped(executor, stop: StopSignals, poll_s: float = 0.1):
         executor.spin_once(timeout_sec=poll_s)
 
 
+def close_ros(executor, *nodes):
+    """After the spin loop: the nodes out of the executor and destroyed, then rclpy shut down."""
+    import rclpy
+
+    for node in nodes:
+        executor.remove_node(node)
+        node.destroy_node()
+    executor.shutdown()
+    rclpy.try_shutdown()
+
+
 def run_node(cls, args=None) -> int:
     """``main`` of a node executable: spin until Ctrl-C / SIGTERM / shutdown, then free the node's
     resources (files closed: a RINEX file stays valid up to its last epoch) and exit 0."""
-    import rclpy
     from rclpy.executors import SingleThreadedExecutor
 
     stop = init_ros(args)
@@ -275,8 +285,5 @@ def run_node(cls, args=None) -> int:
         spin_until_stopped(executor, stop)
     finally:
         node.release()
-        executor.remove_node(node)
-        node.destroy_node()
-        executor.shutdown()
-        rclpy.try_shutdown()
+        close_ros(executor, node)
     return 0

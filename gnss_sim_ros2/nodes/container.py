@@ -29,7 +29,7 @@ from rcl_interfaces.msg import ParameterType
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.parameter import Parameter
 
-from gnss_sim_ros2.nodes.common import init_ros, spin_until_stopped
+from gnss_sim_ros2.nodes.common import close_ros, init_ros, spin_until_stopped
 from gnss_sim_ros2.nodes.components import ComponentError, load_class
 
 EXTRA_BOOL_ARGUMENTS = ("use_intra_process_comms", "forward_global_arguments", "enable_rosout")
@@ -181,10 +181,7 @@ def main(args=None) -> int:
         spin_until_stopped(executor, stop)
     finally:
         manager.unload_all()
-        executor.remove_node(node)
-        node.destroy_node()
-        executor.shutdown()
-        rclpy.try_shutdown()
+        close_ros(executor, node)
     return 0
 
 

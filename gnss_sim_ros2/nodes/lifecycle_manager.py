@@ -15,7 +15,7 @@ import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 
-from gnss_sim_ros2.nodes.common import init_ros, spin_until_stopped
+from gnss_sim_ros2.nodes.common import close_ros, init_ros, spin_until_stopped
 from gnss_sim_ros2.nodes.manager import RemoteNodes, TransitionFailed
 
 
@@ -41,10 +41,7 @@ def main(args=None) -> int:
         node.get_logger().error(str(exc))
         code = 3
     finally:
-        executor.remove_node(node)
-        node.destroy_node()
-        executor.shutdown()
-        rclpy.try_shutdown()
+        close_ros(executor, node)
     return code
 
 

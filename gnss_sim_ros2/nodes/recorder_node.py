@@ -12,7 +12,7 @@ from pathlib import Path
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 
-from gnss_sim_ros2.nodes.common import init_ros, spin_until_stopped
+from gnss_sim_ros2.nodes.common import close_ros, init_ros, spin_until_stopped
 
 
 def main(args=None) -> int:
@@ -36,10 +36,7 @@ def main(args=None) -> int:
     finally:
         if recorder is not None:
             recorder.close()
-        executor.remove_node(node)
-        node.destroy_node()
-        executor.shutdown()
-        rclpy.try_shutdown()
+        close_ros(executor, node)
     return 0
 
 
