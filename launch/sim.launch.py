@@ -64,7 +64,7 @@ def _stop_launch_if_failed(action, what: str):
 def _recorder(output_dir: str) -> list:
     bag = os.path.join(output_dir, "bag")
     if os.path.exists(bag):
-        raise RuntimeError(f"record:=true: the bag folder {bag} exists already (rosbag2 does not overwrite); "
+        raise ValueError(f"record:=true: the bag folder {bag} exists already (rosbag2 does not overwrite); "
                            "choose another output_dir:= or remove it")
     if shutil.which("ros2") and importlib.util.find_spec("ros2bag") is not None:
         proc = ExecuteProcess(cmd=["ros2", "bag", "record", "-s", "mcap", "-o", bag, *graph.RECORDED_TOPICS],
