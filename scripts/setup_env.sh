@@ -154,5 +154,9 @@ fi
 for exe in "$VENV"/lib/gnss_sim/*; do
   [ -e "$exe" ] && ln -sf "$exe" "$VENV/bin/$(basename "$exe")"
 done
+# The ament index entries colcon would install (the editable install writes
+# none): marker, components, share/gnss_sim/{package.xml,launch,config,worlds}
+# as copies, redone on every set-up so that they stay current.
+"$VPY" "$REPO/scripts/ament_register.py" "$VENV" >&2
 
-log "ready: $VENV (gnss-sim at $VENV/bin/gnss-sim)"
+log "ready: $VENV (gnss-sim at $VENV/bin/gnss-sim; ament index: export AMENT_PREFIX_PATH=$VENV)"
