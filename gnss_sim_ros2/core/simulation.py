@@ -291,8 +291,8 @@ def run_simulation(setup: SimulationSetup) -> SimulationResult:
                        list(setup.sp3_files) + list(setup.nav_files), warn=False)
 
     out.mkdir(parents=True, exist_ok=True)
-    for old in list(out.glob("*_MO.rnx")) + list(out.glob("*_MN.rnx")):
-        old.unlink()  # exactly one observation and one navigation file per run
+    for old in list(out.glob("*_MO*.rnx")) + list(out.glob("*_MN.rnx")) + list(out.glob("fix.csv")):
+        old.unlink()  # exactly one observation and one navigation file (and one fix.csv) per run
     nav_path = out / rinex_name(setup.marker_name, setup.start, setup.duration_s, interval_s, "MN")
     nav_written = write_navigation(nav_path, provider, setup.systems)
     if nav_written is None and nav_paths:

@@ -222,12 +222,19 @@ class ReceiverChain:
         hdr = header(self.obs_types, s.marker_name, ecef, s.interval_s, slots,
                      comments=[f"{self.comment}, preset {s.preset}",
                                f"seed {cfg.seed}; noise {'on' if cfg.noise else 'off'}"])
-        self.obs_path = out / rinex_name(s.marker_name, t, self.duration_s, s.interval_s, "MO")
+        name = rinex_name(s.marker_name, t, self.duration_s, s.interval_s, "MO")
+        self.obs_path = out / name
+        k = 1
+        while self.obs_path.exists():   # a reconfigured node in the same minute: never overwrite a file
+            self.obs_path = out / name.replace("_MO.rnx", f"_MO_{k}.rnx")
+            k += 1
         self._writer = RinexObsWriter(self.obs_path, hdr)
         self.fix_path = out / "fix.csv"
-        self._fix_file = open(self.fix_path, "w", newline="", buffering=1)  # noqa: SIM115 - closed in close()
+        new = not self.fix_path.exists()
+        self._fix_file = open(self.fix_path, "a", newline="", buffering=1)  # noqa: SIM115 - closed in close()
         self._fix_csv = csv.writer(self._fix_file)
-        self._fix_csv.writerow(["time", "lat_deg", "lon_deg", "h_m", "n_sats", "status"])
+        if new:
+            self._fix_csv.writerow(["time", "lat_deg", "lon_deg", "h_m", "n_sats", "status"])
         if s.write_nmea_file:
             self._nmea_file = open(out / "gnss_sim.nmea", "a", buffering=1)  # noqa: SIM115 - closed in close()
 
