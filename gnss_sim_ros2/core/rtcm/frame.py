@@ -95,3 +95,29 @@ def split_frames(data: bytes) -> tuple[list[bytes], bytes]:
 def message_number(frame_bytes: bytes) -> int:
     """DF002 of a framed message."""
     return (frame_bytes[3] << 4) | (frame_bytes[4] >> 4)
+
+
+def is_msm(frame_bytes: bytes) -> bool:
+    """A Multiple Signal Message (1071-1137, RTCM 10403.3 table 3.5-78)."""
+    n = message_number(frame_bytes)
+    return 1071 <= n <= 1137 and n % 10 != 0 and n % 10 <= 7
+
+
+def msm_more_follow(frame_bytes: bytes) -> bool:
+    """DF393 of an MSM frame: more MSMs of the same epoch follow (payload bit 54)."""
+    return bool((int.from_bytes(frame_bytes[3:11], "big") >> (64 - 55)) & 1)
+
+
+def epochs_of(data: bytes) -> list[bytes]:
+    """An RTCM3 stream cut after each epoch's last MSM (multiple message bit 0): the bytes of each epoch,
+    with the station and ephemeris messages that came before its observations."""
+    frames, _ = split_frames(data)
+    out, cur = [], []
+    for f in frames:
+        cur.append(f)
+        if is_msm(f) and not msm_more_follow(f):
+            out.append(b"".join(cur))
+            cur = []
+    if cur:
+        out.append(b"".join(cur))
+    return out
