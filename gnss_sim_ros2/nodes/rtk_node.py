@@ -1,0 +1,296 @@
+"""RTK lifecycle node: RTKLIB rtkrcv fed with the rover's and the base's RTCM3, its solutions published.
+
+Subscribes ``rtcm`` (rover) and ``base/rtcm`` (base station): std_msgs/UInt8MultiArray,
+the raw RTCM3 bytes of one epoch or any run of whole frames (rtcm_msgs and
+mavros_msgs are not available as Kilted wheels on PyPI; UInt8MultiArray is
+the standard raw-bytes message).  Each message goes to rtkrcv at once
+through its TCP input (core/rtk/process.py); rtkrcv synchronises rover and
+base by epoch time itself.
+
+Publishes (relative names: under the ``/gnss`` namespace they are
+``/gnss/rtk/...``): ``rtk/fix`` (sensor_msgs/NavSatFix, status from the RTKLIB
+quality as nmea_navsat_driver maps GGA: fixed and float -> STATUS_GBAS_FIX,
+DGPS -> STATUS_SBAS_FIX, single -> STATUS_FIX, see core/rtk/solution.py;
+covariance: rtkrcv's ENU covariance, COVARIANCE_TYPE_KNOWN), ``rtk/vel``
+(geometry_msgs/TwistWithCovarianceStamped, ENU velocity of rtkrcv's
+dynamics model with its covariance), ``rtk/nmea`` (std_msgs/String, one
+sentence per message), ``rtk/status`` (diagnostic_msgs/DiagnosticStatus:
+quality, ratio, satellites, age of the base data, counts).
+
+Services (std_srvs/Trigger): ``~/start``, ``~/stop``, ``~/restart`` of rtkrcv
+while the node is active.  Lifecycle: configure checks rtkrcv (a clear error
+when missing), reads a user's ``rtkrcv_conf``; activate starts rtkrcv
+(``autostart``) and subscribes; deactivate and cleanup stop it (its whole
+process group).  Message stamps: the solution's GNSS time through
+``time_mapping`` (as the ephemeris node).
+"""
+from __future__ import annotations
+
+import datetime as _dt
+import queue
+import sys
+from contextlib import contextmanager
+
+import numpy as np
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+from geometry_msgs.msg import TwistWithCovarianceStamped
+from rclpy.clock import Clock, ClockType
+from sensor_msgs.msg import NavSatFix
+from std_msgs.msg import Header, String, UInt8MultiArray
+
+from gnss_sim_ros2 import parameters as _table
+from gnss_sim_ros2.core.rtk.solution import Q_FIX, Q_FLOAT, QUALITY_NAMES, RtkSolution
+from gnss_sim_ros2.nodes.common import GnssSimNode, TimeMapping, run_node, run_origin_ns
+from gnss_sim_ros2.nodes.receiver_node import SERVICE_FLAGS
+from gnss_sim_ros2.parameters import Param
+
+NODE_NAME = "gnss_sim_rtk"
+#: the rtk node's parameters: to move into parameters.NODE_PARAMS["rtk"] (NODE_NAMES["rtk"] = "gnss_sim_rtk")
+RTK_PARAMS = [
+    Param("rtkrcv_path", "", "RTKLIB rtkrcv executable; empty: rtkrcv on PATH (Debian package rtklib)"),
+    Param("rtkrcv_conf", "", "a user's rtkrcv options file, kept as it is except the stream and output format "
+          "options the node owns; empty: the generated RTK setup"),
+    Param("rtk_systems", "", "systems RTK uses (pos1-navsys of the generated setup); empty: systems"),
+    Param("rtk_frequencies", 2, "carrier frequencies of the generated setup (pos1-frequency: 1 l1, 2 l1+2, 3 l1+2+3)",
+          min=1, max=3),
+    Param("rtk_ratio_threshold", 3.0, "ambiguity ratio test threshold of the generated setup (pos2-arthres)",
+          min=1.0, max=100.0),
+    Param("rtkrcv_clock", "auto", "rtkrcv's clock: simulated (started under faketime at the simulated time: RTCM3 "
+          "carries times of week, RTKLIB takes the week from the clock), system, or auto (simulated when the "
+          "simulated time is more than an hour from the system clock)", choices=("auto", "simulated", "system")),
+    Param("autostart", True, "start rtkrcv on activate (else through the start service)"),
+    Param("time_mapping", "offset", "ROS time <-> GNSS time of the stamps: offset (ROS time 0 = start_time) or utc",
+          choices=("offset", "utc")),
+]
+
+
+@contextmanager
+def _rtk_table():
+    """The rtk entry of the parameter table while the node declares/reads its parameters, until
+    parameters.py has it (then this does nothing)."""
+    added = "rtk" not in _table.NODE_PARAMS
+    if added:
+        _table.NODE_PARAMS["rtk"] = RTK_PARAMS
+        _table.NODE_NAMES["rtk"] = NODE_NAME
+    try:
+        yield
+    finally:
+        if added:
+            del _table.NODE_PARAMS["rtk"]
+            del _table.NODE_NAMES["rtk"]
+
+
+class RtkNode(GnssSimNode):
+    PARAMS_KEY = "rtk"
+
+    def __init__(self, **kwargs):
+        with _rtk_table():
+            super().__init__(**kwargs)
+        self.proc = None
+        self.pubs: dict = {}
+        self.trigger_services: list = []
+        self.mapping: TimeMapping | None = None
+        self._solutions: queue.Queue = queue.Queue()
+        self._nmea: queue.Queue = queue.Queue()
+        self.counts = {q: 0 for q in QUALITY_NAMES}
+        self.last: RtkSolution | None = None
+        self.bytes_in = {"rover": 0, "base": 0}
+
+    def read_parameters(self) -> dict:
+        with _rtk_table():
+            return super().read_parameters()
+
+    # ----------------------------------------------------------------------------- lifecycle
+    def configure(self, p):
+        from gnss_sim_ros2.core.rtk.config import default_options, read_conf
+        from gnss_sim_ros2.core.rtk.process import find_faketime, find_rtkrcv
+
+        where = f"node {self.get_name()}"
+        try:
+            find_rtkrcv(p["rtkrcv_path"])
+            if p["rtkrcv_clock"] == "simulated":
+                find_faketime()
+        except ValueError as exc:
+            raise ValueError(f"{where}: {exc}") from None
+        systems = p["rtk_systems"] or p["systems"]
+        self.options = None
+        if p["rtkrcv_conf"]:
+            read_conf(p["rtkrcv_conf"])             # its errors name the file and line, before anything starts
+        else:
+            try:
+                self.options = default_options(systems, p["rtk_frequencies"], p["elevation_mask_deg"],
+                                               p["rtk_ratio_threshold"])
+            except ValueError as exc:
+                raise ValueError(f"{where}: {exc}") from None
+        self.service_flags = int(np.bitwise_or.reduce([SERVICE_FLAGS.get(s, 0) for s in systems] or [0]))
+        self.mapping = TimeMapping(p["start_time"], p["time_mapping"])
+        self.pubs = {
+            "fix": self.lifecycle_publisher(NavSatFix, "rtk/fix", 100),
+            "vel": self.lifecycle_publisher(TwistWithCovarianceStamped, "rtk/vel", 100),
+            "nmea": self.lifecycle_publisher(String, "rtk/nmea", 100),
+            "status": self.lifecycle_publisher(DiagnosticStatus, "rtk/status", 100),
+        }
+        from std_srvs.srv import Trigger
+
+        self.trigger_services = [self.create_service(Trigger, f"~/{name}", getattr(self, f"_srv_{name}"))
+                         for name in ("start", "stop", "restart")]
+
+    def activate(self):
+        self.mapping.origin_ns = run_origin_ns(self)
+        self.active_subscription(UInt8MultiArray, "rtcm", lambda m: self._feed("rover", m), 1000)
+        self.active_subscription(UInt8MultiArray, "base/rtcm", lambda m: self._feed("base", m), 1000)
+        # rtkrcv's output is drained on the steady clock: a simulated /clock may stand still
+        self.active_timer(0.02, self._drain, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        if self.params["autostart"]:
+            self.start_rtkrcv()
+
+    def deactivate(self):
+        self.stop_rtkrcv()
+
+    def cleanup(self):
+        self.stop_rtkrcv()
+        for s in self.trigger_services:
+            self.destroy_service(s)
+        self.trigger_services = []
+        self.pubs = {}
+
+    # ----------------------------------------------------------------------------- rtkrcv
+    def _clock_start_utc(self) -> _dt.datetime | None:
+        mode = self.params["rtkrcv_clock"]
+        if mode == "system":
+            return None
+        t = self.mapping.to_gnss(self.get_clock().now().to_msg())
+        utc = t.to_datetime("UTC")
+        now_utc = _dt.datetime.now(_dt.timezone.utc).replace(tzinfo=None)
+        if mode == "auto" and abs((utc - now_utc).total_seconds()) < 3600.0:
+            return None
+        return utc
+
+    def start_rtkrcv(self) -> str:
+        """Start rtkrcv (no-op when running); a message for the service reply."""
+        from gnss_sim_ros2.core.rtk.process import RtkrcvProcess
+
+        if self.proc is not None and self.proc.running:
+            return "rtkrcv is already running"
+        p = self.params
+        self.proc = RtkrcvProcess(options=self.options, user_conf=p["rtkrcv_conf"] or None,
+                                  rtkrcv_path=p["rtkrcv_path"], on_solution=self._solutions.put,
+                                  on_nmea=self._nmea.put, clock_start_utc=self._clock_start_utc())
+        self.proc.start()
+        if self.proc.replaced_options:
+            self.get_logger().info(f"rtkrcv_conf: the node sets {', '.join(self.proc.replaced_options)}")
+        return f"rtkrcv started ({self.proc.conf_path})"
+
+    def stop_rtkrcv(self) -> str:
+        if self.proc is None:
+            return "rtkrcv is not running"
+        rc = self.proc.stop()
+        self.proc = None
+        return f"rtkrcv stopped (exit {rc})"
+
+    def _active(self) -> bool:
+        return self._state_machine.current_state[1] == "active"
+
+    def _srv_start(self, request, response):
+        return self._reply(response, self.start_rtkrcv)
+
+    def _srv_stop(self, request, response):
+        return self._reply(response, self.stop_rtkrcv)
+
+    def _srv_restart(self, request, response):
+        def restart():
+            self.stop_rtkrcv()
+            return "restarted: " + self.start_rtkrcv()
+        return self._reply(response, restart)
+
+    def _reply(self, response, action):
+        if not self._active():
+            response.success, response.message = False, f"node {self.get_name()} is not active"
+            return response
+        try:
+            response.message = action()
+            response.success = True
+        except (ValueError, OSError) as exc:
+            response.success, response.message = False, str(exc)
+            self.last_error = str(exc)
+        return response
+
+    # ----------------------------------------------------------------------------- data
+    def _feed(self, which: str, msg) -> None:
+        data = bytes(msg.data)
+        self.bytes_in[which] += len(data)
+        if self.proc is not None:
+            (self.proc.feed_rover if which == "rover" else self.proc.feed_base)(data)
+
+    def _drain(self) -> None:
+        while True:
+            try:
+                line = self._nmea.get_nowait()
+            except queue.Empty:
+                break
+            if self.pubs:
+                self.pubs["nmea"].publish(String(data=line))
+        while True:
+            try:
+                sol = self._solutions.get_nowait()
+            except queue.Empty:
+                break
+            self._publish(sol)
+
+    def _publish(self, sol: RtkSolution) -> None:
+        if not self.pubs:
+            return
+        self.counts[sol.q] = self.counts.get(sol.q, 0) + 1
+        self.last = sol
+        header = Header(stamp=self.mapping.to_ros(sol.t), frame_id=self.params["antenna_frame"])
+        self.pubs["fix"].publish(fix_message(header, sol, self.service_flags))
+        self.pubs["vel"].publish(vel_message(header, sol))
+        self.pubs["status"].publish(self.status_message(sol))
+
+    def status_message(self, sol: RtkSolution | None) -> DiagnosticStatus:
+        running = self.proc is not None and self.proc.running
+        if sol is None:
+            level, text = DiagnosticStatus.WARN, "no solution yet"
+        else:
+            level = DiagnosticStatus.OK if sol.q in (Q_FIX, Q_FLOAT) else DiagnosticStatus.WARN
+            text = f"{sol.quality}, ratio {sol.ratio:.1f}, {sol.ns} satellites, age {sol.age_s:.1f} s"
+        values = {"running": str(running).lower(), "quality": sol.quality if sol else "none",
+                  "ratio": f"{sol.ratio:.1f}" if sol else "", "satellites": str(sol.ns) if sol else "",
+                  "age_s": f"{sol.age_s:.2f}" if sol else "",
+                  **{f"epochs_{QUALITY_NAMES[q]}": str(n) for q, n in self.counts.items() if n},
+                  "rover_bytes": str(self.bytes_in["rover"]), "base_bytes": str(self.bytes_in["base"])}
+        return DiagnosticStatus(level=level, name=f"{self.get_name()}: rtkrcv", message=text, hardware_id="rtkrcv",
+                                values=[KeyValue(key=k, value=v) for k, v in values.items()])
+
+
+def fix_message(header, sol: RtkSolution, service: int) -> NavSatFix:
+    """NavSatFix of one rtkrcv solution: status from its quality, ENU covariance (row-major) from its std."""
+    fix = NavSatFix(header=header)
+    fix.status.status = int(sol.status)
+    fix.status.service = int(service)
+    fix.latitude, fix.longitude, fix.altitude = float(sol.lat_deg), float(sol.lon_deg), float(sol.h_m)
+    fix.position_covariance = [float(v) for v in np.asarray(sol.cov_enu_m2).ravel()]
+    fix.position_covariance_type = NavSatFix.COVARIANCE_TYPE_KNOWN
+    return fix
+
+
+def vel_message(header, sol: RtkSolution) -> TwistWithCovarianceStamped:
+    """ENU velocity with its covariance (linear block; angular velocity unknown: -1 on its diagonal)."""
+    msg = TwistWithCovarianceStamped(header=header)
+    v = np.asarray(sol.vel_enu_mps, dtype=float)
+    msg.twist.twist.linear.x, msg.twist.twist.linear.y, msg.twist.twist.linear.z = (float(x) for x in v)
+    cov = np.zeros((6, 6))
+    cov[:3, :3] = sol.cov_vel_enu_m2ps2
+    cov[3, 3] = cov[4, 4] = cov[5, 5] = -1.0
+    if not np.any(sol.cov_vel_enu_m2ps2):          # rtkrcv wrote no velocity (dynamics off)
+        cov[0, 0] = -1.0
+    msg.twist.covariance = [float(x) for x in cov.ravel()]
+    return msg
+
+
+def main(args=None):
+    return run_node(RtkNode, args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
