@@ -3,7 +3,6 @@ RTCM3 over its TCP streams (Debian's rtklib 2.4.3 b34; its clock set to the simu
 from __future__ import annotations
 
 import os
-import shutil
 import time
 
 import numpy as np
@@ -20,7 +19,7 @@ from gnss_sim_ros2.core.rtk.config import (
     merge_options,
     read_conf,
 )
-from gnss_sim_ros2.core.rtk.process import RtkrcvNotFound, RtkrcvProcess, find_rtkrcv
+from gnss_sim_ros2.core.rtk.process import RtkrcvNotFound, RtkrcvProcess, find_faketime, find_rtkrcv
 from gnss_sim_ros2.core.time import GnssTime
 
 
@@ -126,9 +125,17 @@ def test_rtkrcv_missing_is_a_clear_error(monkeypatch, tmp_path):
     assert issubclass(RtkrcvNotFound, ValueError)
 
 
-needs_rtkrcv = pytest.mark.skipif(shutil.which("rtkrcv") is None or shutil.which("faketime") is None,
-                                  reason="RTKLIB rtkrcv and faketime are not installed (apt-get install rtklib "
-                                         "faketime)")
+def rtkrcv_and_faketime() -> bool:
+    try:
+        find_rtkrcv()
+        find_faketime()
+    except RtkrcvNotFound:
+        return False
+    return True
+
+
+needs_rtkrcv = pytest.mark.skipif(not rtkrcv_and_faketime(), reason="RTKLIB rtkrcv and libfaketime are not "
+                                  "installed (apt-get install rtklib faketime)")
 
 
 @pytest.fixture(scope="module")
@@ -204,3 +211,32 @@ def test_stop_leaves_no_process(base_rover):
     with pytest.raises(ProcessLookupError):
         os.killpg(pid, 0)
     proc.stop()                  # twice: no error
+
+
+@needs_rtkrcv
+def test_rtkrcv_dies_with_a_killed_parent(tmp_path):
+    """A node process killed with SIGKILL (no cleanup at all) takes rtkrcv with it (PR_SET_PDEATHSIG)."""
+    import signal
+    import subprocess
+    import sys
+
+    code = ("import datetime, sys, time\n"
+            "from gnss_sim_ros2.core.rtk.process import RtkrcvProcess\n"
+            "p = RtkrcvProcess(clock_start_utc=datetime.datetime(2022, 1, 1))\n"
+            "p.start()\n"
+            "print(p.proc.pid, flush=True)\n"
+            "time.sleep(60)\n")
+    parent = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
+    pid = int(parent.stdout.readline())
+    os.kill(pid, 0)                                   # rtkrcv runs
+    parent.send_signal(signal.SIGKILL)
+    parent.wait(10)
+    t_end = time.monotonic() + 10.0
+    while time.monotonic() < t_end:
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            break
+        time.sleep(0.1)
+    with pytest.raises(ProcessLookupError):
+        os.kill(pid, 0)

@@ -3,14 +3,13 @@ start/stop/restart services; a user's rtkrcv .conf; a clear error where rtkrcv i
 from __future__ import annotations
 
 import os
-import shutil
 
 import numpy as np
 import pynmea2
 import pytest
 from rclpy.parameter import Parameter
 from ros_helpers import ros  # noqa: F401  (fixture)
-from test_rtk_engine import base_rover  # noqa: F401  (fixture: RTCM3 of a base and a rover, epoch by epoch)
+from test_rtk_engine import base_rover, rtkrcv_and_faketime  # noqa: F401  (fixture: RTCM3 of a base and a rover)
 
 from gnss_sim_ros2.core.frames import geodetic_to_ecef
 from gnss_sim_ros2.core.rtk.solution import STATUS_GBAS_FIX
@@ -45,9 +44,8 @@ def test_bad_user_conf_refuses_configure(ros, tmp_path):  # noqa: F811
     assert _state(node) == "unconfigured" and "bad.conf, line 2" in node.last_error
 
 
-needs_rtkrcv = pytest.mark.skipif(shutil.which("rtkrcv") is None or shutil.which("faketime") is None,
-                                  reason="RTKLIB rtkrcv and faketime are not installed (apt-get install rtklib "
-                                         "faketime)")
+needs_rtkrcv = pytest.mark.skipif(not rtkrcv_and_faketime(), reason="RTKLIB rtkrcv and libfaketime are not "
+                                  "installed (apt-get install rtklib faketime)")
 
 
 @pytest.fixture(scope="module")

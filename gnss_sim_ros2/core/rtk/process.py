@@ -11,11 +11,16 @@ come back through callbacks on reader threads.
 Clock: RTCM3 MSM carry the time of week only; RTKLIB resolves the week (and
 the day of GLONASS) from the computer clock (rtcm3.c ``adjweek``: the epoch
 is put within half a week of it), so rtkrcv must run with its clock at the
-simulated time.  With ``clock_start_utc`` the wrapper starts it under
-libfaketime (``faketime -f @START``; Debian package ``faketime``), whose
+simulated time.  With ``clock_start_utc`` the wrapper preloads libfaketime
+into rtkrcv (``LD_PRELOAD`` of its multi-threaded library, ``FAKETIME=@START``,
+as the ``faketime -m -f`` wrapper does; Debian package ``faketime``), whose
 clock then runs on from the simulation start; the monotonic clock
 (timeouts, cycles) is left real (``FAKETIME_DONT_FAKE_MONOTONIC=1``).
 Without it rtkrcv keeps the real clock (a simulation of the current week).
+
+rtkrcv is the wrapper's direct child, in a process group of its own, and
+gets SIGTERM when the wrapper's process dies (Linux ``PR_SET_PDEATHSIG``):
+it never outlives the node, even one killed with SIGKILL.
 
 rtkrcv runs with ``-s`` (start at once), ``-p PORT`` (its telnet console on a
 free local port; no terminal needed) and ``-o FILE`` in a work folder of its
@@ -34,6 +39,7 @@ import subprocess
 import tempfile
 import threading
 import time
+import weakref
 from collections.abc import Callable
 from pathlib import Path
 
@@ -48,13 +54,42 @@ class RtkrcvNotFound(ValueError):
     """The rtkrcv executable is not installed (or not where the parameter says)."""
 
 
+#: where distributions install libfaketime's multi-threaded library (Debian: package libfaketime)
+FAKETIME_LIBRARY_GLOBS = ("/usr/lib/*/faketime/libfaketimeMT.so.1", "/usr/lib/faketime/libfaketimeMT.so.1",
+                          "/usr/local/lib/faketime/libfaketimeMT.so.1", "/usr/lib64/faketime/libfaketimeMT.so.1")
+
+
 def find_faketime() -> str:
-    exe = shutil.which("faketime")
-    if exe is None:
-        raise RtkrcvNotFound("faketime not found on PATH: rtkrcv needs its clock at the simulated time (RTCM3 "
-                             "carries the time of week only; RTKLIB takes the week from the computer clock); "
-                             "install libfaketime, e.g. 'apt-get install faketime'")
-    return exe
+    """libfaketime's multi-threaded library (rtkrcv runs threads)."""
+    import glob
+
+    for pattern in FAKETIME_LIBRARY_GLOBS:
+        hits = sorted(glob.glob(pattern))
+        if hits:
+            return hits[0]
+    raise RtkrcvNotFound("libfaketime not found (" + ", ".join(FAKETIME_LIBRARY_GLOBS) + "): rtkrcv needs its "
+                         "clock at the simulated time (RTCM3 carries the time of week only; RTKLIB takes the week "
+                         "from the computer clock); install it, e.g. 'apt-get install faketime' (parameter "
+                         "rtkrcv_clock=system keeps the real clock)")
+
+
+def _die_with_parent():
+    """preexec: SIGTERM to the child when its parent dies (prctl PR_SET_PDEATHSIG = 1), in the child."""
+    if _PRCTL is not None:
+        _PRCTL(1, signal.SIGTERM)
+
+
+def _load_prctl():
+    try:
+        import ctypes
+
+        return ctypes.CDLL(None, use_errno=True).prctl
+    except (OSError, AttributeError):
+        return None
+
+
+#: resolved once in the parent: the child only calls it between fork and exec
+_PRCTL = _load_prctl()
 
 
 def find_rtkrcv(path: str = "") -> str:
@@ -117,7 +152,7 @@ class RtkrcvProcess:
                  clock_start_utc: _dt.datetime | None = None):
         self.exe = find_rtkrcv(rtkrcv_path)
         self.clock_start_utc = clock_start_utc
-        self.faketime = find_faketime() if clock_start_utc is not None else None
+        self.faketime_library = find_faketime() if clock_start_utc is not None else None
         self.user_options = read_conf(user_conf) if user_conf else None
         self.base_options = dict(options) if options is not None else (
             None if user_conf else default_options())
@@ -169,11 +204,14 @@ class RtkrcvProcess:
         self._log = open(self.workdir / "rtkrcv.log", "wb")
         cmd = [self.exe, "-s", "-p", str(console), "-w", "", "-o", str(self.conf_path)]
         env = None
-        if self.faketime is not None:
-            cmd = [self.faketime, "-f", "@" + self.clock_start_utc.strftime("%Y-%m-%d %H:%M:%S"), *cmd]
-            env = {**os.environ, "FAKETIME_DONT_FAKE_MONOTONIC": "1"}
+        if self.faketime_library is not None:
+            preload = " ".join(x for x in (self.faketime_library, os.environ.get("LD_PRELOAD", "")) if x)
+            env = {**os.environ, "LD_PRELOAD": preload, "FAKETIME_DONT_FAKE_MONOTONIC": "1",
+                   "FAKETIME": "@" + self.clock_start_utc.strftime("%Y-%m-%d %H:%M:%S")}
         self.proc = subprocess.Popen(cmd, cwd=self.workdir, stdin=subprocess.DEVNULL, stdout=self._log,
-                                     stderr=subprocess.STDOUT, start_new_session=True, env=env)
+                                     stderr=subprocess.STDOUT, start_new_session=True, env=env,
+                                     preexec_fn=_die_with_parent)
+        self._finalizer = weakref.finalize(self, _signal_group, self.proc.pid, signal.SIGTERM)
         for name in ("rover", "base"):
             self._spawn(self._accept_input, name)
         self._spawn(self._read_output, "solution")
@@ -280,8 +318,9 @@ class RtkrcvProcess:
         """Stop rtkrcv (SIGTERM, SIGKILL after stop_timeout_s) and close the streams; its exit code."""
         rc = None
         if self.proc is not None:
-            # the process group of our own child (start_new_session): rtkrcv, and faketime around it
+            # the process group of our own child (start_new_session)
             pgid = self.proc.pid
+            self._finalizer.detach()
             _signal_group(pgid, signal.SIGTERM)
             try:
                 self.proc.wait(self.stop_timeout_s)
