@@ -80,15 +80,18 @@ def encode_1019(r: dict) -> bytes:
     return w.payload()
 
 
-def _kepler_body(w: BitWriter, r: dict) -> None:
-    """Crs .. OmegaDot as in 1019 (DF086-DF100): 16-bit harmonics, 32-bit angles, toe / 16 s."""
-    w.s(16, _q(r["Crs"], 2.0 ** -5), "Crs").s(16, _sc(r["DeltaN"], 2.0 ** -43), "DeltaN")
-    w.s(32, _sc(r["M0"], 2.0 ** -31), "M0").s(16, _q(r["Cuc"], 2.0 ** -29), "Cuc")
-    w.u(32, _q(r["Eccentricity"], 2.0 ** -33), "e").s(16, _q(r["Cus"], 2.0 ** -29), "Cus")
-    w.u(32, _q(r["sqrtA"], 2.0 ** -19), "sqrtA").u(16, round(float(r["Toe"]) / 16.0), "Toe")
-    w.s(16, _q(r["Cic"], 2.0 ** -29), "Cic").s(32, _sc(r["Omega0"], 2.0 ** -31), "Omega0")
-    w.s(16, _q(r["Cis"], 2.0 ** -29), "Cis").s(32, _sc(r["Io"], 2.0 ** -31), "i0")
-    w.s(16, _q(r["Crc"], 2.0 ** -5), "Crc").s(32, _sc(r["omega"], 2.0 ** -31), "omega")
+def _kepler_body(w: BitWriter, r: dict, harm_bits: int = 16, r_lsb: float = 2.0 ** -5, c_lsb: float = 2.0 ** -29,
+                 toe_bits: int = 16, toe_lsb: float = 16.0) -> None:
+    """Crs .. OmegaDot, the run 1019/1044 (DF086-DF100), 1045/1046 (DF297-DF311) and 1042 (DF498-DF512)
+    share in this order: radius harmonics (``r_lsb`` m) and angle harmonics (``c_lsb`` rad) of ``harm_bits``,
+    32-bit angles and 24-bit node rate in semicircles, toe of ``toe_bits`` in units of ``toe_lsb`` s."""
+    w.s(harm_bits, _q(r["Crs"], r_lsb), "Crs").s(16, _sc(r["DeltaN"], 2.0 ** -43), "DeltaN")
+    w.s(32, _sc(r["M0"], 2.0 ** -31), "M0").s(harm_bits, _q(r["Cuc"], c_lsb), "Cuc")
+    w.u(32, _q(r["Eccentricity"], 2.0 ** -33), "e").s(harm_bits, _q(r["Cus"], c_lsb), "Cus")
+    w.u(32, _q(r["sqrtA"], 2.0 ** -19), "sqrtA").u(toe_bits, round(float(r["Toe"]) / toe_lsb), "Toe")
+    w.s(harm_bits, _q(r["Cic"], c_lsb), "Cic").s(32, _sc(r["Omega0"], 2.0 ** -31), "Omega0")
+    w.s(harm_bits, _q(r["Cis"], c_lsb), "Cis").s(32, _sc(r["Io"], 2.0 ** -31), "i0")
+    w.s(harm_bits, _q(r["Crc"], r_lsb), "Crc").s(32, _sc(r["omega"], 2.0 ** -31), "omega")
     w.s(24, _sc(r["OmegaDot"], 2.0 ** -43), "OmegaDot")
 
 
@@ -134,14 +137,8 @@ def encode_galileo(r: dict) -> bytes:
     w.u(14, round(_tow_s(r["time"]) / 60.0), "DF293")
     w.s(6, _q(r["SVclockDriftRate"], 2.0 ** -59), "DF294").s(21, _q(r["SVclockDrift"], 2.0 ** -46), "DF295")
     w.s(31, _q(r["SVclockBias"], 2.0 ** -34), "DF296")
-    w.s(16, _q(r["Crs"], 2.0 ** -5), "DF297").s(16, _sc(r["DeltaN"], 2.0 ** -43), "DF298")
-    w.s(32, _sc(r["M0"], 2.0 ** -31), "DF299").s(16, _q(r["Cuc"], 2.0 ** -29), "DF300")
-    w.u(32, _q(r["Eccentricity"], 2.0 ** -33), "DF301").s(16, _q(r["Cus"], 2.0 ** -29), "DF302")
-    w.u(32, _q(r["sqrtA"], 2.0 ** -19), "DF303").u(14, round(float(r["Toe"]) / 60.0), "DF304")
-    w.s(16, _q(r["Cic"], 2.0 ** -29), "DF305").s(32, _sc(r["Omega0"], 2.0 ** -31), "DF306")
-    w.s(16, _q(r["Cis"], 2.0 ** -29), "DF307").s(32, _sc(r["Io"], 2.0 ** -31), "DF308")
-    w.s(16, _q(r["Crc"], 2.0 ** -5), "DF309").s(32, _sc(r["omega"], 2.0 ** -31), "DF310")
-    w.s(24, _sc(r["OmegaDot"], 2.0 ** -43), "DF311").s(10, _q(r["BGDe5a"], 2.0 ** -32), "DF312")
+    _kepler_body(w, r, toe_bits=14, toe_lsb=60.0)
+    w.s(10, _q(r["BGDe5a"], 2.0 ** -32), "DF312")
     # health bits (RINEX 3.04 A8): 0 E1-B DVS, 1-2 E1-B HS, 3 E5a DVS, 4-5 E5a HS, 6 E5b DVS, 7-8 E5b HS
     if fnav:
         w.u(2, (h >> 4) & 3, "DF314").u(1, (h >> 3) & 1, "DF315").u(7, 0, "DF001")
@@ -163,14 +160,7 @@ def encode_1042(r: dict) -> bytes:
     w.u(17, round(_tow_s(r["time"]) / 8.0), "DF493")
     w.s(11, _q(r["SVclockDriftRate"], 2.0 ** -66), "DF494").s(22, _q(r["SVclockDrift"], 2.0 ** -50), "DF495")
     w.s(24, _q(r["SVclockBias"], 2.0 ** -33), "DF496").u(5, aodc, "DF497")
-    w.s(18, _q(r["Crs"], 2.0 ** -6), "DF498").s(16, _sc(r["DeltaN"], 2.0 ** -43), "DF499")
-    w.s(32, _sc(r["M0"], 2.0 ** -31), "DF500").s(18, _q(r["Cuc"], 2.0 ** -31), "DF501")
-    w.u(32, _q(r["Eccentricity"], 2.0 ** -33), "DF502").s(18, _q(r["Cus"], 2.0 ** -31), "DF503")
-    w.u(32, _q(r["sqrtA"], 2.0 ** -19), "DF504").u(17, round(float(r["Toe"]) / 8.0), "DF505")
-    w.s(18, _q(r["Cic"], 2.0 ** -31), "DF506").s(32, _sc(r["Omega0"], 2.0 ** -31), "DF507")
-    w.s(18, _q(r["Cis"], 2.0 ** -31), "DF508").s(32, _sc(r["Io"], 2.0 ** -31), "DF509")
-    w.s(18, _q(r["Crc"], 2.0 ** -6), "DF510").s(32, _sc(r["omega"], 2.0 ** -31), "DF511")
-    w.s(24, _sc(r["OmegaDot"], 2.0 ** -43), "DF512")
+    _kepler_body(w, r, harm_bits=18, r_lsb=2.0 ** -6, c_lsb=2.0 ** -31, toe_bits=17, toe_lsb=8.0)
     w.s(10, _q(r["TGD1"], 1e-10), "DF513").s(10, _q(r["TGD2"], 1e-10), "DF514")
     w.u(1, int(r["SatH1"]) & 1, "DF515")
     return w.payload()

@@ -223,30 +223,11 @@ class MsmEncoder:
                 r = -o.doppler_hz * lam - rough_rate[i]
                 rate = r if abs(r) <= _FINE_RATE_MAX_MPS else None
             fine_rate.append(rate)
-        if self.msm == 7:
-            for v in fine_pr:
-                w.s(20, -524288 if v is None else int(round(v / RANGE_MS_M * 2.0 ** 29)), "DF405")
-            for v in fine_cp:
-                w.s(24, -8388608 if v is None else int(round(v / RANGE_MS_M * 2.0 ** 31)), "DF406")
-            for v in lock:
-                w.u(10, lock_indicator_msm7(v), "DF407")
-            for v in half:
-                w.u(1, v, "DF420")
-            for v in cnr:
-                w.u(10, int(np.clip(round(v * 16.0), 1, 1023)) if np.isfinite(v) else 0, "DF408")
-            for v in fine_rate:
-                w.s(15, -16384 if v is None else int(round(v / 0.0001)), "DF404")
-        else:
-            for v in fine_pr:
-                w.s(15, -16384 if v is None else int(round(v / RANGE_MS_M * 2.0 ** 24)), "DF400")
-            for v in fine_cp:
-                w.s(22, -2097152 if v is None else int(round(v / RANGE_MS_M * 2.0 ** 29)), "DF401")
-            for v in lock:
-                w.u(4, lock_indicator_msm4(v), "DF402")
-            for v in half:
-                w.u(1, v, "DF420")
-            for v in cnr:
-                w.u(6, int(np.clip(round(v), 1, 63)) if np.isfinite(v) else 0, "DF403")
+        values = {"pr": fine_pr, "cp": fine_cp, "lock": lock, "half": half, "cnr": cnr, "rate": fine_rate}
+        for df, bits, key, lsb in _CELL_FIELDS[self.msm]:
+            put = w.u if key in ("lock", "half", "cnr") else w.s      # unsigned / two's complement fields
+            for v in values[key]:
+                put(bits, _cell_field(key, bits, lsb, v, self.msm), df)
         return w.payload()
 
     def _phase(self, t: GnssTime, sv: str, o: SignalObs, lam: float, rough_m: float):
@@ -269,6 +250,30 @@ class MsmEncoder:
         """Drop the tracks of signals not seen at this epoch (their next epoch starts a new track)."""
         for key in [k_ for k_ in self._tracks if k_ not in sv_codes_seen]:
             del self._tracks[key]
+
+
+#: signal data fields in message order (RTCM 10403.3 tables 3.5-86 MSM4, 3.5-89 MSM7):
+#: (data field, bits, quantity, LSB: ms for ranges, m/s for the rate, dB-Hz for CNR)
+_CELL_FIELDS = {
+    7: (("DF405", 20, "pr", 2.0 ** -29), ("DF406", 24, "cp", 2.0 ** -31), ("DF407", 10, "lock", 0),
+        ("DF420", 1, "half", 0), ("DF408", 10, "cnr", 1.0 / 16.0), ("DF404", 15, "rate", 0.0001)),
+    4: (("DF400", 15, "pr", 2.0 ** -24), ("DF401", 22, "cp", 2.0 ** -29), ("DF402", 4, "lock", 0),
+        ("DF420", 1, "half", 0), ("DF403", 6, "cnr", 1.0)),
+}
+
+
+def _cell_field(key: str, bits: int, lsb: float, v, msm: int) -> int:
+    """Integer of one signal data field; a missing range or rate is the field's invalid value -2^(bits-1),
+    a missing CNR 0 (not available)."""
+    if key == "lock":
+        return lock_indicator_msm7(v) if msm == 7 else lock_indicator_msm4(v)
+    if key == "half":
+        return int(v)
+    if key == "cnr":
+        return int(np.clip(round(v / lsb), 1, (1 << bits) - 1)) if np.isfinite(v) else 0
+    if v is None:
+        return -(1 << (bits - 1))
+    return int(round(v / (RANGE_MS_M * lsb if key in ("pr", "cp") else lsb)))
 
 
 def _wavelength_m(system: str, code: str, glo_channel: dict, sv: str) -> float:
