@@ -240,3 +240,47 @@ def test_rtkrcv_dies_with_a_killed_parent(tmp_path):
         time.sleep(0.1)
     with pytest.raises(ProcessLookupError):
         os.kill(pid, 0)
+
+
+def test_baseline_line_parses_to_heading():
+    # 1.2 m at 30 deg from north: e = 0.6, n = 1.0392; RTKLIB outenu layout
+    line = ("2190 518400.000 0.6000 1.0392 0.0100   1  14   0.0020   0.0030   0.0060   0.0000   0.0000"
+            "   0.0000   0.00  45.2\r\n")
+    b = rs.parse_enu_line(line)
+    assert abs(b.heading_deg - 30.0) < 0.01 and abs(b.length_m - 1.2) < 1e-3 and b.quality == "fixed"
+    np.testing.assert_allclose(np.diag(b.cov_enu_m2), [0.002 ** 2, 0.003 ** 2, 0.006 ** 2])
+    # sd: (n sde)^2 + (e sdn)^2 over length^4, in degrees
+    sd = np.degrees(np.hypot(1.0392 * 0.002, 0.6 * 0.003) / 1.2 ** 2)
+    assert abs(b.heading_sd_deg - sd) < 1e-3
+    assert rs.parse_enu_line("% header") is None
+    with pytest.raises(ValueError, match="15 expected"):
+        rs.parse_enu_line("2190 518400.000 0.6 1.0")
+
+
+@needs_rtkrcv
+def test_moving_baseline_heading(base_rover, tmp_path):
+    """Two antennas of one robot 1.2 m apart, heading 30 deg: rtkrcv movingbase (base position from its own
+    single point solution each epoch) gives the baseline and its heading."""
+    from test_rtcm_rtklib import simulate_to_rtcm
+
+    lat, lon, h = ecef_to_geodetic(*base_rover["rover_ecef"])
+    a1 = base_rover["rover_ecef"]
+    a2 = np.asarray(enu_to_ecef(np.array([0.6, 1.2 * np.cos(np.radians(30.0)), 0.0]), lat, lon, h))
+    kw = dict(systems="GE", duration_s=90.0, interval_s=1.0)
+    first = simulate_to_rtcm(tmp_path / "a1", a1, seed=31, marker="ANT1", **kw)
+    second = simulate_to_rtcm(tmp_path / "a2", a2, seed=32, marker="ANT2", **kw)
+    sols = []
+    proc = RtkrcvProcess(options=default_options("GE", mode="movingbase"), on_solution=sols.append,
+                         clock_start_utc=base_rover["start_utc"], solution_format="enu")
+    with proc:
+        run_rtkrcv(proc, {"base": epochs_of(first["rtcm"].read_bytes()),
+                          "rover": epochs_of(second["rtcm"].read_bytes())})
+    fixed = [b for b in sols if b.q == rs.Q_FIX]
+    heading = np.array([b.heading_deg for b in fixed])
+    length = np.array([b.length_m for b in fixed])
+    print(f"\nmoving baseline 1.2 m at 30 deg: {len(fixed)} of {len(sols)} fixed, heading {heading.mean():.3f} "
+          f"+- {heading.std():.3f} deg (reported sd {np.mean([b.heading_sd_deg for b in fixed]):.3f}), "
+          f"length {length.mean():.4f} m")
+    assert len(fixed) >= 0.9 * 91
+    assert np.all(np.abs(heading - 30.0) < 0.5) and np.all(np.abs(length - 1.2) < 0.01)
+    assert 0 < np.mean([b.heading_sd_deg for b in fixed]) < 1.0

@@ -9,7 +9,7 @@ reads one (:func:`read_conf`), builds the default RTK setup of the simulator
 A user's file keeps every option except the ones the node must own
 (:data:`OWNED_KEYS`): the input streams (rover, base, correction), the
 output streams and the log streams, which the node connects to its own TCP
-ports, and the output format fields the node parses (llh, GPST week/TOW,
+ports, and the output format fields the node parses (llh or enu, GPST week/TOW,
 degrees, velocity on, blank separator).  Those override the file's values,
 and :func:`merge_options` says which ones it replaced.
 """
@@ -62,11 +62,22 @@ def read_conf(path) -> dict[str, str]:
     return out
 
 
+#: positioning modes of the generated setup (options.c MODOPT)
+MODES = ("kinematic", "static", "movingbase")
+
+
 def default_options(systems: str = "GE", frequencies: int = 2, elevation_mask_deg: float = 10.0,
-                    ratio_threshold: float = 3.0) -> dict[str, str]:
+                    ratio_threshold: float = 3.0, mode: str = "kinematic") -> dict[str, str]:
     """The simulator's RTK setup: kinematic, continuous ambiguity resolution with the ratio test,
     broadcast ionosphere and Saastamoinen troposphere, dynamics on (velocity states: the ENU velocity
-    output), base position from its RTCM 1005/1006 message."""
+    output), base position from its RTCM 1005/1006 message.
+
+    ``mode`` "movingbase": the base moves (RTKLIB takes its position from its own single point
+    solution each epoch and needs base and rover observations of the same epoch, rtkpos.c TTOL_MOVEB).
+    No baseline length constraint (pos2-baselen): with it RTKLIB 2.4.3 b34 lost the fix after a minute
+    on a 1.2 m baseline of ours that it fixes throughout without (test_rtk_engine)."""
+    if mode not in MODES:
+        raise RtkConfigError(f"rtk mode {mode!r}: one of {MODES} (parameter rtk_mode)")
     bad = [s for s in systems if s not in NAVSYS_BITS]
     if bad or not systems:
         raise RtkConfigError(f"rtk systems {systems!r}: letters of {''.join(NAVSYS_BITS)} (parameter rtk_systems)")
@@ -74,8 +85,8 @@ def default_options(systems: str = "GE", frequencies: int = 2, elevation_mask_de
         raise RtkConfigError(f"rtk frequencies = {frequencies!r}: 1, 2 or 3 (parameter rtk_frequencies)")
     if not ratio_threshold >= 1.0:
         raise RtkConfigError(f"ratio threshold = {ratio_threshold!r}: >= 1 (parameter rtk_ratio_threshold)")
-    return {
-        "pos1-posmode": "kinematic",
+    opts = {
+        "pos1-posmode": mode,
         "pos1-frequency": {1: "l1", 2: "l1+2", 3: "l1+2+3"}[frequencies],   # options.c FRQOPT
         "pos1-soltype": "forward",
         "pos1-elmask": f"{float(elevation_mask_deg):g}",
@@ -93,6 +104,10 @@ def default_options(systems: str = "GE", frequencies: int = 2, elevation_mask_de
         "misc-timeout": "10000",
         "misc-reconnect": "1000",
     }
+    if mode == "movingbase":
+        opts["pos1-dynamics"] = "off"           # the base's own motion is not in rtkrcv's dynamics model
+        opts.pop("ant2-postype")
+    return opts
 
 
 def merge_options(user: dict[str, str] | None, owned: dict[str, str],

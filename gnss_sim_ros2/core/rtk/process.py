@@ -44,7 +44,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from .config import FORMAT_OPTIONS, default_options, merge_options, read_conf, write_conf
-from .solution import RtkSolution, parse_llh_line
+from .solution import RtkSolution, parse_enu_line, parse_llh_line
 
 #: most bytes kept per input while rtkrcv has not connected yet (older data is dropped first)
 PENDING_LIMIT_BYTES = 1 << 20
@@ -143,13 +143,17 @@ class RtkrcvProcess:
     replaced by the wrapper's); ``user_conf``: a user's rtkrcv .conf whose
     options are kept instead of the generated ones (only the owned keys
     change, listed in ``replaced_options``).  ``on_solution(RtkSolution)``,
-    ``on_nmea(str)``: called from reader threads.
+    ``on_nmea(str)``: called from reader threads (``solution_format`` "enu": baselines,
+    :class:`~.solution.RtkBaseline`, for the moving baseline).
     """
 
     def __init__(self, options: dict | None = None, user_conf: str | Path | None = None, rtkrcv_path: str = "",
                  workdir: str | Path | None = None, on_solution: Callable[[RtkSolution], None] | None = None,
                  on_nmea: Callable[[str], None] | None = None, stop_timeout_s: float = 5.0,
-                 clock_start_utc: _dt.datetime | None = None):
+                 clock_start_utc: _dt.datetime | None = None, solution_format: str = "llh"):
+        if solution_format not in ("llh", "enu"):
+            raise ValueError(f"rtkrcv solution format {solution_format!r}: llh (position) or enu (baseline)")
+        self.solution_format = solution_format
         self.exe = find_rtkrcv(rtkrcv_path)
         self.clock_start_utc = clock_start_utc
         self.faketime_library = find_faketime() if clock_start_utc is not None else None
@@ -193,11 +197,12 @@ class RtkrcvProcess:
                  "inpstr2-format": "rtcm3", "inpstr2-nmeareq": "off",
                  "inpstr3-type": "off", "inpstr3-path": "", "inpstr3-format": "rtcm3",
                  "outstr1-type": "tcpcli", "outstr1-path": f"127.0.0.1:{self._servers['solution'].port}",
-                 "outstr1-format": "llh",
+                 "outstr1-format": self.solution_format,
                  "outstr2-type": "tcpcli", "outstr2-path": f"127.0.0.1:{self._servers['nmea'].port}",
                  "outstr2-format": "nmea",
                  "logstr1-type": "off", "logstr1-path": "", "logstr2-type": "off", "logstr2-path": "",
-                 "logstr3-type": "off", "logstr3-path": "", **FORMAT_OPTIONS}
+                 "logstr3-type": "off", "logstr3-path": "", **FORMAT_OPTIONS,
+                 "out-solformat": self.solution_format}
         options, self.replaced_options = merge_options(self.user_options, owned, self.base_options)
         self.conf_path = write_conf(self.workdir / "gnss_sim_rtkrcv.conf", options)
         console = _free_port()
@@ -261,7 +266,7 @@ class RtkrcvProcess:
                 self.on_nmea(line)
             return
         try:
-            sol = parse_llh_line(line)
+            sol = parse_llh_line(line) if self.solution_format == "llh" else parse_enu_line(line)
         except ValueError as exc:
             self.last_error = str(exc)
             return

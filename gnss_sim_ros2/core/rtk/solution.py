@@ -1,11 +1,13 @@
-"""rtkrcv solutions read back: llh lines with standard deviations and ENU velocity, and the
-NavSatFix status of each quality flag.
+"""rtkrcv solutions read back: llh lines with standard deviations and ENU velocity, ENU baseline
+lines (moving baseline: heading), and the NavSatFix status of each quality flag.
 
 Line layout (RTKLIB 2.4.3 solution.c ``outpos`` with the format options of
 config.FORMAT_OPTIONS): ``week tow lat_deg lon_deg h_m Q ns sdn sde sdu sdne
 sdeu sdun age ratio vn ve vu sdvn sdve sdvu sdvne sdveu sdvun``; the
 cross terms are signed square roots of the covariances (``sqvar``: -sqrt(-c)
 for a negative c), in metres and m/s, ENU of the solution's position.
+Baseline lines (``outenu``, out-solformat enu): ``week tow e n u Q ns sde sdn
+sdu sden sdnu sdue age ratio``, the rover minus the base in the base's ENU.
 """
 from __future__ import annotations
 
@@ -98,3 +100,64 @@ def parse_llh_line(line: str) -> RtkSolution | None:
         vel, cov_v = np.zeros(3), np.zeros((3, 3))
     return RtkSolution(GnssTime.from_week_tow(week, tow, "GPS"), lat, lon, h, int(q), int(ns),
                        _cov(sdn, sde, sdu, sdne, sdeu, sdun), age, ratio, vel, cov_v)
+
+
+@dataclass
+class RtkBaseline:
+    """Rover minus base in the base's ENU (moving baseline: the second antenna from the first)."""
+
+    t: GnssTime
+    enu_m: np.ndarray              #: (3,)
+    q: int
+    ns: int
+    cov_enu_m2: np.ndarray         #: (3, 3)
+    age_s: float
+    ratio: float
+
+    @property
+    def quality(self) -> str:
+        return QUALITY_NAMES.get(self.q, str(self.q))
+
+    @property
+    def length_m(self) -> float:
+        return float(np.linalg.norm(self.enu_m))
+
+    @property
+    def heading_deg(self) -> float:
+        """Direction of the baseline, clockwise from north, 0..360 deg."""
+        e, n = float(self.enu_m[0]), float(self.enu_m[1])
+        return float(np.degrees(np.arctan2(e, n)) % 360.0)
+
+    @property
+    def heading_sd_deg(self) -> float:
+        """Standard deviation of the heading from the horizontal covariance (first-order propagation:
+        d heading / d(e, n) = (n, -e) / (e^2 + n^2))."""
+        e, n = float(self.enu_m[0]), float(self.enu_m[1])
+        h2 = e * e + n * n
+        if h2 <= 0.0:
+            return float("inf")
+        j = np.array([n, -e]) / h2
+        return float(np.degrees(np.sqrt(max(j @ self.cov_enu_m2[:2, :2] @ j, 0.0))))
+
+    @property
+    def pitch_deg(self) -> float:
+        """Elevation of the baseline above the horizontal plane [deg]."""
+        return float(np.degrees(np.arctan2(self.enu_m[2], np.hypot(self.enu_m[0], self.enu_m[1]))))
+
+
+def parse_enu_line(line: str) -> RtkBaseline | None:
+    """One baseline line (None for a header/comment or blank line); ValueError naming the line if malformed."""
+    s = line.strip()
+    if not s or s.startswith("%"):
+        return None
+    f = s.split()
+    if len(f) != 15:
+        raise ValueError(f"rtkrcv baseline line has {len(f)} fields (15 expected: week tow e n u Q ns sde sdn sdu "
+                         f"sden sdnu sdue age ratio): {s!r}")
+    try:
+        week, tow = int(f[0]), float(f[1])
+        e, n, u, q, ns, sde, sdn, sdu, sden, sdnu, sdue, age, ratio = (float(x) for x in f[2:])
+    except ValueError:
+        raise ValueError(f"rtkrcv baseline line is not numeric: {s!r}") from None
+    return RtkBaseline(GnssTime.from_week_tow(week, tow, "GPS"), np.array([e, n, u]), int(q), int(ns),
+                       _cov(sdn, sde, sdu, sden, sdue, sdnu), age, ratio)
