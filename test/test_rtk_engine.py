@@ -257,30 +257,36 @@ def test_baseline_line_parses_to_heading():
         rs.parse_enu_line("2190 518400.000 0.6 1.0")
 
 
-@needs_rtkrcv
-def test_moving_baseline_heading(base_rover, tmp_path):
-    """Two antennas of one robot 1.2 m apart, heading 30 deg: rtkrcv movingbase (base position from its own
-    single point solution each epoch) gives the baseline and its heading."""
+@pytest.fixture(scope="module")
+def two_antennas(base_rover):
+    """RTCM3 of two antennas of one robot, 1.2 m apart at heading 30 deg (the second from the first)."""
     from test_rtcm_rtklib import simulate_to_rtcm
 
     lat, lon, h = ecef_to_geodetic(*base_rover["rover_ecef"])
     a1 = base_rover["rover_ecef"]
     a2 = np.asarray(enu_to_ecef(np.array([0.6, 1.2 * np.cos(np.radians(30.0)), 0.0]), lat, lon, h))
     kw = dict(systems="GE", duration_s=90.0, interval_s=1.0)
-    first = simulate_to_rtcm(tmp_path / "a1", a1, seed=31, marker="ANT1", **kw)
-    second = simulate_to_rtcm(tmp_path / "a2", a2, seed=32, marker="ANT2", **kw)
+    first = simulate_to_rtcm(base_rover["out"] / "a1", a1, seed=31, marker="ANT1", **kw)
+    second = simulate_to_rtcm(base_rover["out"] / "a2", a2, seed=32, marker="ANT2", **kw)
+    return {"base": epochs_of(first["rtcm"].read_bytes()), "rover": epochs_of(second["rtcm"].read_bytes()),
+            "start_utc": base_rover["start_utc"]}
+
+
+@needs_rtkrcv
+def test_moving_baseline_heading(two_antennas):
+    """rtkrcv movingbase (base position from its own single point solution each epoch) gives the baseline
+    of two antennas and its heading."""
     sols = []
     proc = RtkrcvProcess(options=default_options("GE", mode="movingbase"), on_solution=sols.append,
-                         clock_start_utc=base_rover["start_utc"], solution_format="enu")
+                         clock_start_utc=two_antennas["start_utc"], solution_format="enu")
     with proc:
-        run_rtkrcv(proc, {"base": epochs_of(first["rtcm"].read_bytes()),
-                          "rover": epochs_of(second["rtcm"].read_bytes())})
+        run_rtkrcv(proc, two_antennas)
     fixed = [b for b in sols if b.q == rs.Q_FIX]
     heading = np.array([b.heading_deg for b in fixed])
     length = np.array([b.length_m for b in fixed])
     print(f"\nmoving baseline 1.2 m at 30 deg: {len(fixed)} of {len(sols)} fixed, heading {heading.mean():.3f} "
           f"+- {heading.std():.3f} deg (reported sd {np.mean([b.heading_sd_deg for b in fixed]):.3f}), "
           f"length {length.mean():.4f} m")
-    assert len(fixed) >= 0.9 * 91
+    assert len(fixed) >= 0.9 * len(two_antennas["rover"])
     assert np.all(np.abs(heading - 30.0) < 0.5) and np.all(np.abs(length - 1.2) < 0.01)
     assert 0 < np.mean([b.heading_sd_deg for b in fixed]) < 1.0

@@ -9,7 +9,7 @@ import pynmea2
 import pytest
 from rclpy.parameter import Parameter
 from ros_helpers import ros  # noqa: F401  (fixture)
-from test_rtk_engine import base_rover, rtkrcv_and_faketime  # noqa: F401  (fixture: RTCM3 of a base and a rover)
+from test_rtk_engine import base_rover, rtkrcv_and_faketime, two_antennas  # noqa: F401  (fixtures: RTCM3)
 
 from gnss_sim_ros2.core.frames import geodetic_to_ecef
 from gnss_sim_ros2.core.rtk.solution import STATUS_GBAS_FIX
@@ -162,5 +162,30 @@ def test_node_runs_a_user_conf(ros, streams, tmp_path):  # noqa: F811
     _feed(ros, streams, node, 40)
     ros.spin_until(lambda: len(fixes) >= 40, 10.0)
     assert sum(f.status.status == STATUS_GBAS_FIX for f in fixes) >= 36
+    node.trigger_deactivate()
+    node.trigger_cleanup()
+
+
+@needs_rtkrcv
+def test_node_moving_base_publishes_heading(ros, two_antennas):  # noqa: F811
+    from sensor_msgs.msg import Imu
+
+    heads = []
+    ros.helper.create_subscription(Imu, "/gnss/rtk/heading", heads.append, 1000)
+    ros.set_clock(0)
+    node = _node(ros, rtk_mode="movingbase")
+    node.trigger_configure()
+    node.trigger_activate()
+    assert _state(node) == "active", node.last_error
+    assert "rtk/fix" not in str(node.pubs) and "fix" not in node.pubs
+    n = len(two_antennas["rover"])
+    _feed(ros, two_antennas, node, n)
+    ros.spin_until(lambda: len(heads) >= n, 10.0)
+    yaw = np.degrees([2 * np.arctan2(m.orientation.z, m.orientation.w) for m in heads])
+    sd = np.degrees(np.sqrt([m.orientation_covariance[8] for m in heads]))
+    print(f"\nrtk node movingbase: {len(heads)} headings, ENU yaw {yaw.mean():.3f} deg (truth 60), sd {sd.mean():.3f}")
+    assert len(heads) >= 0.9 * n
+    assert np.median(np.abs(yaw - 60.0)) < 0.2 and np.all(sd < 1.0)
+    assert heads[-1].orientation_covariance[0] == 1e6 and heads[-1].angular_velocity_covariance[0] == -1.0
     node.trigger_deactivate()
     node.trigger_cleanup()

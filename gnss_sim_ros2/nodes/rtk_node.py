@@ -15,7 +15,13 @@ covariance: rtkrcv's ENU covariance, COVARIANCE_TYPE_KNOWN), ``rtk/vel``
 (geometry_msgs/TwistWithCovarianceStamped, ENU velocity of rtkrcv's
 dynamics model with its covariance), ``rtk/nmea`` (std_msgs/String, one
 sentence per message), ``rtk/status`` (diagnostic_msgs/DiagnosticStatus:
-quality, ratio, satellites, age of the base data, counts).
+quality, ratio, satellites, age of the base data, counts).  With
+``rtk_mode`` movingbase (the "base" stream is the robot's first antenna, the
+rover stream its second): ``rtk/heading`` (sensor_msgs/Imu: orientation =
+the yaw of the baseline first -> second antenna in ENU, REP-103; yaw
+variance from rtkrcv's baseline covariance; roll and pitch unknown, 1e6 rad^2,
+as the ublox driver's heading output; no angular velocity or acceleration:
+-1 in element 0, REP-145) instead of rtk/fix and rtk/vel.
 
 Services (std_srvs/Trigger): ``~/start``, ``~/stop``, ``~/restart`` of rtkrcv
 while the node is active.  Lifecycle: configure checks rtkrcv (a clear error
@@ -35,11 +41,11 @@ import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from geometry_msgs.msg import TwistWithCovarianceStamped
 from rclpy.clock import Clock, ClockType
-from sensor_msgs.msg import NavSatFix
+from sensor_msgs.msg import Imu, NavSatFix
 from std_msgs.msg import Header, String, UInt8MultiArray
 
 from gnss_sim_ros2 import parameters as _table
-from gnss_sim_ros2.core.rtk.solution import Q_FIX, Q_FLOAT, QUALITY_NAMES, RtkSolution
+from gnss_sim_ros2.core.rtk.solution import Q_FIX, Q_FLOAT, QUALITY_NAMES, RtkBaseline, RtkSolution
 from gnss_sim_ros2.nodes.common import GnssSimNode, TimeMapping, run_node, run_origin_ns
 from gnss_sim_ros2.nodes.receiver_node import SERVICE_FLAGS
 from gnss_sim_ros2.parameters import Param
@@ -51,6 +57,8 @@ RTK_PARAMS = [
     Param("rtkrcv_conf", "", "a user's rtkrcv options file, kept as it is except the stream and output format "
           "options the node owns; empty: the generated RTK setup"),
     Param("rtk_systems", "", "systems RTK uses (pos1-navsys of the generated setup); empty: systems"),
+    Param("rtk_mode", "kinematic", "positioning mode of the generated setup: kinematic, static, or movingbase "
+          "(heading from two antennas of the robot)", choices=("kinematic", "static", "movingbase")),
     Param("rtk_frequencies", 2, "carrier frequencies of the generated setup (pos1-frequency: 1 l1, 2 l1+2, 3 l1+2+3)",
           min=1, max=3),
     Param("rtk_ratio_threshold", 3.0, "ambiguity ratio test threshold of the generated setup (pos2-arthres)",
@@ -119,17 +127,21 @@ class RtkNode(GnssSimNode):
         else:
             try:
                 self.options = default_options(systems, p["rtk_frequencies"], p["elevation_mask_deg"],
-                                               p["rtk_ratio_threshold"])
+                                               p["rtk_ratio_threshold"], p["rtk_mode"])
             except ValueError as exc:
                 raise ValueError(f"{where}: {exc}") from None
         self.service_flags = int(np.bitwise_or.reduce([SERVICE_FLAGS.get(s, 0) for s in systems] or [0]))
         self.mapping = TimeMapping(p["start_time"], p["time_mapping"])
+        self.moving_base = p["rtk_mode"] == "movingbase"
         self.pubs = {
-            "fix": self.lifecycle_publisher(NavSatFix, "rtk/fix", 100),
-            "vel": self.lifecycle_publisher(TwistWithCovarianceStamped, "rtk/vel", 100),
             "nmea": self.lifecycle_publisher(String, "rtk/nmea", 100),
             "status": self.lifecycle_publisher(DiagnosticStatus, "rtk/status", 100),
         }
+        if self.moving_base:
+            self.pubs["heading"] = self.lifecycle_publisher(Imu, "rtk/heading", 100)
+        else:
+            self.pubs["fix"] = self.lifecycle_publisher(NavSatFix, "rtk/fix", 100)
+            self.pubs["vel"] = self.lifecycle_publisher(TwistWithCovarianceStamped, "rtk/vel", 100)
         from std_srvs.srv import Trigger
 
         self.trigger_services = [self.create_service(Trigger, f"~/{name}", getattr(self, f"_srv_{name}"))
@@ -175,7 +187,8 @@ class RtkNode(GnssSimNode):
         p = self.params
         self.proc = RtkrcvProcess(options=self.options, user_conf=p["rtkrcv_conf"] or None,
                                   rtkrcv_path=p["rtkrcv_path"], on_solution=self._solutions.put,
-                                  on_nmea=self._nmea.put, clock_start_utc=self._clock_start_utc())
+                                  on_nmea=self._nmea.put, clock_start_utc=self._clock_start_utc(),
+                                  solution_format="enu" if self.moving_base else "llh")
         self.proc.start()
         if self.proc.replaced_options:
             self.get_logger().info(f"rtkrcv_conf: the node sets {', '.join(self.proc.replaced_options)}")
@@ -237,26 +250,33 @@ class RtkNode(GnssSimNode):
                 break
             self._publish(sol)
 
-    def _publish(self, sol: RtkSolution) -> None:
+    def _publish(self, sol: RtkSolution | RtkBaseline) -> None:
         if not self.pubs:
             return
         self.counts[sol.q] = self.counts.get(sol.q, 0) + 1
         self.last = sol
         header = Header(stamp=self.mapping.to_ros(sol.t), frame_id=self.params["antenna_frame"])
-        self.pubs["fix"].publish(fix_message(header, sol, self.service_flags))
-        self.pubs["vel"].publish(vel_message(header, sol))
+        if isinstance(sol, RtkBaseline):
+            self.pubs["heading"].publish(heading_message(header, sol))
+        else:
+            self.pubs["fix"].publish(fix_message(header, sol, self.service_flags))
+            self.pubs["vel"].publish(vel_message(header, sol))
         self.pubs["status"].publish(self.status_message(sol))
 
-    def status_message(self, sol: RtkSolution | None) -> DiagnosticStatus:
+    def status_message(self, sol: RtkSolution | RtkBaseline | None) -> DiagnosticStatus:
         running = self.proc is not None and self.proc.running
         if sol is None:
             level, text = DiagnosticStatus.WARN, "no solution yet"
         else:
             level = DiagnosticStatus.OK if sol.q in (Q_FIX, Q_FLOAT) else DiagnosticStatus.WARN
             text = f"{sol.quality}, ratio {sol.ratio:.1f}, {sol.ns} satellites, age {sol.age_s:.1f} s"
+            if isinstance(sol, RtkBaseline):
+                text += f", heading {sol.heading_deg:.2f} +- {sol.heading_sd_deg:.2f} deg"
         values = {"running": str(running).lower(), "quality": sol.quality if sol else "none",
                   "ratio": f"{sol.ratio:.1f}" if sol else "", "satellites": str(sol.ns) if sol else "",
                   "age_s": f"{sol.age_s:.2f}" if sol else "",
+                  **({"heading_deg": f"{sol.heading_deg:.3f}", "heading_sd_deg": f"{sol.heading_sd_deg:.3f}",
+                      "baseline_m": f"{sol.length_m:.4f}"} if isinstance(sol, RtkBaseline) else {}),
                   **{f"epochs_{QUALITY_NAMES[q]}": str(n) for q, n in self.counts.items() if n},
                   "rover_bytes": str(self.bytes_in["rover"]), "base_bytes": str(self.bytes_in["base"])}
         return DiagnosticStatus(level=level, name=f"{self.get_name()}: rtkrcv", message=text, hardware_id="rtkrcv",
@@ -285,6 +305,20 @@ def vel_message(header, sol: RtkSolution) -> TwistWithCovarianceStamped:
     if not np.any(sol.cov_vel_enu_m2ps2):          # rtkrcv wrote no velocity (dynamics off)
         cov[0, 0] = -1.0
     msg.twist.covariance = [float(x) for x in cov.ravel()]
+    return msg
+
+
+def heading_message(header, b: RtkBaseline) -> Imu:
+    """The baseline's yaw as an Imu orientation (ENU, counter-clockwise from east: 90 deg - heading)."""
+    msg = Imu(header=header)
+    yaw = np.radians(90.0 - b.heading_deg)
+    msg.orientation.z, msg.orientation.w = float(np.sin(yaw / 2)), float(np.cos(yaw / 2))
+    cov = np.zeros(9)
+    cov[0] = cov[4] = 1e6                                 # roll, pitch: not measured
+    cov[8] = float(np.radians(b.heading_sd_deg) ** 2)
+    msg.orientation_covariance = [float(x) for x in cov]
+    msg.angular_velocity_covariance = [-1.0] + [0.0] * 8
+    msg.linear_acceleration_covariance = [-1.0] + [0.0] * 8
     return msg
 
 
