@@ -7,8 +7,9 @@
    within 1/16 dB-Hz; every signal RTKLIB 2.4.3 b34 knows is there (it has
    no MSM signal IDs for BeiDou B1C/B2a, RTCM 10403.3 Amendment 2).  Its
    navigation output matches our navigation records.
-2. Two receivers 3 km apart under the same sky (same world: ionosphere and
-   SISRE from ``world_seed``; own noise from ``seed``), each written to RTCM3,
+2. Two receivers (GPS, GLONASS, Galileo, QZSS, BeiDou; 40 min at 10 s) 3 km
+   apart under the same sky (same world: ionosphere and SISRE from
+   ``world_seed``; own noise from ``seed``), each written to RTCM3,
    converted by convbin: ``rnx2rtkp`` kinematic (ratio test 3, base position
    from the 1006 message in the converted header) fixes >= 95 % of epochs,
    fixed solutions within 2 cm 3D RMS of the truth.
@@ -209,15 +210,16 @@ def assert_navigation_matches(ours_path: Path, conv_path: Path) -> int:
 def test_rnx2rtkp_fixes_our_rtcm_base_and_rover(tmp_path):
     lat, lon, h = ecef_to_geodetic(*BASE_ECEF_M)
     rover_ecef = np.asarray(enu_to_ecef(np.array([3000.0, 0.0, 0.0]), lat, lon, h))   # 3 km east
-    kw = dict(systems="GE", duration_s=2400.0, interval_s=5.0)
+    kw = dict(systems="GRECJ", duration_s=2400.0, interval_s=10.0)
     base = simulate_to_rtcm(tmp_path / "base", BASE_ECEF_M, seed=11, marker="BASE", **kw)
     rover = simulate_to_rtcm(tmp_path / "rover", rover_ecef, seed=22, marker="ROVR", **kw)
     base_obs, base_nav = convbin(base["rtcm"])
     rover_obs, _ = convbin(rover["rtcm"])
     conf = tmp_path / "rtk.conf"
     # RTKLIB kinematic L1+L2, continuous ambiguity resolution, ratio 3, base position from the RINEX
-    # header (APPROX POSITION XYZ that convbin took from our 1006 message); pos1-navsys 9 = GPS + Galileo
-    conf.write_text("pos1-posmode=kinematic\npos1-frequency=l1+l2\npos1-elmask=10\npos1-navsys=9\n"
+    # header (APPROX POSITION XYZ that convbin took from our 1006 message); pos1-navsys 61 = GPS + GLONASS +
+    # Galileo + QZSS + BeiDou (GLONASS ambiguities float: pos2-gloarmode off by default)
+    conf.write_text("pos1-posmode=kinematic\npos1-frequency=l1+2\npos1-elmask=10\npos1-navsys=61\n"
                     "pos1-ionoopt=brdc\npos1-tropopt=saas\npos2-armode=continuous\npos2-arthres=3\n"
                     "ant2-postype=rinexhead\nout-solformat=xyz\n")
     pos = tmp_path / "rtk.pos"

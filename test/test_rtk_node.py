@@ -72,8 +72,8 @@ def _feed(ros, streams, node, epochs):  # noqa: F811
     ros.spin_until(lambda: pub_r.get_subscription_count() and pub_b.get_subscription_count(), 5.0)
     assert node.proc.wait_connected(15.0), node.proc.log_text()
     for b, r in list(zip(streams["base"], streams["rover"]))[:epochs]:
-        pub_b.publish(UInt8MultiArray(data=list(b)))
-        pub_r.publish(UInt8MultiArray(data=list(r)))
+        pub_b.publish(UInt8MultiArray(data=b))
+        pub_r.publish(UInt8MultiArray(data=r))
         ros.spin_until(lambda: False, 0.03)
 
 
