@@ -44,10 +44,15 @@ RTKLIB_UNKNOWN = {("C", "1P"), ("C", "5P")}
 def simulate_to_rtcm(out: Path, position_ecef_m, systems: str, duration_s: float, interval_s: float, seed: int,
                      marker: str, msm: int = 7) -> dict:
     """One simulated receiver: our RINEX obs + nav, and its RTCM3 written epoch by epoch from the same
-    observables (SimulationSetup.observer), as a receiver streams them."""
+    observables (SimulationSetup.observer), as a receiver streams them.  ``position_ecef_m``: a static
+    antenna, or a Trajectory (its first point is the header's position)."""
+    if isinstance(position_ecef_m, Trajectory):
+        trajectory = position_ecef_m
+        position_ecef_m = trajectory.position(0.0)
+    else:
+        trajectory = Trajectory.static(np.asarray(position_ecef_m), "ecef")
     setup = SimulationSetup(start=GnssTime.from_iso(START), duration_s=duration_s, interval_s=interval_s,
-                            out_dir=out, trajectory=Trajectory.static(np.asarray(position_ecef_m), "ecef"),
-                            systems=systems, seed=seed, marker_name=marker)
+                            out_dir=out, trajectory=trajectory, systems=systems, seed=seed, marker_name=marker)
     epochs = []
     setup.observer = lambda t, ecef, obs, sol: epochs.append((t, obs))
     res = run_simulation(setup)

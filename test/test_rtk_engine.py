@@ -290,3 +290,35 @@ def test_moving_baseline_heading(two_antennas):
     assert len(fixed) >= 0.9 * len(two_antennas["rover"])
     assert np.all(np.abs(heading - 30.0) < 0.5) and np.all(np.abs(length - 1.2) < 0.01)
     assert 0 < np.mean([b.heading_sd_deg for b in fixed]) < 1.0
+
+
+@needs_rtkrcv
+def test_rtkrcv_moving_rover_position_and_velocity(base_rover):
+    """A rover driving east at 1 m/s from 360 m off the base: fixed positions on the path, ENU velocity of
+    rtkrcv's dynamics model close to (1, 0, 0) m/s."""
+    from test_rtcm_rtklib import BASE_ECEF_M, simulate_to_rtcm
+
+    from gnss_sim_ros2.core.trajectory import Trajectory
+
+    lat, lon, h = ecef_to_geodetic(*BASE_ECEF_M)
+    ends = np.array([enu_to_ecef(np.array([300.0 + d, 200.0, 0.0]), lat, lon, h) for d in (0.0, 90.0)])
+    path = Trajectory(np.array([0.0, 90.0]), ends, "ecef")
+    rover = simulate_to_rtcm(base_rover["out"] / "moving", path, "GE", 90.0, 1.0, 23, "MOVR")
+    sols = []
+    proc = RtkrcvProcess(on_solution=sols.append, clock_start_utc=base_rover["start_utc"])
+    with proc:
+        run_rtkrcv(proc, {"base": base_rover["base"], "rover": epochs_of(rover["rtcm"].read_bytes())})
+    t0 = GnssTime.from_iso("2022-01-01T01:00:00")
+    fixed = [s for s in sols if s.q == rs.Q_FIX]
+    err = np.array([np.linalg.norm(np.array(geodetic_to_ecef(s.lat_deg, s.lon_deg, s.h_m)) - path.position(s.t - t0))
+                    for s in fixed])
+    vel = np.array([s.vel_enu_mps for s in fixed[10:]])           # after the filter has converged
+    v_err = vel - np.array([1.0, 0.0, 0.0])
+    v_rms = np.sqrt(np.mean(v_err ** 2, axis=0)) * 100
+    v_sd = np.sqrt(np.mean([np.diag(s.cov_vel_enu_m2ps2) for s in fixed[10:]], axis=0)) * 100
+    print(f"\nmoving rover 1 m/s: {len(fixed)} of {len(sols)} fixed, 3D error RMS "
+          f"{np.sqrt(np.mean(err ** 2)) * 100:.2f} cm, velocity error RMS E/N/U {v_rms.round(2)} cm/s, "
+          f"reported sd {v_sd.round(2)} cm/s")
+    assert len(fixed) >= 0.9 * 91
+    assert np.sqrt(np.mean(err ** 2)) < 0.02
+    assert np.all(np.sqrt(np.mean(v_err ** 2, axis=0)) < 0.05)
