@@ -42,7 +42,7 @@ RTKLIB_UNKNOWN = {("C", "1P"), ("C", "5P")}
 
 
 def simulate_to_rtcm(out: Path, position_ecef_m, systems: str, duration_s: float, interval_s: float, seed: int,
-                     marker: str, msm: int = 7) -> dict:
+                     marker: str, msm: int = 7, with_navigation: bool = True) -> dict:
     """One simulated receiver: our RINEX obs + nav, and its RTCM3 written epoch by epoch from the same
     observables (SimulationSetup.observer), as a receiver streams them.  ``position_ecef_m``: a static
     antenna, or a Trajectory (its first point is the header's position)."""
@@ -60,7 +60,8 @@ def simulate_to_rtcm(out: Path, position_ecef_m, systems: str, duration_s: float
     ours = load_rinex(res.obs_path)
     hdr = header(obs_types, marker, position_ecef_m, interval_s, ours.glo_channel)
     rtcm = out / f"{marker}.rtcm3"
-    with RtcmWriter(rtcm, hdr, msm=msm, navigation=records_as_dicts(read_nav_file(res.nav_path), systems)) as w:
+    nav = records_as_dicts(read_nav_file(res.nav_path), systems) if with_navigation else None
+    with RtcmWriter(rtcm, hdr, msm=msm, navigation=nav) as w:
         for t, obs in epochs:
             if len(obs.sv):
                 w.write_epoch(t, epoch_arrays(obs, obs_types))

@@ -189,3 +189,37 @@ def test_node_moving_base_publishes_heading(ros, two_antennas):  # noqa: F811
     assert heads[-1].orientation_covariance[0] == 1e6 and heads[-1].angular_velocity_covariance[0] == -1.0
     node.trigger_deactivate()
     node.trigger_cleanup()
+
+
+@needs_rtkrcv
+def test_node_sends_nav_files_to_streams_without_ephemerides(ros, base_rover):  # noqa: F811
+    """Base and rover RTCM3 with observations only: rtkrcv solves nothing alone, and fixes with the
+    ephemerides of the run's RINEX navigation file sent by the node (parameter nav_files)."""
+    from sensor_msgs.msg import NavSatFix
+    from test_rtcm_rtklib import BASE_ECEF_M, simulate_to_rtcm
+
+    from gnss_sim_ros2.core.rtcm.frame import epochs_of, message_number, split_frames
+
+    out = base_rover["out"] / "bare"
+    kw = dict(systems="GE", duration_s=40.0, interval_s=1.0, with_navigation=False)
+    base = simulate_to_rtcm(out / "base", BASE_ECEF_M, seed=11, marker="BASE", **kw)
+    rover = simulate_to_rtcm(out / "rover", base_rover["rover_ecef"], seed=22, marker="ROVR", **kw)
+    bare = {"base": epochs_of(base["rtcm"].read_bytes()), "rover": epochs_of(rover["rtcm"].read_bytes())}
+    assert not {1019, 1046} & {message_number(f) for f in split_frames(base["rtcm"].read_bytes())[0]}
+    counts = []
+    for nav_files in ([], [str(base["nav"])]):
+        fixes = []
+        sub = ros.helper.create_subscription(NavSatFix, "/gnss/rtk/fix", fixes.append, 1000)
+        ros.set_clock(0)
+        node = _node(ros, **({"nav_files": nav_files} if nav_files else {}))
+        node.trigger_configure()
+        node.trigger_activate()
+        assert _state(node) == "active", node.last_error
+        _feed(ros, bare, node, len(bare["rover"]))
+        ros.spin_until(lambda fixes=fixes: len(fixes) >= len(bare["rover"]), 5.0)
+        counts.append(sum(f.status.status == STATUS_GBAS_FIX for f in fixes))
+        node.trigger_deactivate()
+        node.trigger_cleanup()
+        ros.helper.destroy_subscription(sub)
+    print(f"\nRTCM3 without ephemerides: {counts[0]} RTK fixes alone, {counts[1]} with nav_files")
+    assert counts[0] == 0 and counts[1] >= 0.9 * len(bare["rover"])

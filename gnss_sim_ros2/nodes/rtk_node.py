@@ -27,12 +27,15 @@ Services (std_srvs/Trigger): ``~/start``, ``~/stop``, ``~/restart`` of rtkrcv
 while the node is active.  Lifecycle: configure checks rtkrcv (a clear error
 when missing), reads a user's ``rtkrcv_conf``; activate starts rtkrcv
 (``autostart``) and subscribes; deactivate and cleanup stop it (its whole
-process group).  Message stamps: the solution's GNSS time through
+process group).  Ephemerides: those in the RTCM3 streams (1019-1046), and
+with ``nav_files`` those of RINEX navigation files, sent at the simulated
+time on rtkrcv's third input.  Message stamps: the solution's GNSS time through
 ``time_mapping`` (as the ephemeris node).
 """
 from __future__ import annotations
 
 import datetime as _dt
+import os
 import queue
 import sys
 from contextlib import contextmanager
@@ -63,6 +66,9 @@ RTK_PARAMS = [
           min=1, max=3),
     Param("rtk_ratio_threshold", 3.0, "ambiguity ratio test threshold of the generated setup (pos2-arthres)",
           min=1.0, max=100.0),
+    Param("nav_files", [], "RINEX navigation files whose ephemerides the node sends to rtkrcv (its input stream 3) "
+          "at the simulated time, for RTCM3 streams without ephemeris messages; empty: those of the streams",
+          item_type="string"),
     Param("rtkrcv_clock", "auto", "rtkrcv's clock: simulated (started under faketime at the simulated time: RTCM3 "
           "carries times of week, RTKLIB takes the week from the clock), system, or auto (simulated when the "
           "simulated time is more than an hour from the system clock)", choices=("auto", "simulated", "system")),
@@ -130,6 +136,15 @@ class RtkNode(GnssSimNode):
                                                p["rtk_ratio_threshold"], p["rtk_mode"])
             except ValueError as exc:
                 raise ValueError(f"{where}: {exc}") from None
+        self.schedule = None
+        if p["nav_files"]:
+            from gnss_sim_ros2.core.ephemeris.rinex_nav import read_nav_files, records_as_dicts
+            from gnss_sim_ros2.core.rtcm.writer import EphemerisSchedule
+
+            for f in p["nav_files"]:
+                if not os.path.isfile(f):
+                    raise ValueError(f"{where}: navigation file {f} does not exist (parameter nav_files)")
+            self.schedule = EphemerisSchedule(records_as_dicts(read_nav_files(p["nav_files"]), systems), 30.0)
         self.service_flags = int(np.bitwise_or.reduce([SERVICE_FLAGS.get(s, 0) for s in systems] or [0]))
         self.mapping = TimeMapping(p["start_time"], p["time_mapping"])
         self.moving_base = p["rtk_mode"] == "movingbase"
@@ -152,7 +167,10 @@ class RtkNode(GnssSimNode):
         self.active_subscription(UInt8MultiArray, "rtcm", lambda m: self._feed("rover", m), 1000)
         self.active_subscription(UInt8MultiArray, "base/rtcm", lambda m: self._feed("base", m), 1000)
         # rtkrcv's output is drained on the steady clock: a simulated /clock may stand still
-        self.active_timer(0.02, self._drain, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self.active_timer(0.02, self._drain, clock=steady)
+        if self.schedule is not None:
+            self.active_timer(1.0, self._send_ephemerides, clock=steady)
         if self.params["autostart"]:
             self.start_rtkrcv()
 
@@ -190,6 +208,9 @@ class RtkNode(GnssSimNode):
                                   on_nmea=self._nmea.put, clock_start_utc=self._clock_start_utc(),
                                   solution_format="enu" if self.moving_base else "llh")
         self.proc.start()
+        if self.schedule is not None:
+            self.schedule.reset()
+            self._send_ephemerides()
         if self.proc.replaced_options:
             self.get_logger().info(f"rtkrcv_conf: the node sets {', '.join(self.proc.replaced_options)}")
         return f"rtkrcv started ({self.proc.conf_path})"
@@ -234,6 +255,17 @@ class RtkNode(GnssSimNode):
         self.bytes_in[which] += len(data)
         if self.proc is not None:
             (self.proc.feed_rover if which == "rover" else self.proc.feed_base)(data)
+
+    def _send_ephemerides(self) -> None:
+        """The ephemerides of nav_files due at the current simulated time, to rtkrcv's input stream 3."""
+        if self.proc is None or self.schedule is None:
+            return
+        from gnss_sim_ros2.core.rtcm.frame import frame
+
+        t = self.mapping.to_gnss(self.get_clock().now().to_msg())
+        payloads = self.schedule.due(t)
+        if payloads:
+            self.proc.feed_nav(b"".join(frame(x) for x in payloads))
 
     def _drain(self) -> None:
         while True:

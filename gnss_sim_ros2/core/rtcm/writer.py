@@ -65,8 +65,7 @@ class RtcmWriter:
         self.station_interval_s = float(station_interval_s)
         self._signals = self._signal_columns(self.header.obs_types)
         self._glo = {str(k): int(v) for k, v in self.header.glonass_slots.items()}
-        self._nav = _NavIndex(navigation or {})
-        self._sent_eph: dict[str, tuple] = {}         # sv -> (record key, time sent)
+        self.ephemerides = EphemerisSchedule(navigation or {}, ephemeris_interval_s)
         self._t_station: GnssTime | None = None
         self.t_last: GnssTime | None = None
         self.epochs_written = 0
@@ -184,7 +183,7 @@ class RtcmWriter:
         if self._t_station is None or (t - self._t_station) >= self.station_interval_s - 1e-9:
             payloads += self.station_messages(with_glonass="R" in sats)
             self._t_station = t
-        payloads += self._ephemeris_due(t, [sv for s in sats.values() for sv in s])
+        payloads += self.ephemerides.due(t, [sv for s in sats.values() for sv in s])
         seen = {(sv, o.code) for s in sats.values() for sv, lst in s.items() for o in lst}
         systems = [s for s in MSM_BASE if sats.get(s)]
         for i, s in enumerate(systems):
@@ -205,19 +204,6 @@ class RtcmWriter:
         if with_glonass and "R" in self._signals:
             bis = h.glonass_cod_phs_bis_m or {"C1C": 0.0, "C1P": 0.0, "C2C": 0.0, "C2P": 0.0}
             out.append(encode_1230(self.station_id, dict(bis)))
-        return out
-
-    def _ephemeris_due(self, t: GnssTime, svs) -> list[bytes]:
-        out = []
-        for sv in svs:
-            hit = self._nav.at(sv, t)
-            if hit is None:
-                continue
-            key, rec = hit
-            sent = self._sent_eph.get(sv)
-            if sent is None or sent[0] != key or (t - sent[1]) >= self.ephemeris_interval_s - 1e-9:
-                out.append(eph.encode_record(sv[0], rec))
-                self._sent_eph[sv] = (key, t)
         return out
 
     def flush(self) -> None:
@@ -248,30 +234,54 @@ def _finite(v) -> float:
     return x
 
 
-class _NavIndex:
-    """Broadcast records per satellite, sorted by toc, to pick the one in force at an epoch."""
+class EphemerisSchedule:
+    """Which broadcast ephemeris messages are due at an epoch: per satellite the record with the latest
+    toc at or before it (the nearest one where none is before; Galileo I/NAV before F/NAV of the same
+    toc), sent when it changes and again every ``interval_s``, as a base station repeats them.
 
-    def __init__(self, navigation: Mapping):
+    ``navigation``: ``{system: [record dicts]}`` (rinex_nav.records_as_dicts).
+    """
+
+    def __init__(self, navigation: Mapping, interval_s: float = 60.0):
+        self.interval_s = float(interval_s)
         self._by_sv: dict[str, tuple[list, list]] = {}
         for records in navigation.values():
             for r in records:
-                sv = str(r["sv"])
-                self._by_sv.setdefault(sv, ([], []))
-                self._by_sv[sv][1].append(r)
+                self._by_sv.setdefault(str(r["sv"]), ([], []))[1].append(r)
         for sv, (_, recs) in self._by_sv.items():
             recs.sort(key=lambda r: (_toc_gps_s(sv[0], r), 0 if sv[0] == "E" and eph.galileo_is_fnav(r) else 1))
             self._by_sv[sv] = ([_toc_gps_s(sv[0], r) for r in recs], recs)
+        self._sent: dict[str, tuple] = {}            # sv -> (record index, time sent)
 
-    def at(self, sv: str, t: GnssTime):
-        """(key, record) with the latest toc at or before ``t`` (the nearest one where none is before)."""
+    def svs(self) -> list[str]:
+        return sorted(self._by_sv)
+
+    def record_at(self, sv: str, t: GnssTime):
+        """(index, record) in force at ``t`` for ``sv``, or None without records."""
         hit = self._by_sv.get(sv)
         if not hit:
             return None
         tocs, recs = hit
-        ts = float(t.sec) + float(t.frac)
-        i = bisect.bisect_right(tocs, ts) - 1
-        i = max(i, 0)
-        return (sv, tocs[i], i), recs[i]
+        i = max(bisect.bisect_right(tocs, float(t.sec) + float(t.frac)) - 1, 0)
+        return i, recs[i]
+
+    def due(self, t: GnssTime, svs=None) -> list[bytes]:
+        """Payloads of the ephemeris messages due at ``t`` for ``svs`` (None: every satellite with records)."""
+        out = []
+        for sv in self.svs() if svs is None else svs:
+            hit = self.record_at(sv, t)
+            if hit is None:
+                continue
+            i, rec = hit
+            sent = self._sent.get(sv)
+            if sent is None or sent[0] != i or (t - sent[1]) >= self.interval_s - 1e-9:
+                out.append(eph.encode_record(sv[0], rec))
+                self._sent[sv] = (i, t)
+        return out
+
+    def reset(self) -> None:
+        """Send everything again at the next epoch (a new receiver of the stream)."""
+        self._sent.clear()
 
 
 def _toc_gps_s(system: str, r: dict) -> float:

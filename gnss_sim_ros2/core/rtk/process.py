@@ -1,7 +1,9 @@
 """rtkrcv as a subprocess fed and read through local TCP streams.
 
-The wrapper opens four TCP servers on 127.0.0.1 (ports chosen by the OS):
-rover and base RTCM3 in, solution (llh) and NMEA out; rtkrcv connects to
+The wrapper opens five TCP servers on 127.0.0.1 (ports chosen by the OS):
+rover, base and navigation RTCM3 in (rtkrcv input streams 1, 2 and 3; the
+third carries broadcast ephemerides where the rover and base streams have
+none), solution (llh or enu) and NMEA out; rtkrcv connects to
 them as a TCP client (stream type ``tcpcli``, rtkrcv.c ``rcvopts``).  Bytes
 given to :meth:`RtkrcvProcess.feed_rover` / :meth:`feed_base` go to rtkrcv as
 they come (whole RTCM frames: rtkrcv decodes and synchronises rover and base
@@ -189,13 +191,14 @@ class RtkrcvProcess:
         if self.workdir is None or self._own_workdir:
             self.workdir = Path(tempfile.mkdtemp(prefix="gnss_sim_rtkrcv_"))
         self.workdir.mkdir(parents=True, exist_ok=True)
-        self._servers = {n: _Server(n) for n in ("rover", "base", "solution", "nmea")}
-        self._pending = {"rover": bytearray(), "base": bytearray()}
+        self._servers = {n: _Server(n) for n in ("rover", "base", "nav", "solution", "nmea")}
+        self._pending = {"rover": bytearray(), "base": bytearray(), "nav": bytearray()}
         owned = {"inpstr1-type": "tcpcli", "inpstr1-path": f"127.0.0.1:{self._servers['rover'].port}",
                  "inpstr1-format": "rtcm3",
                  "inpstr2-type": "tcpcli", "inpstr2-path": f"127.0.0.1:{self._servers['base'].port}",
                  "inpstr2-format": "rtcm3", "inpstr2-nmeareq": "off",
-                 "inpstr3-type": "off", "inpstr3-path": "", "inpstr3-format": "rtcm3",
+                 "inpstr3-type": "tcpcli", "inpstr3-path": f"127.0.0.1:{self._servers['nav'].port}",
+                 "inpstr3-format": "rtcm3",
                  "outstr1-type": "tcpcli", "outstr1-path": f"127.0.0.1:{self._servers['solution'].port}",
                  "outstr1-format": self.solution_format,
                  "outstr2-type": "tcpcli", "outstr2-path": f"127.0.0.1:{self._servers['nmea'].port}",
@@ -217,7 +220,7 @@ class RtkrcvProcess:
                                      stderr=subprocess.STDOUT, start_new_session=True, env=env,
                                      preexec_fn=_die_with_parent)
         self._finalizer = weakref.finalize(self, _signal_group, self.proc.pid, signal.SIGTERM)
-        for name in ("rover", "base"):
+        for name in ("rover", "base", "nav"):
             self._spawn(self._accept_input, name)
         self._spawn(self._read_output, "solution")
         self._spawn(self._read_output, "nmea")
@@ -300,6 +303,10 @@ class RtkrcvProcess:
     def feed_base(self, data: bytes) -> None:
         """RTCM3 bytes of the base station (whole frames)."""
         self._send("base", bytes(data))
+
+    def feed_nav(self, data: bytes) -> None:
+        """RTCM3 ephemeris messages (input stream 3), for streams that carry none."""
+        self._send("nav", bytes(data))
 
     def connected(self) -> dict[str, bool]:
         """Which streams rtkrcv has connected to."""
