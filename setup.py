@@ -40,6 +40,7 @@ setup(
             "container = gnss_sim_ros2.nodes.container:main",
             "lifecycle_manager = gnss_sim_ros2.nodes.lifecycle_manager:main",
             "recorder = gnss_sim_ros2.nodes.recorder_node:main",
+            "rtk_node = gnss_sim_ros2.nodes.rtk_node:main",
         ],
     },
 )

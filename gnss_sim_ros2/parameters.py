@@ -45,6 +45,7 @@ NODE_NAMES = {
     "visibility": "gnss_sim_visibility",
     "receiver": "gnss_sim_receiver",
     "trajectory": "gnss_sim_trajectory_player",
+    "rtk": "gnss_sim_rtk",
 }
 SHARED_KEY = "/**"
 
@@ -203,6 +204,27 @@ NODE_PARAMS: dict[str, list[Param]] = {
         Param("antenna_offset_m", [0.0, 0.0, 0.5], "antenna position in base_frame [m] (static TF)"),
         Param("publish_rate_hz", 20.0, "TF publish rate [Hz]", min=0.1, max=1000.0),
         Param("loop", False, "restart the path at its end"),
+    ],
+    "rtk": [
+        Param("rtkrcv_path", "", "RTKLIB rtkrcv executable; empty: rtkrcv on PATH (Debian package rtklib)"),
+        Param("rtkrcv_conf", "", "a user's rtkrcv options file, kept as it is except the stream and output format "
+              "options the node owns; empty: the generated RTK setup"),
+        Param("rtk_systems", "", "systems RTK uses (pos1-navsys of the generated setup); empty: systems"),
+        Param("rtk_mode", "kinematic", "positioning mode of the generated setup: kinematic, static, or movingbase "
+              "(heading from two antennas of the robot)", choices=("kinematic", "static", "movingbase")),
+        Param("rtk_frequencies", 2, "carrier frequencies of the generated setup (pos1-frequency: 1 l1, 2 l1+2, "
+              "3 l1+2+3)", min=1, max=3),
+        Param("rtk_ratio_threshold", 3.0, "ambiguity ratio test threshold of the generated setup (pos2-arthres)",
+              min=1.0, max=100.0),
+        Param("nav_files", [], "RINEX navigation files whose ephemerides the node sends to rtkrcv (its input stream 3) "
+              "at the simulated time, for RTCM3 streams without ephemeris messages; empty: those of the streams",
+              item_type="string"),
+        Param("rtkrcv_clock", "auto", "rtkrcv's clock: simulated (started under faketime at the simulated time: RTCM3 "
+              "carries times of week, RTKLIB takes the week from the clock), system, or auto (simulated when the "
+              "simulated time is more than an hour from the system clock)", choices=("auto", "simulated", "system")),
+        Param("autostart", True, "start rtkrcv on activate (else through the start service)"),
+        Param("time_mapping", "offset", "ROS time <-> GNSS time of the stamps: offset (ROS time 0 = start_time) or utc",
+              choices=("offset", "utc")),
     ],
 }
 

@@ -36,7 +36,8 @@ command -v cmake >/dev/null 2>&1 || need_debs+=(cmake)
 command -v g++ >/dev/null 2>&1 || need_debs+=(g++)
 command -v make >/dev/null 2>&1 || need_debs+=(make)
 ldconfig -p 2>/dev/null | grep -q 'libusb-1.0.so.0' || need_debs+=(libusb-1.0-0)   # open3d imports it
-command -v rnx2rtkp >/dev/null 2>&1 || need_debs+=(rtklib)                         # independent RINEX reader (tests)
+command -v rnx2rtkp >/dev/null 2>&1 || need_debs+=(rtklib)                         # independent RINEX reader (tests), rtkrcv
+command -v faketime >/dev/null 2>&1 || need_debs+=(faketime)                       # rtkrcv at the simulated date (rtk node)
 if [ ${#need_debs[@]} -gt 0 ]; then
   if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
     log "installing Debian packages: ${need_debs[*]}"
