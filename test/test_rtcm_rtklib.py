@@ -28,7 +28,7 @@ from gnss_sim_ros2.core.receiver.outputs import epoch_arrays, header, obs_types_
 from gnss_sim_ros2.core.rinex.nav_read import read_nav_file, records_as_dicts
 from gnss_sim_ros2.core.rinex.obs_read import load_rinex
 from gnss_sim_ros2.core.rtcm.writer import RtcmWriter
-from gnss_sim_ros2.core.simulation import SimulationSetup, receiver_config, run_simulation
+from gnss_sim_ros2.core.simulation import SimulationSetup, chain_settings, run_simulation
 from gnss_sim_ros2.core.time import GnssTime
 from gnss_sim_ros2.core.trajectory import Trajectory
 
@@ -56,7 +56,7 @@ def simulate_to_rtcm(out: Path, position_ecef_m, systems: str, duration_s: float
     epochs = []
     setup.observer = lambda t, ecef, obs, sol: epochs.append((t, obs))
     res = run_simulation(setup)
-    obs_types = obs_types_for(receiver_config(setup).profile, systems)
+    obs_types = obs_types_for(chain_settings(setup).receiver.profile, systems)
     ours = load_rinex(res.obs_path)
     hdr = header(obs_types, marker, position_ecef_m, interval_s, ours.glo_channel)
     rtcm = out / f"{marker}.rtcm3"
