@@ -26,7 +26,7 @@ import threading
 
 import rclpy
 from rcl_interfaces.msg import ParameterType
-from rclpy.executors import MultiThreadedExecutor
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 
 from gnss_sim_ros2.nodes.common import close_ros, init_ros, spin_until_stopped
@@ -174,7 +174,9 @@ def main(args=None) -> int:
         return 2
     stop = init_ros(args)
     node = rclpy.create_node("gnss_sim_container")
-    executor = MultiThreadedExecutor(num_threads=2)
+    # one thread: a lifecycle transition (service callback) destroying publishers never races another thread
+    # building the wait set from them (rclpy InvalidHandle "destruction was requested")
+    executor = SingleThreadedExecutor()
     manager = ComponentManager(node, executor)
     executor.add_node(node)
     try:
