@@ -56,6 +56,7 @@ REMAPPINGS = (
     ("vel", f"{TOPIC_NAMESPACE}/vel"),
     ("status", f"{TOPIC_NAMESPACE}/status"),
     ("nmea", f"{TOPIC_NAMESPACE}/nmea"),
+    ("rtcm", f"{TOPIC_NAMESPACE}/rtcm"),
 )
 
 #: topics a run records (rosbag2) with their types; the sky view images are left out (bulky)

@@ -193,6 +193,10 @@ NODE_PARAMS: dict[str, list[Param]] = {
               "are given, else Klobuchar)", choices=("", *IONOSPHERE_MODELS)),
         Param("troposphere", "", "troposphere model (empty: from preset)", choices=("", *TROPOSPHERE_MODELS)),
         Param("write_nmea_file", False, "also write the NMEA sentences to output_dir/gnss_sim.nmea"),
+        Param("rtcm", False, "publish each epoch as RTCM3 (station, MSM observations) on `rtcm` "
+              "(std_msgs/UInt8MultiArray), e.g. for the rtk node or an outside RTK engine"),
+        Param("rtcm_msm", 7, "RTCM3 MSM type: 7 (full resolution, Doppler) or 4", choices=(4, 7)),
+        Param("rtcm_station_id", 0, "RTCM3 reference station id (DF003)", min=0, max=4095),
         Param("cn0_acquire_dbhz", 33.0, "C/N0 above which a signal is acquired [dB-Hz]", min=0.0, max=70.0),
         Param("cn0_lose_dbhz", 28.0, "C/N0 below which a signal is lost [dB-Hz]", min=0.0, max=70.0),
     ],

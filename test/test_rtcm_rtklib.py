@@ -24,11 +24,9 @@ import numpy as np
 import pytest
 
 from gnss_sim_ros2.core.frames import ecef_to_geodetic, enu_to_ecef
-from gnss_sim_ros2.core.receiver.outputs import epoch_arrays, header, obs_types_for
 from gnss_sim_ros2.core.rinex.nav_read import read_nav_file, records_as_dicts
 from gnss_sim_ros2.core.rinex.obs_read import load_rinex
-from gnss_sim_ros2.core.rtcm.writer import RtcmWriter
-from gnss_sim_ros2.core.simulation import SimulationSetup, chain_settings, run_simulation
+from gnss_sim_ros2.core.simulation import SimulationSetup, run_simulation
 from gnss_sim_ros2.core.time import GnssTime
 from gnss_sim_ros2.core.trajectory import Trajectory
 
@@ -51,22 +49,27 @@ def simulate_to_rtcm(out: Path, position_ecef_m, systems: str, duration_s: float
         position_ecef_m = trajectory.position(0.0)
     else:
         trajectory = Trajectory.static(np.asarray(position_ecef_m), "ecef")
-    setup = SimulationSetup(start=GnssTime.from_iso(START), duration_s=duration_s, interval_s=interval_s,
-                            out_dir=out, trajectory=trajectory, systems=systems, seed=seed, marker_name=marker)
-    epochs = []
-    setup.observer = lambda t, ecef, obs, sol: epochs.append((t, obs))
-    res = run_simulation(setup)
-    obs_types = obs_types_for(chain_settings(setup).receiver.profile, systems)
-    ours = load_rinex(res.obs_path)
-    hdr = header(obs_types, marker, position_ecef_m, interval_s, ours.glo_channel)
     rtcm = out / f"{marker}.rtcm3"
-    nav = records_as_dicts(read_nav_file(res.nav_path), systems) if with_navigation else None
-    with RtcmWriter(rtcm, hdr, msm=msm, navigation=nav) as w:
-        for t, obs in epochs:
-            if len(obs.sv):
-                w.write_epoch(t, epoch_arrays(obs, obs_types))
+    # the product's path: the chain writes the RTCM3 epoch by epoch next to the RINEX (simulate --rtcm)
+    setup = SimulationSetup(start=GnssTime.from_iso(START), duration_s=duration_s, interval_s=interval_s,
+                            out_dir=out, trajectory=trajectory, systems=systems, seed=seed, marker_name=marker,
+                            params={"rtcm_msm": msm}, rtcm_path=str(rtcm), rtcm_ephemeris=with_navigation)
+    res = run_simulation(setup)
+    assert res.rtcm_path == rtcm
+    ours = load_rinex(res.obs_path)
     return {"obs": res.obs_path, "nav": res.nav_path, "rtcm": rtcm, "ours": ours, "epochs": res.epochs,
-            "messages": dict(w.messages_written)}
+            "messages": _message_counts(rtcm)}
+
+
+def _message_counts(path: Path) -> dict[int, int]:
+    """RTCM3 message numbers in a file, as pyrtcm (an independent decoder) reads them."""
+    from pyrtcm import RTCMReader
+
+    counts: dict[int, int] = {}
+    with open(path, "rb") as f:
+        for _, msg in RTCMReader(f):
+            counts[int(msg.identity)] = counts.get(int(msg.identity), 0) + 1
+    return counts
 
 
 def convbin(rtcm: Path) -> tuple[Path, Path]:

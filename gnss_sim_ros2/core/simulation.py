@@ -62,6 +62,10 @@ class SimulationSetup:
     use_visuals: bool = False
     keep_dynamic_models: bool = False
     strict_world: bool = False
+    #: RTCM3 file written next to the RINEX (None: none; "": the RINEX observation name with .rtcm3)
+    rtcm_path: str | None = None
+    #: with broadcast ephemeris messages (1019-1046) from the navigation records
+    rtcm_ephemeris: bool = True
     #: the receiver node's other parameters (profile, noise, ionosphere, troposphere, cn0_*, write_nmea_file;
     #: parameters.py); absent ones take the receiver model's defaults
     params: dict = field(default_factory=dict)
@@ -100,7 +104,8 @@ def setup_from_config(cfg, out_dir: Path, trajectory: Trajectory | None = None, 
         trajectory = antenna_path(robot_path(trj), trj["antenna_offset_m"])
         if not world and not mesh:
             world = str(demo_world_path())
-    own = {"profile", "noise", "ionosphere", "troposphere", "cn0_acquire_dbhz", "cn0_lose_dbhz", "write_nmea_file"}
+    own = {"profile", "noise", "ionosphere", "troposphere", "cn0_acquire_dbhz", "cn0_lose_dbhz", "write_nmea_file",
+           "rtcm_msm", "rtcm_station_id"}
     return SimulationSetup(
         start=GnssTime.from_iso(rcv["start_time"]), duration_s=eph["duration_s"], interval_s=1.0 / rcv["rate_hz"],
         out_dir=Path(out_dir), trajectory=trajectory, systems=rcv["systems"],
@@ -130,6 +135,7 @@ class SimulationResult:
     cpu_s: float = 0.0            # CPU time of this process (all its threads) during the epoch loop [s]
     interval_s: float = 0.0
     orbit_source: str = ""
+    rtcm_path: Path | None = None
 
     @property
     def realtime_factor(self) -> float:
@@ -303,8 +309,13 @@ def run_simulation(setup: SimulationSetup) -> SimulationResult:
     for sv, ch in zip(st0.sv, st0.glo_channel):
         if sv[0] == "R":
             glo_slots[str(sv)] = int(ch)
+    rtcm = None
+    if setup.rtcm_path is not None:
+        rtcm = Path(setup.rtcm_path) if setup.rtcm_path else out / rinex_name(
+            setup.marker_name, setup.start, setup.duration_s, interval_s, "MO").replace("_MO.rnx", "_MO.rtcm3")
     chain = ReceiverChain(settings, provider, duration_s=setup.duration_s, glonass_slots=glo_slots,
-                          comment=f"gnss_sim simulate, source {source}")
+                          comment=f"gnss_sim simulate, source {source}", rtcm=rtcm,
+                          rtcm_ephemeris=setup.rtcm_ephemeris)
     res = SimulationResult(None, nav_written, out / "fix.csv", 0, 0, [], [], [], [], [], 0.0, 0.0,
                            interval_s=interval_s, orbit_source=source)
     svs_all = np.asarray(provider.svs(setup.systems), dtype="<U3")
@@ -342,6 +353,7 @@ def run_simulation(setup: SimulationSetup) -> SimulationResult:
     if setup.progress:
         print(file=sys.stderr)
     res.obs_path, res.epochs, res.fixes = chain.obs_path, chain.epochs, chain.fixes
+    res.rtcm_path = chain.rtcm_path
     if fix_est:
         res.horizontal_error_m = horizontal_errors_m(np.array(fix_est), np.array(fix_true)).tolist()
     res.wall_s = time.perf_counter() - wall0
