@@ -170,6 +170,8 @@ class ReceiverChain:
         self._fix_file = None
         self._fix_csv = None
         self._nmea_file = None
+        if settings.output_dir is not None:
+            settings.output_dir.mkdir(parents=True, exist_ok=True)   # an unwritable folder fails the start
         self.reset()
 
     # ------------------------------------------------------------------ state of one run
@@ -273,8 +275,13 @@ class ReceiverChain:
         name = rinex_name(s.marker_name, t, self.duration_s, s.interval_s, "MO")
         self.obs_path = out / name
         k = 1
-        while self.obs_path.exists():   # a reconfigured node in the same minute: never overwrite a file
-            self.obs_path = out / name.replace("_MO.rnx", f"_MO_{k}.rnx")
+        while self.obs_path.exists():
+            # a reconfigured node in the same minute: never overwrite a file; the next file counts up the
+            # receiver number of the long name (SSSSMR: RINEX 3.04 section 4.1), so it still ends _MO.rnx
+            if k > 9:
+                raise ValueError(f"{out}: ten observation files of marker {s.marker_name} start in this minute "
+                                 f"already; give another output_dir or marker_name")
+            self.obs_path = out / (name[:5] + str(k) + name[6:])
             k += 1
         self._writer = RinexObsWriter(self.obs_path, hdr)
         self.fix_path = out / "fix.csv"
