@@ -1,0 +1,205 @@
+"""Specular single-bounce reflections of satellite signals on the planar facets of a scene.
+
+Image method (e.g. Hannah 2001, ch. 4; Hsu, GPS Solutions 22:7, 2018, for one wall): a facet is a plane
+with unit normal n through a point v0; an antenna A in front of it (h = (A - v0).n > 0) and a satellite
+at infinity in the unit direction u with c = u.n > 0 (the facet faces the satellite) give the
+reflection point
+
+    R = A - 2 h n + (h / c) u        (the line from the image A' = A - 2 h n towards the satellite)
+
+and the excess path over the direct signal  delta = 2 h c  (= 2 h sin(grazing angle)).  The signal
+arrives at A from the direction of R, at incidence angle theta = arccos(c) from the facet's normal.
+
+A path counts when R lies inside the triangle (barycentric test, numpy) and two casts through Open3D
+(core/scene/raycast.py, in the scene's float-safe shifted frame) are clear: antenna -> R (the first hit
+is the facet itself, at |R - A|) and R -> satellite (no hit).  Facets are the scene's triangles; those
+closer to a vertical plane than 60 deg take the material of their class name (fresnel.NAME_HINTS,
+default concrete), those facing up (|n_z| > 0.9) are ground (P.2040 medium dry ground) unless their
+class names a material.  Triangles repeated in the mesh (the same three vertices) are used once.
+
+Only facets whose plane lies within ``max_range_m`` of the antenna and whose triangle comes within
+that distance are tried: a scene without facets in range costs one vectorised distance test.  Per
+satellite the ``max_paths`` strongest candidates by |R_co|^2 + |R_cross|^2 are kept.
+
+Not modelled: second and higher-order bounces, diffuse scattering and surface roughness, the
+frequency dependence of the coefficients across bands (L1 values used), moving reflectors.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..constants import F_L1_HZ
+from . import fresnel
+
+#: offset of the second cast's origin off the facet [m] (float32 scene: ~1e-5 m resolution near the centre)
+SURFACE_OFFSET_M = 0.02
+#: the antenna -> R cast must reach within this of |R - A| [m]
+REACH_TOLERANCE_M = 0.05
+
+
+@dataclass
+class ScenePaths:
+    """Reflected paths per (antenna, satellite, k); k < max_paths, invalid slots have excess_m = NaN."""
+
+    excess_m: np.ndarray          # (M, N, K) extra path over the direct signal [m]
+    gamma_co: np.ndarray          # (M, N, K) complex RHCP -> RHCP coefficient
+    gamma_cross: np.ndarray       # (M, N, K) complex RHCP -> LHCP coefficient
+    arrival_el_deg: np.ndarray    # (M, N, K) elevation of the arriving reflected ray (local up)
+    rays_cast: int = 0            # Open3D rays spent on these paths
+
+    @property
+    def valid(self) -> np.ndarray:
+        return np.isfinite(self.excess_m)
+
+    def take(self, rows):
+        """The paths of one antenna's satellite rows (``rows`` indexes axis 1 after selecting an antenna)."""
+        return ScenePaths(self.excess_m[rows], self.gamma_co[rows], self.gamma_cross[rows],
+                          self.arrival_el_deg[rows], 0)
+
+    @classmethod
+    def empty(cls, m: int, n: int, k: int) -> ScenePaths:
+        z = np.full((m, n, k), np.nan)
+        return cls(z, np.zeros((m, n, k), complex), np.zeros((m, n, k), complex), z.copy(), 0)
+
+
+class Facets:
+    """Unique triangles of a scene's world mesh with plane, edges and complex permittivity."""
+
+    def __init__(self, world, f_hz: float = F_L1_HZ):
+        v = np.asarray(world.vertices_m, dtype=np.float64)
+        tri = np.asarray(world.triangles, dtype=np.int64)
+        mat = np.asarray(world.material, dtype=np.int64)
+        opaque = np.array([c.opaque for c in world.materials.classes], dtype=bool)
+        keep = opaque[mat] if len(mat) else np.zeros(0, bool)
+        tri, mat = tri[keep], mat[keep]
+        p = v[tri]                                                     # (T, 3, 3)
+        # the same triangle twice (meshes exported with both copies of a wall): once
+        seen, first = set(), []
+        for q, tri_m in enumerate(np.round(p, 3).tolist()):
+            key = tuple(sorted(map(tuple, tri_m)))
+            if key not in seen:
+                seen.add(key)
+                first.append(q)
+        first = np.asarray(first, dtype=np.int64)
+        p, mat = p[first], mat[first]
+        e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+        n = np.cross(e1, e2)
+        area2 = np.linalg.norm(n, axis=1)
+        ok = area2 > 1e-9
+        p, mat, e1, e2, n, area2 = p[ok], mat[ok], e1[ok], e2[ok], n[ok], area2[ok]
+        self.v0, self.e1, self.e2 = p[:, 0], e1, e2
+        self.normal = n / area2[:, None]
+        self.centroid = p.mean(axis=1)
+        self.radius = np.max(np.linalg.norm(p - self.centroid[:, None], axis=2), axis=1) if len(p) else np.zeros(0)
+        # barycentric solve: R - v0 = s e1 + t e2 (Gram matrix)
+        d00, d01, d11 = (np.einsum("ij,ij->i", e1, e1), np.einsum("ij,ij->i", e1, e2), np.einsum("ij,ij->i", e2, e2))
+        self._gram = (d00, d01, d11, d00 * d11 - d01 * d01)
+        names = [c.name for c in world.materials.classes]
+        named = {i: fresnel.material_for_class(nm) for i, nm in enumerate(names)}
+        explicit = {i: any(h in nm.lower() for h, _ in fresnel.NAME_HINTS) for i, nm in enumerate(names)}
+        horiz = np.abs(self.normal[:, 2]) > 0.9
+        mats = [named[int(m_)] if (explicit[int(m_)] or not h) else "ground" for m_, h in zip(mat, horiz)]
+        perm = {nm: fresnel.material(nm).permittivity(f_hz) for nm in set(mats)}
+        self.material_name = np.array(mats, dtype=object)
+        self.eta = np.array([perm[nm] for nm in mats], dtype=np.complex128)
+
+    def __len__(self) -> int:
+        return len(self.v0)
+
+    def near(self, antenna_m, max_range_m: float) -> np.ndarray:
+        """Indices of the facets that come within ``max_range_m`` of the antenna (3,)."""
+        a = np.asarray(antenna_m, dtype=np.float64)
+        h = np.einsum("ij,j->i", self.normal, a) - np.einsum("ij,ij->i", self.normal, self.v0)
+        dist = np.linalg.norm(self.centroid - a, axis=1) - self.radius
+        return np.flatnonzero((h > 0.05) & (h <= max_range_m) & (dist <= max_range_m))
+
+
+def find_paths(scene, facets: Facets, antenna_world_m, sat_dirs_world, *, max_range_m: float = 100.0,
+               max_paths: int = 3, only=None) -> ScenePaths:
+    """Single-bounce specular paths for antennas (M, 3) and satellite unit directions (M, N, 3), world frame.
+
+    ``only``: optional (M, N) bool, the satellites for which paths are wanted (others stay empty)."""
+    a = np.asarray(antenna_world_m, dtype=np.float64).reshape(-1, 3)
+    u_all = np.asarray(sat_dirs_world, dtype=np.float64)
+    m, n = u_all.shape[:2]
+    out = ScenePaths.empty(m, n, max_paths)
+    if len(facets) == 0 or n == 0:
+        return out
+    # candidates of every antenna, then one batch of casts for all of them
+    cand = []                          # (antenna i, sat j, facet f, R (3,), excess, cos_inc)
+    for i in range(m):
+        sel = facets.near(a[i], max_range_m)
+        if len(sel) == 0:
+            continue
+        sats = np.arange(n) if only is None else np.flatnonzero(only[i])
+        if len(sats) == 0:
+            continue
+        nf = facets.normal[sel]                                     # (F, 3)
+        h = nf @ a[i] - np.einsum("ij,ij->i", nf, facets.v0[sel])   # (F,)
+        u = u_all[i, sats]                                           # (S, 3)
+        c = u @ nf.T                                                 # (S, F)
+        ok = c > 1e-3
+        s_idx, f_idx = np.nonzero(ok)
+        if len(s_idx) == 0:
+            continue
+        cf = c[s_idx, f_idx]
+        hf = h[f_idx]
+        fi = sel[f_idx]
+        r = a[i] - 2.0 * hf[:, None] * facets.normal[fi] + (hf / cf)[:, None] * u[s_idx]
+        w = r - facets.v0[fi]
+        d00, d01, d11, den = (g[fi] for g in facets._gram)
+        d20 = np.einsum("ij,ij->i", w, facets.e1[fi])
+        d21 = np.einsum("ij,ij->i", w, facets.e2[fi])
+        bs = (d11 * d20 - d01 * d21) / den
+        bt = (d00 * d21 - d01 * d20) / den
+        inside = (bs >= 0) & (bt >= 0) & (bs + bt <= 1)
+        if not np.any(inside):
+            continue
+        k = np.flatnonzero(inside)
+        cand.append((np.full(len(k), i), sats[s_idx[k]], fi[k], r[k], 2.0 * hf[k] * cf[k], cf[k]))
+    if not cand:
+        return out
+    ii, jj, ff, rr, excess, cos_inc = (np.concatenate(x) for x in zip(*cand))
+    # cast 1: antenna -> reflection point reaches the facet
+    seg = rr - a[ii]
+    dist = np.linalg.norm(seg, axis=1)
+    dirs = seg / dist[:, None]
+    t_hit = scene.rays.hit_distance(a[ii], dirs, tnear_m=1e-3)
+    ok = t_hit >= dist - REACH_TOLERANCE_M
+    # cast 2: reflection point -> satellite is clear
+    sel = np.flatnonzero(ok)
+    rays = len(ii) + len(sel)
+    if len(sel):
+        origin = rr[sel] + SURFACE_OFFSET_M * facets.normal[ff[sel]]
+        clear = ~scene.rays.occluded(origin, u_all[ii[sel], jj[sel]], tnear_m=1e-3)
+        ok[sel] &= clear
+    good = np.flatnonzero(ok)
+    out.rays_cast = rays
+    if len(good) == 0:
+        return out
+    ii, jj, ff, dirs, excess, cos_inc = ii[good], jj[good], ff[good], dirs[good], excess[good], cos_inc[good]
+    inc_deg = np.degrees(np.arccos(np.clip(cos_inc, -1.0, 1.0)))
+    g_co, g_x = fresnel.circular_coefficients(facets.eta[ff], inc_deg)
+    strength = np.abs(g_co) ** 2 + np.abs(g_x) ** 2
+    el_arr = np.degrees(np.arcsin(np.clip(dirs[:, 2], -1.0, 1.0)))
+    # the strongest max_paths per (antenna, satellite); the same reflection from a duplicated plane once
+    order = np.lexsort((-strength, jj, ii))
+    slot = {}
+    seen = set()
+    for q in order:
+        key = (int(ii[q]), int(jj[q]))
+        dup = (key, round(float(excess[q]), 2))
+        if dup in seen:
+            continue
+        seen.add(dup)
+        s = slot.get(key, 0)
+        if s >= max_paths:
+            continue
+        slot[key] = s + 1
+        out.excess_m[key[0], key[1], s] = excess[q]
+        out.gamma_co[key[0], key[1], s] = g_co[q]
+        out.gamma_cross[key[0], key[1], s] = g_x[q]
+        out.arrival_el_deg[key[0], key[1], s] = el_arr[q]
+    return out
