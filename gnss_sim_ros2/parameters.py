@@ -32,6 +32,7 @@ import yaml
 from gnss_sim_ros2.core.vocabulary import (
     EPHEMERIS_SOURCES,
     IONOSPHERE_MODELS,
+    MULTIPATH_MODES,
     PRESET_NAMES,
     PROFILES,
     SYSTEMS,
@@ -177,6 +178,11 @@ NODE_PARAMS: dict[str, list[Param]] = {
         Param("materials_file", "", "YAML of material classes by name pattern"),
         Param("use_visuals", False, "export visual instead of collision geometry"),
         Param("fresnel_rays", -1, "rays over the first Fresnel zone per satellite (0 off; -1 from preset)", min=-1),
+        Param("multipath", "", "reflections from the scene (core/multipath): off, nlos (blocked satellites "
+              "only), full (every satellite); empty: from preset", choices=("", *MULTIPATH_MODES)),
+        Param("multipath_range_m", 100.0, "facets farther than this from the antenna reflect nothing [m]",
+              min=1.0, max=2000.0),
+        Param("multipath_max_paths", 3, "reflected paths kept per satellite (the strongest)", min=1, max=10),
         Param("tf_timeout_s", 5.0, "wall-clock seconds an epoch waits for the antenna's transform before it is "
               "dropped (and `gnss-sim run` fails, naming the frames)", min=0.1, max=600.0),
     ],
@@ -188,8 +194,10 @@ NODE_PARAMS: dict[str, list[Param]] = {
               "are given, else Klobuchar)", choices=("", *IONOSPHERE_MODELS)),
         Param("troposphere", "", "troposphere model (empty: from preset)", choices=("", *TROPOSPHERE_MODELS)),
         Param("write_nmea_file", False, "also write the NMEA sentences to output_dir/gnss_sim.nmea"),
-        Param("cn0_acquire_dbhz", 33.0, "C/N0 above which a signal is acquired [dB-Hz]", min=0.0, max=70.0),
-        Param("cn0_lose_dbhz", 28.0, "C/N0 below which a signal is lost [dB-Hz]", min=0.0, max=70.0),
+        Param("cn0_acquire_dbhz", -1.0, "C/N0 above which a signal is acquired [dB-Hz]; -1: the profile's "
+              "(geodetic 33, ublox 22)", min=-1.0, max=70.0),
+        Param("cn0_lose_dbhz", -1.0, "C/N0 below which a signal is lost [dB-Hz]; -1: the profile's "
+              "(geodetic 28, ublox 16)", min=-1.0, max=70.0),
     ],
     "trajectory": [
         Param("trajectory_file", "", "CSV t_s,e_m,n_m,u_m[,yaw_deg] in the world frame; empty: waypoints"),
@@ -250,7 +258,7 @@ def validate_node(key: str, values: dict, where: str) -> dict:
     file) and the nodes' configure call it.  Returns the normalised values.
     """
     out = {p.name: p.check(values[p.name] if p.name in values else p.default, where) for p in params_of(key)}
-    if key == "receiver" and out["cn0_lose_dbhz"] > out["cn0_acquire_dbhz"]:
+    if key == "receiver" and out["cn0_lose_dbhz"] > out["cn0_acquire_dbhz"] >= 0:
         raise ValueError(f"{where}: parameter 'cn0_lose_dbhz' ({out['cn0_lose_dbhz']}) exceeds "
                          f"'cn0_acquire_dbhz' ({out['cn0_acquire_dbhz']}): a signal would be lost above the "
                          f"level at which it is acquired")
