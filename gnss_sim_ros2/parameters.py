@@ -183,6 +183,8 @@ NODE_PARAMS: dict[str, list[Param]] = {
         Param("multipath_range_m", 100.0, "facets farther than this from the antenna reflect nothing [m]",
               min=1.0, max=2000.0),
         Param("multipath_max_paths", 3, "reflected paths kept per satellite (the strongest)", min=1, max=10),
+        Param("multipath_diffraction", True, "with multipath on: blocked satellites diffracted over the nearest roof "
+              "or wall edge (ITU-R P.526 knife edge) are received weakened"),
         Param("tf_timeout_s", 5.0, "wall-clock seconds an epoch waits for the antenna's transform before it is "
               "dropped (and `gnss-sim run` fails, naming the frames)", min=0.1, max=600.0),
     ],

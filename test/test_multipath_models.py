@@ -171,3 +171,30 @@ def test_open_sky_ground_bounce_and_nothing_in_range():
     assert set(facets.material_name) == {"concrete", "ground"}
     far = find_paths(scene, facets, np.array([[0.0, 0.0, 500.0]]), u[None, None], max_range_m=50.0)
     assert not far.valid.any() and far.rays_cast == 0
+
+
+# ---------------------------------------------------------------- knife-edge diffraction
+def test_roof_edge_diffraction_by_hand():
+    from gnss_sim_ros2.core.constants import C_MPS, F_L1_HZ
+    from gnss_sim_ros2.core.multipath.diffraction import edge_loss_db, knife_edge_db
+
+    scene = canyon_scene()
+    antenna_m = np.array([0.0, 0.0, 2.0])
+    el = np.arctan2(7.0, 10.0)                        # the ray meets the east wall (x = 10) at z = 9, 1 m below its top
+    u = np.array([np.cos(el), 0.0, np.sin(el)])
+    loss, nu = edge_loss_db(scene.rays, antenna_m, u[None], C_MPS / F_L1_HZ, iterations=20)
+    # by hand: the edge (10, 0, 10) at 12.81 m, seen 3.67 deg above the ray: h = |AE| sin(theta)
+    edge = np.array([10.0, 0.0, 10.0]) - antenna_m
+    theta = np.arctan2(8.0, 10.0) - el
+    h = np.linalg.norm(edge) * np.sin(theta)
+    nu_hand = h * np.sqrt(2.0 / (C_MPS / F_L1_HZ * np.linalg.norm(edge)))
+    assert nu[0] == pytest.approx(nu_hand, rel=0.01)
+    assert loss[0] == pytest.approx(float(knife_edge_db(nu_hand)), abs=0.1)
+    assert 11.0 < loss[0] < 13.5
+    # P.526 eq. (31) anchors: 6.0 dB at grazing (nu = 0), 0 below nu = -0.78
+    assert float(knife_edge_db(0.0)) == pytest.approx(6.03, abs=0.01)
+    assert float(knife_edge_db(-1.0)) == 0.0
+    # deep behind the wall (nothing clear within 15 deg above): no edge
+    deep = np.array([np.cos(0.2), 0.0, np.sin(0.2)])
+    loss2, _ = edge_loss_db(scene.rays, np.array([0.0, 0.0, 2.0]), deep[None], C_MPS / F_L1_HZ, max_angle_deg=2.0)
+    assert np.isnan(loss2[0])

@@ -64,6 +64,7 @@ class SimulationSetup:
     multipath: str = ""
     multipath_range_m: float = 100.0
     multipath_max_paths: int = 3
+    multipath_diffraction: bool = True
     #: the receiver node's other parameters (profile, noise, ionosphere, troposphere, cn0_*, write_nmea_file;
     #: parameters.py); absent ones take the receiver model's defaults
     params: dict = field(default_factory=dict)
@@ -110,7 +111,8 @@ def setup_from_config(cfg, out_dir: Path, trajectory: Trajectory | None = None, 
         sp3_files=list(eph["sp3_files"]), clk_files=list(eph["clk_files"]), world_file=world, mesh_file=mesh,
         materials_file=vis["materials_file"], preset=rcv["preset"], fresnel_rays=vis["fresnel_rays"],
         use_visuals=vis["use_visuals"], multipath=vis["multipath"], multipath_range_m=vis["multipath_range_m"],
-        multipath_max_paths=vis["multipath_max_paths"], params={k: v for k, v in rcv.items() if k in own},
+        multipath_max_paths=vis["multipath_max_paths"], multipath_diffraction=vis["multipath_diffraction"],
+        params={k: v for k, v in rcv.items() if k in own},
         marker_name=rcv["marker_name"], seed=rcv["seed"], **extra)
 
 
@@ -247,7 +249,8 @@ def visibility_options(setup: SimulationSetup) -> VisibilityOptions:
     return VisibilityOptions.from_params({"elevation_mask_deg": setup.elevation_mask_deg, "preset": setup.preset,
                                           "fresnel_rays": setup.fresnel_rays, "use_visuals": setup.use_visuals,
                                           "multipath": setup.multipath, "multipath_range_m": setup.multipath_range_m,
-                                          "multipath_max_paths": setup.multipath_max_paths},
+                                          "multipath_max_paths": setup.multipath_max_paths,
+                                          "multipath_diffraction": setup.multipath_diffraction},
                                          switches(setup))
 
 

@@ -8,8 +8,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..constants import C_MPS, F_L1_HZ
 from ..vocabulary import MULTIPATH_MODES, VisibilityState
+from .diffraction import MAX_LOSS_DB, edge_loss_db
 from .reflections import Facets, ScenePaths, find_paths
+
+L1_WAVELENGTH_M = C_MPS / F_L1_HZ
 
 _ATTR = "_multipath_facets"
 
@@ -35,30 +39,43 @@ def world_directions(scene, antenna_world_m, sat_ecef_m) -> np.ndarray:
     return d / np.linalg.norm(d, axis=-1, keepdims=True)
 
 
-def cast_paths(options, scene, antenna_world_m, sat_ecef_m, v, state) -> np.ndarray:
-    """Attach ``v.paths`` (ScenePaths, (M, N, K) or (N, K) for one antenna) and return the new state array."""
+def cast_paths(options, scene, antenna_world_m, sat_ecef_m, v, state):
+    """Attach ``v.paths`` (ScenePaths, (M, N, K) or (N, K) for one antenna); returns (state, extra loss dB).
+
+    Blocked satellites: knife-edge diffraction over the nearest edge (diffraction.py); below
+    MAX_LOSS_DB the satellite is ATTENUATED by that loss (a weakened direct signal), else it stays
+    blocked; with a reflected path it is REFLECTED_ONLY (or ATTENUATED with reflections on top)."""
     mode = options.multipath
     if mode not in MULTIPATH_MODES:
         raise ValueError(f"visibility: parameter 'multipath' = {mode!r} (one of {', '.join(MULTIPATH_MODES)})")
     a = np.asarray(antenna_world_m, dtype=np.float64)
     single = a.ndim == 1
-    st = np.atleast_2d(state)
+    st = np.atleast_2d(state).copy()
     cast = np.atleast_2d(v.el_deg) >= options.mask_deg
     blocked = st == int(VisibilityState.BLOCKED)
     only = cast & blocked if mode == "nlos" else cast
     facets = facets_of(scene)
+    dirs = world_directions(scene, a, sat_ecef_m) if (only.any() or (cast & blocked).any()) else None
     if only.any() and len(facets):
-        paths = find_paths(scene, facets, a.reshape(-1, 3), world_directions(scene, a, sat_ecef_m),
+        paths = find_paths(scene, facets, a.reshape(-1, 3), dirs,
                            max_range_m=options.multipath_range_m, max_paths=options.multipath_max_paths, only=only)
     else:
         paths = ScenePaths.empty(st.shape[0], st.shape[1], options.multipath_max_paths)
+    extra_db = np.zeros(st.shape)
+    a2 = a.reshape(-1, 3)
+    for i in np.flatnonzero((cast & blocked).any(axis=1) if options.multipath_diffraction else []):
+        j = np.flatnonzero(cast[i] & blocked[i])
+        loss, _ = edge_loss_db(scene.rays, a2[i], dirs[i, j], L1_WAVELENGTH_M)
+        weak = np.isfinite(loss) & (loss <= MAX_LOSS_DB)
+        extra_db[i, j[weak]] = loss[weak]
+        st[i, j[weak]] = int(VisibilityState.ATTENUATED)
     has = paths.valid.any(axis=-1)
-    st = np.where(blocked & has, int(VisibilityState.REFLECTED_ONLY), st)
+    st = np.where(blocked & has & (st == int(VisibilityState.BLOCKED)), int(VisibilityState.REFLECTED_ONLY), st)
     shortest = np.where(has, np.nanmin(np.where(paths.valid, paths.excess_m, np.inf), axis=-1), 0.0)
     if single:
         paths = ScenePaths(paths.excess_m[0], paths.gamma_co[0], paths.gamma_cross[0], paths.arrival_el_deg[0],
                            paths.rays_cast)
-        st, shortest = st[0], shortest[0]
+        st, shortest, extra_db = st[0], shortest[0], extra_db[0]
     v.extra_path_m = shortest
     v.paths = paths
-    return st.astype(np.int64)
+    return st.astype(np.int64), extra_db

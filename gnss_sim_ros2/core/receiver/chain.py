@@ -47,6 +47,8 @@ class VisibilityOptions:
     multipath: str = "off"
     multipath_range_m: float = 100.0
     multipath_max_paths: int = 3
+    #: knife-edge diffraction of blocked satellites over the nearest edge (multipath modes only)
+    multipath_diffraction: bool = True
 
     @classmethod
     def from_params(cls, p: dict, switches: dict | None = None) -> VisibilityOptions:
@@ -58,23 +60,27 @@ class VisibilityOptions:
                    foliage=sw["foliage"], use_visuals=bool(p.get("use_visuals", False)),
                    multipath=p.get("multipath") or sw.get("multipath", "off"),
                    multipath_range_m=float(p.get("multipath_range_m", 100.0)),
-                   multipath_max_paths=int(p.get("multipath_max_paths", 3)))
+                   multipath_max_paths=int(p.get("multipath_max_paths", 3)),
+                   multipath_diffraction=bool(p.get("multipath_diffraction", True)))
 
     def cast(self, scene, antenna_world_m, sat_ecef_m):
         """(state, attenuation_db, VisibilityResult) of satellites (N, 3) or (M, N, 3) seen from the antenna(s).
 
         ``state`` uses VisibilityState; satellites below the mask are not cast and count as visible (the
         receiver does not track them).  With ``multipath`` on, ``v.paths`` holds the reflected paths
-        (core/multipath/scene_paths.py), blocked satellites with a path are REFLECTED_ONLY and
-        ``v.extra_path_m`` is the shortest path's excess."""
+        (core/multipath/scene_paths.py), blocked satellites diffracted over an edge with a loss below 40 dB are
+        ATTENUATED by it, those with a reflected path REFLECTED_ONLY, and ``v.extra_path_m`` is the shortest
+        path's excess."""
         v = scene.visibility_ecef(antenna_world_m, sat_ecef_m, mask_deg=self.mask_deg,
                                   fresnel_rays=self.fresnel_rays, foliage=self.foliage)
         state = np.where(v.state < 0, int(VisibilityState.VISIBLE), v.state).astype(np.int64)
+        att = v.attenuation_db + v.diffraction_db
         if self.multipath != "off":
             from ..multipath.scene_paths import cast_paths
 
-            state = cast_paths(self, scene, antenna_world_m, sat_ecef_m, v, state)
-        return state, v.attenuation_db + v.diffraction_db, v
+            state, edge_db = cast_paths(self, scene, antenna_world_m, sat_ecef_m, v, state)
+            att = att + edge_db
+        return state, att, v
 
 
 @dataclass
