@@ -5,7 +5,8 @@
 The antenna on the first epochs of the Tsim Sha Tsui drive (../shared/data/hk-tst-2019-118-urban-drive,
 truth path placed 1.8 m above the model's ground), the day's GPS + BeiDou broadcast satellites above
 15 deg, the city model of ../shared/data/hk-tst-city-model (44,928 triangles, 21,314 unique facets).
-Figures per epoch: the visibility cast with multipath off / nlos / full (ms, rays, paths found) for
+Figures per epoch: the visibility cast with multipath off / nlos / full (ms; rays: one line-of-sight ray per
+satellite above the mask, two per reflection candidate, the diffraction edge searches; paths found) for
 several facet ranges, and the receiver chain's step with and without the paths (ms).
 """
 from __future__ import annotations

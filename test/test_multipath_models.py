@@ -182,7 +182,7 @@ def test_roof_edge_diffraction_by_hand():
     antenna_m = np.array([0.0, 0.0, 2.0])
     el = np.arctan2(7.0, 10.0)                        # the ray meets the east wall (x = 10) at z = 9, 1 m below its top
     u = np.array([np.cos(el), 0.0, np.sin(el)])
-    loss, nu = edge_loss_db(scene.rays, antenna_m, u[None], C_MPS / F_L1_HZ, iterations=20)
+    loss, nu, _ = edge_loss_db(scene.rays, antenna_m, u[None], C_MPS / F_L1_HZ, iterations=20)
     # by hand: the edge (10, 0, 10) at 12.81 m, seen 3.67 deg above the ray: h = |AE| sin(theta)
     edge = np.array([10.0, 0.0, 10.0]) - antenna_m
     theta = np.arctan2(8.0, 10.0) - el
@@ -196,5 +196,5 @@ def test_roof_edge_diffraction_by_hand():
     assert float(knife_edge_db(-1.0)) == 0.0
     # deep behind the wall (nothing clear within 15 deg above): no edge
     deep = np.array([np.cos(0.2), 0.0, np.sin(0.2)])
-    loss2, _ = edge_loss_db(scene.rays, np.array([0.0, 0.0, 2.0]), deep[None], C_MPS / F_L1_HZ, max_angle_deg=2.0)
+    loss2, _, _ = edge_loss_db(scene.rays, np.array([0.0, 0.0, 2.0]), deep[None], C_MPS / F_L1_HZ, max_angle_deg=2.0)
     assert np.isnan(loss2[0])

@@ -35,17 +35,18 @@ def _dirs(az, el):
 
 def edge_loss_db(rays, antenna_m, dirs_world, wavelength_m: float, max_angle_deg: float = 15.0,
                  iterations: int = 10):
-    """(loss_db (N,), nu (N,)) of blocked rays from ``antenna_m`` (3,) in unit directions (N, 3) (world frame,
-    z up); ``rays``: the scene's RayScene.  NaN loss: no clear edge within ``max_angle_deg``."""
+    """(loss_db (N,), nu (N,), rays cast) of blocked rays from ``antenna_m`` (3,) in unit directions (N, 3)
+    (world frame, z up); ``rays``: the scene's RayScene.  NaN loss: no clear edge within ``max_angle_deg``."""
     u = np.asarray(dirs_world, dtype=np.float64).reshape(-1, 3)
     n = len(u)
     if n == 0:
-        return np.zeros(0), np.zeros(0)
+        return np.zeros(0), np.zeros(0), 0
     a = np.asarray(antenna_m, dtype=np.float64)
     az = np.arctan2(u[:, 0], u[:, 1])
     el = np.arcsin(np.clip(u[:, 2], -1.0, 1.0))
     top = np.radians(max_angle_deg)
     best_nu = np.full(n, np.inf)
+    cast = 0
     # (direction of the search): elevation up, azimuth left, azimuth right (angle on the cone: cos(el) daz)
     for kind in ("up", "left", "right"):
         def point(theta, kind=kind):
@@ -56,6 +57,7 @@ def edge_loss_db(rays, antenna_m, dirs_world, wavelength_m: float, max_angle_deg
 
         lo, hi = np.zeros(n), np.full(n, top)
         clear_hi = ~rays.occluded(a, point(hi), tnear_m=1e-3)
+        cast += n
         if not clear_hi.any():
             continue
         for _ in range(iterations):
@@ -64,9 +66,10 @@ def edge_loss_db(rays, antenna_m, dirs_world, wavelength_m: float, max_angle_deg
             lo = np.where(blocked, mid, lo)
             hi = np.where(blocked, hi, mid)
         d = rays.hit_distance(a, point(lo), tnear_m=1e-3)
+        cast += n * (iterations + 1)
         ok = clear_hi & np.isfinite(d) & (d > 0)
         h = np.where(ok, np.nan_to_num(d, posinf=0.0) * np.tan(hi), np.inf)
         nu = np.where(ok, h * np.sqrt(2.0 / (wavelength_m * np.where(ok, d, 1.0))), np.inf)
         best_nu = np.minimum(best_nu, nu)
     loss = np.where(np.isfinite(best_nu), knife_edge_db(np.where(np.isfinite(best_nu), best_nu, 0.0)), np.nan)
-    return loss, best_nu
+    return loss, best_nu, cast

@@ -65,7 +65,8 @@ def cast_paths(options, scene, antenna_world_m, sat_ecef_m, v, state):
     a2 = a.reshape(-1, 3)
     for i in np.flatnonzero((cast & blocked).any(axis=1) if options.multipath_diffraction else []):
         j = np.flatnonzero(cast[i] & blocked[i])
-        loss, _ = edge_loss_db(scene.rays, a2[i], dirs[i, j], L1_WAVELENGTH_M)
+        loss, _, n_rays = edge_loss_db(scene.rays, a2[i], dirs[i, j], L1_WAVELENGTH_M)
+        paths.rays_cast += n_rays
         weak = np.isfinite(loss) & (loss <= MAX_LOSS_DB)
         extra_db[i, j[weak]] = loss[weak]
         st[i, j[weak]] = int(VisibilityState.ATTENUATED)
