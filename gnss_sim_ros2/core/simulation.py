@@ -64,7 +64,8 @@ class SimulationSetup:
     multipath: str = ""
     multipath_range_m: float = 100.0
     multipath_max_paths: int = 3
-    multipath_diffraction: bool = True
+    multipath_diffraction: bool = False
+    multipath_bounces: int = 2
     #: the receiver node's other parameters (profile, noise, ionosphere, troposphere, cn0_*, write_nmea_file;
     #: parameters.py); absent ones take the receiver model's defaults
     params: dict = field(default_factory=dict)
@@ -112,6 +113,7 @@ def setup_from_config(cfg, out_dir: Path, trajectory: Trajectory | None = None, 
         materials_file=vis["materials_file"], preset=rcv["preset"], fresnel_rays=vis["fresnel_rays"],
         use_visuals=vis["use_visuals"], multipath=vis["multipath"], multipath_range_m=vis["multipath_range_m"],
         multipath_max_paths=vis["multipath_max_paths"], multipath_diffraction=vis["multipath_diffraction"],
+        multipath_bounces=vis["multipath_bounces"],
         params={k: v for k, v in rcv.items() if k in own},
         marker_name=rcv["marker_name"], seed=rcv["seed"], **extra)
 
@@ -250,7 +252,8 @@ def visibility_options(setup: SimulationSetup) -> VisibilityOptions:
                                           "fresnel_rays": setup.fresnel_rays, "use_visuals": setup.use_visuals,
                                           "multipath": setup.multipath, "multipath_range_m": setup.multipath_range_m,
                                           "multipath_max_paths": setup.multipath_max_paths,
-                                          "multipath_diffraction": setup.multipath_diffraction},
+                                          "multipath_diffraction": setup.multipath_diffraction,
+                                          "multipath_bounces": setup.multipath_bounces},
                                          switches(setup))
 
 

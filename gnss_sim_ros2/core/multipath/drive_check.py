@@ -263,8 +263,8 @@ def city_scene(model_dir, workdir):
 
 
 def run_drive(drive: Drive, scene, provider, nav_files, real_obs, workdir, *, multipath: str = "nlos",
-              diffraction: bool = True, profile: str = "ublox_m8t", mask_deg: float = 15.0, systems: str = "GC",
-              real: dict | None = None) -> dict:
+              diffraction: bool = False, bounces: int = 2, profile: str = "ublox_m8t", mask_deg: float = 15.0,
+              systems: str = "GC", real: dict | None = None) -> dict:
     """The whole check (module docstring): simulate along the drive, RTKLIB on both files, the metrics.
 
     ``real``: the real file's part from a previous call (``out["real_part"]``), to skip recomputing it."""
@@ -274,11 +274,12 @@ def run_drive(drive: Drive, scene, provider, nav_files, real_obs, workdir, *, mu
 
     workdir = Path(workdir)
     t_s = np.asarray(drive.t - drive.t[0], dtype=float)
-    setup = SimulationSetup(start=drive.t[0], duration_s=float(t_s[-1]), interval_s=1.0, out_dir=workdir / multipath,
+    setup = SimulationSetup(start=drive.t[0], duration_s=float(t_s[-1]), interval_s=1.0,
+                            out_dir=workdir / f"{multipath}_{int(diffraction)}_{bounces}",
                             trajectory=Trajectory(t_s, drive.antenna_world_m, "world"), systems=systems,
                             elevation_mask_deg=mask_deg, source="broadcast", nav_files=list(nav_files), scene=scene,
                             ephemeris={"broadcast": (provider, list(nav_files))}, multipath=multipath,
-                            multipath_diffraction=diffraction, params={"profile": profile},
+                            multipath_diffraction=diffraction, multipath_bounces=bounces, params={"profile": profile},
                             switches={"ionosphere": "klobuchar"})
     res = run_simulation(setup)
     times = drive.times_np

@@ -58,7 +58,8 @@ def cast_paths(options, scene, antenna_world_m, sat_ecef_m, v, state):
     dirs = world_directions(scene, a, sat_ecef_m) if (only.any() or (cast & blocked).any()) else None
     if only.any() and len(facets):
         paths = find_paths(scene, facets, a.reshape(-1, 3), dirs,
-                           max_range_m=options.multipath_range_m, max_paths=options.multipath_max_paths, only=only)
+                           max_range_m=options.multipath_range_m, max_paths=options.multipath_max_paths, only=only,
+                           bounces=options.multipath_bounces)
     else:
         paths = ScenePaths.empty(st.shape[0], st.shape[1], options.multipath_max_paths)
     extra_db = np.zeros(st.shape)

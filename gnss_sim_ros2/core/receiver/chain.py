@@ -48,7 +48,9 @@ class VisibilityOptions:
     multipath_range_m: float = 100.0
     multipath_max_paths: int = 3
     #: knife-edge diffraction of blocked satellites over the nearest edge (multipath modes only)
-    multipath_diffraction: bool = True
+    multipath_diffraction: bool = False
+    #: 1: single bounces; 2: also double bounces between facing walls
+    multipath_bounces: int = 2
 
     @classmethod
     def from_params(cls, p: dict, switches: dict | None = None) -> VisibilityOptions:
@@ -61,7 +63,8 @@ class VisibilityOptions:
                    multipath=p.get("multipath") or sw.get("multipath", "off"),
                    multipath_range_m=float(p.get("multipath_range_m", 100.0)),
                    multipath_max_paths=int(p.get("multipath_max_paths", 3)),
-                   multipath_diffraction=bool(p.get("multipath_diffraction", True)))
+                   multipath_diffraction=bool(p.get("multipath_diffraction", False)),
+                   multipath_bounces=int(p.get("multipath_bounces", 2)))
 
     def cast(self, scene, antenna_world_m, sat_ecef_m):
         """(state, attenuation_db, VisibilityResult) of satellites (N, 3) or (M, N, 3) seen from the antenna(s).
