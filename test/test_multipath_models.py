@@ -224,3 +224,13 @@ def test_double_bounce_between_the_canyon_walls_by_hand():
     assert both.gamma_co[0, 0, k] == pytest.approx(co * co + x * x, abs=1e-9)
     with pytest.raises(ValueError, match="bounces"):
         find_paths(scene, facets, antenna_m[None], u[None, None], bounces=3)
+
+
+def test_bandlimited_correlation_closed_form_matches_the_integral():
+    # R_B(tau) = int_{-B/2}^{B/2} sinc^2(f) cos(2 pi f tau) df / R_B(0), by quadrature at B = 2 chip rates
+    f = np.linspace(-1.0, 1.0, 200001)
+    w = np.sinc(f) ** 2
+    tau = np.array([0.0, 0.25, 0.5, 1.0, 1.5])
+    quad = np.array([np.trapezoid(w * np.cos(2 * np.pi * f * t), f) for t in tau])
+    np.testing.assert_allclose(dll.correlation(tau, 2.0), quad / quad[0], atol=1e-5)
+    np.testing.assert_allclose(dll.correlation(tau, 400.0), np.maximum(1 - np.abs(tau), 0), atol=3e-3)

@@ -7,7 +7,8 @@ reflections i (relative amplitude a_i, code delay delta_i chips, carrier phase p
 
 with R_B the code's autocorrelation after the front-end filter: the BPSK triangle 1 - |tau| (infinite
 bandwidth), or its band-limited form for an ideal (brick-wall) double-sided bandwidth B [chips^-1 units:
-B / chip rate]:  R_B(tau) = int_{-B/2}^{B/2} sinc^2(f) cos(2 pi f tau) df  (Betz, Engineering
+B / chip rate]:  R_B(tau) = int_{-B/2}^{B/2} sinc^2(f) cos(2 pi f tau) df, in closed form with the sine
+integral (_bandlimited_table) (Betz, Engineering
 Satellite-Based Navigation and Timing, 2016, ch. 19; the spectrum of a BPSK-R code is sinc^2).
 
 - Carrier: the PLL locks to the composite phase at the code lock point, theta = arg R_c(eps); the carrier
@@ -26,21 +27,29 @@ from __future__ import annotations
 import functools
 
 import numpy as np
+from scipy.special import sici
 
 #: tau grid [chips] of the band-limited correlation table
 _TAU_MAX = 3.0
 _TAU_STEP = 1e-3
 
 
+def _h(a, half_band):
+    """int_{-F}^{F} (1 - cos(2 pi a f)) / (pi f)^2 df = (4|a| / pi) [Si(X) - (1 - cos X) / X], X = 2 pi |a| F."""
+    x = 2.0 * np.pi * np.abs(a) * half_band
+    si, _ = sici(x)
+    safe = np.where(x > 0, x, 1.0)
+    return np.where(x > 0, 4.0 * np.abs(a) / np.pi * (si - (1.0 - np.cos(x)) / safe), 0.0)
+
+
 @functools.lru_cache(maxsize=16)
 def _bandlimited_table(bandwidth_chips: float):
+    """R_B on a tau grid, closed form: with sinc^2(f) = (1 - cos 2 pi f) / (2 (pi f)^2),
+    R_B(tau) = -H(tau) / 2 + H(tau + 1) / 4 + H(tau - 1) / 4 (H: :func:`_h`, F = B / 2), which tends to
+    1 - |tau| as B grows."""
     tau = np.arange(-_TAU_MAX, _TAU_MAX + _TAU_STEP / 2, _TAU_STEP)
-    f = np.linspace(-bandwidth_chips / 2, bandwidth_chips / 2, int(max(2001, 400 * bandwidth_chips)) | 1)
-    w = np.sinc(f) ** 2
-    df = f[1] - f[0]
-    r = np.empty_like(tau)
-    for k in range(0, len(tau), 1000):            # blocks: (1000, F) at most
-        r[k:k + 1000] = np.cos(2 * np.pi * np.outer(tau[k:k + 1000], f)) @ w * df
+    f = bandwidth_chips / 2.0
+    r = -0.5 * _h(tau, f) + 0.25 * _h(tau + 1.0, f) + 0.25 * _h(tau - 1.0, f)
     return tau, r / np.interp(0.0, tau, r)         # normalised to R(0) = 1
 
 
@@ -65,7 +74,7 @@ def composite(tau_chips, amp, delay_chips, phase_rad, bandwidth_chips=np.inf):
 
 
 def tracking_error(amp, delay_chips, phase_rad, spacing_chips: float, bandwidth_chips: float = np.inf,
-                   iterations: int = 40):
+                   iterations: int = 32):
     """(code error [chips], carrier phase error [rad], composite amplitude) of signals (N, P paths).
 
     Path 0 is usually the line of sight (delay 0; amplitude 0 when blocked); delays are relative to it.
@@ -79,7 +88,11 @@ def tracking_error(amp, delay_chips, phase_rad, spacing_chips: float, bandwidth_
     n = a.shape[0]
     # peak of |R_c| on a grid over the paths' span, then the discriminator zero next to it
     lo, hi = np.min(dl, axis=1) - 1.0, np.max(dl, axis=1) + 1.0
-    grid = lo[:, None] + (hi - lo)[:, None] * np.linspace(0.0, 1.0, 301)[None, :]
+    # grid step below d / 4 (and 0.05 chip): the grid's peak lies within d / 2 of the true one, so the
+    # discriminator changes sign inside the bracket below
+    step = min(d / 4.0, 0.05)
+    n_grid = int(min(np.ceil(float(np.max(hi - lo)) / step), 4000)) + 1
+    grid = lo[:, None] + (hi - lo)[:, None] * np.linspace(0.0, 1.0, n_grid)[None, :]
     mag = np.abs(composite(grid, a, dl, ph, bandwidth_chips))
     tau_p = grid[np.arange(n), np.argmax(mag, axis=1)]
     theta = np.angle(composite(tau_p[:, None], a, dl, ph, bandwidth_chips)[:, 0])
