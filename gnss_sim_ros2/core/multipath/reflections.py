@@ -21,7 +21,7 @@ Only facets whose plane lies within ``max_range_m`` of the antenna and whose tri
 that distance are tried: a scene without facets in range costs one vectorised distance test.  Per
 satellite the ``max_paths`` strongest candidates by |R_co|^2 + |R_cross|^2 are kept.
 
-Double bounces between two facing walls (``bounces=2``, :func:`_double_paths`) on request.
+Double bounces between two facing walls within DOUBLE_RANGE_M (``bounces=2``, :func:`_double_paths`).
 Not modelled: other double and higher-order bounces, diffuse scattering and surface roughness, the
 frequency dependence of the coefficients across bands (L1 values used), moving reflectors.
 """
@@ -229,6 +229,9 @@ def _keep_strongest(out: ScenePaths, ii, jj, excess, g_co, g_x, el_arr, max_path
 #: facing walls: vertical facets (|n_z| below this) whose normals are opposite within this cosine
 _WALL_NZ_MAX = 0.3
 _FACING_COS = -0.95
+#: walls farther than this [m] take no part in double bounces (the pairs grow as the square of the facets in
+#: range; street canyons are 10-60 m wide)
+DOUBLE_RANGE_M = 60.0
 
 
 def _reaches(scene, origin, target):
@@ -249,7 +252,7 @@ def _double_paths(scene, facets: Facets, a, u_all, max_range_m, only):
     m, n = u_all.shape[:2]
     rows = []
     for i in range(m):
-        sel = facets.near(a[i], max_range_m)
+        sel = facets.near(a[i], min(max_range_m, DOUBLE_RANGE_M))
         sel = sel[np.abs(facets.normal[sel, 2]) < _WALL_NZ_MAX]
         sats = np.arange(n) if only is None else np.flatnonzero(only[i])
         if len(sel) < 2 or len(sats) == 0:
