@@ -66,7 +66,7 @@ def test_hk_drive_with_reflections(hk, off_run):
     assert 0.5 <= h_rms <= 2.0 and 0.5 <= h_95 <= 2.0
     assert 0.5 <= _ratio(m, "nlos_fraction") <= 2.0
     assert 0.5 <= _ratio(m, "nlos_median_excess_m") <= 2.0
-    # tracked sets: the acceptance asks recall >= 0.95 and precision >= 0.9; measured 0.83 and 0.80 (README,
+    # tracked sets: the acceptance asks recall >= 0.95 and precision >= 0.9; measured 0.83 and 0.81 (README,
     # not reached): checked at what the model reaches, so that a regression fails
     assert m["recall"] >= 0.8 and m["precision"] >= 0.78
     assert m["recall"] > off_run["recall"] + 0.05                  # reflections bring blocked satellites back

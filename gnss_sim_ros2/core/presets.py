@@ -54,8 +54,10 @@ effects are measured by ``gnss-sim bench`` (README trade table) and
   reflection's Fresnel coefficient and the antenna's LHCP rejection); "full" does it for every satellite
   and passes line of sight + reflections through the DLL/PLL model (code error from the multipath error
   envelope of the profile's correlator spacing and front-end bandwidth).  Cost: one distance test per
-  facet and antenna, plus two rays per geometric candidate (bench/bench_multipath.py for the city);
-  nothing when no facet is within ``multipath_range_m``.  Effect: urban single-point errors of tens of
+  facet and antenna, two rays per single-bounce candidate, three per double bounce; on the Hong Kong
+  city (21,314 facets, 31 satellites) the cast goes from 0.2 ms to 2.6-2.8 ms per epoch ("nlos", 50-100 m)
+  and 2.8-4.4 ms ("full", 50-200 m), bench/bench_multipath.py; nothing when no facet is within
+  ``multipath_range_m``.  Effect: urban single-point errors of tens of
   metres instead of a few, as real receivers show.
 - ``epoch_interval_s``: the epoch interval a run uses when its setup leaves
   it open (``SimulationSetup.interval_s <= 0``, as the benchmark does).  The
