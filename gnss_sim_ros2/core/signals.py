@@ -137,10 +137,10 @@ PROFILES: dict[str, dict[str, list[str]]] = {
         "G": ["1C"], "R": ["1C"], "E": ["1C"], "C": ["2I"], "J": ["1C"], "I": ["5A"],
     },
     # u-blox NEO-M8T / LEA-M8T (timing, single frequency): GPS L1C/A, GLONASS L1OF, Galileo E1B/C, BeiDou B1I,
-    # QZSS L1C/A (u-blox M8 timing product summary UBX-15029852; NEO/LEA-M8T data sheet UBX-15025193, 1.1)
+    # QZSS L1C/A (u-blox NEO/LEA-M8T data sheet, GNSS features; written from the document without re-reading it here)
     "ublox_m8t": {"G": ["1C"], "R": ["1C"], "E": ["1C"], "C": ["2I"], "J": ["1C"]},
     # u-blox ZED-F9P(-02): L1/L2: GPS L1C/A L2C, GLONASS L1OF L2OF, Galileo E1B/C E5b, BeiDou B1I B2I,
-    # QZSS L1C/A L2C (ZED-F9P integration manual UBX-18010802, 1.1 "GNSS signals"); the L2C of GPS/QZSS is
+    # QZSS L1C/A L2C (ZED-F9P integration manual, "GNSS signals"; not re-read here); the L2C of GPS/QZSS is
     # the CL pilot (RINEX 2L, RTKLIB's convert of UBX-RXM-RAWX), Galileo E5b the pilot 7Q
     "ublox_f9p": {"G": ["1C", "2L"], "R": ["1C", "2C"], "E": ["1C", "7Q"], "C": ["2I", "7I"], "J": ["1C", "2L"]},
     # a multi-frequency geodetic receiver
@@ -184,15 +184,15 @@ RECEIVER_TRAITS: dict[str, ReceiverTraits] = {
     # u-blox publishes neither its correlator spacing nor its front-end bandwidth: both are assumptions here.
     # M8T: a ~2 MHz front end around L1 and a 0.5 chip early-late spacing (a narrow correlator gains
     # nothing behind a 2 MHz front end, multipath/dll.py).  Thresholds: the data sheet's -167 dBm tracking /
-    # -160 dBm reacquisition sensitivities (UBX-15025193) are far below what RINEX users see; chosen so that
+    # -160 dBm reacquisition sensitivities (NEO/LEA-M8T data sheet) are far below what RINEX users see; chosen so that
     # NLOS signals of 17-36 dB-Hz, which real M8 receivers in Hong Kong report (physics-anchors.md, Hsu 2018),
     # can be tracked: acquire 22, lose 16 dB-Hz (assumed).
     "ublox_m8t": ReceiverTraits("patch", 0.5, 1.0, 2.0e6, 22.0, 16.0, "",
-                                "u-blox NEO/LEA-M8T data sheet UBX-15025193; spacing, bandwidth, thresholds assumed"),
+                                "u-blox NEO/LEA-M8T data sheet (signals); spacing, bandwidth, thresholds assumed"),
     # F9P: a wider front end per band (4 MHz, assumed) and a 0.2 chip spacing (assumed); no BeiDou GEO
     # (issue 16: real F9P recordings show none); thresholds as the M8T.
     "ublox_f9p": ReceiverTraits("patch", 0.2, 1.0, 4.0e6, 22.0, 16.0, BEIDOU_GEO_PATTERN,
-                                "u-blox ZED-F9P data sheet UBX-17051259; spacing, bandwidth, thresholds assumed"),
+                                "u-blox ZED-F9P integration manual (signals); spacing, bandwidth, thresholds assumed"),
 }
 
 

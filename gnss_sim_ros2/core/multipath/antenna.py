@@ -5,14 +5,15 @@ reflection).  Two patterns, linear interpolation in dB between the tabulated poi
 
 - ``patch``: the generic mass-market patch of receiver/cn0.py (PATCH_GAIN_DBIC, +4 dBic at zenith,
   -4 dBic at 10 deg) for RHCP.  LHCP = RHCP - XPD(el): cross-polar discrimination about 15 dB at
-  zenith falling to 0-3 dB at the horizon, the axial ratio of small ceramic patches (u-blox ANN-MB
-  datasheet UBX-18049862: axial ratio <= 2 dB at zenith, i.e. XPD >= 19 dB; Hannah 2001, fig. 3.6:
-  XPD ~ 0-5 dB near the horizon for a patch).  Below the horizon the back lobe (-15 to -25 dBic).
+  zenith falling to 0-3 dB at the horizon: small ceramic patches have an axial ratio of 2-3 dB at zenith
+  (XPD = 20 log10((AR + 1) / (AR - 1)) = 19-15 dB) that widens towards the horizon (patch data sheets,
+  e.g. u-blox ANN-MB; Hannah 2001, ch. 3; figures from memory, not re-read here).  Below the horizon
+  the back lobe (-15 to -25 dBic).
 - ``choke_ring``: a geodetic choke ring (e.g. Dorne-Margolin / Leica AR25 class): RHCP +5 dBic at
   zenith rolling off to -5 dBic at 5 deg, steeper below the horizon (-25 dBic at -30 deg and below);
   XPD about 25 dB at zenith, 10 dB at 10 deg (Tranquilla et al., "Analysis of a choke ring groundplane
   for multipath control in GPS applications", IEEE Trans. AP 42(7), 1994: -20 dB back/front; NovAtel
-  GNSS-750 datasheet: >= 25 dB front/back ratio).
+  GNSS-750 class data sheets: front/back ratios of 25 dB and more; from memory, not re-read here).
 
 These are representative tables, not one product's measured pattern: stated approximations.
 """
