@@ -81,3 +81,24 @@ def test_full_mode_perturbs_line_of_sight_signals(tmp_path, eph):
     diffs = np.array([db[s] - da[s] for s in common])
     assert np.any(np.abs(diffs) > 0.05)                   # ground and wall bounces on LOS signals
     assert np.all(np.abs(diffs) < 150.0)
+
+
+def test_off_casts_no_path_and_far_facets_cost_no_ray(eph, monkeypatch):
+    from gnss_sim_ros2.core.multipath import reflections
+    from gnss_sim_ros2.core.receiver.chain import VisibilityOptions
+
+    prov = eph["synthetic"][0]
+    st = prov.states(T0, systems="GC")
+    calls = []
+    real = reflections.find_paths
+    monkeypatch.setattr(reflections, "find_paths", lambda *a, **k: calls.append(1) or real(*a, **k))
+    state, att, v = VisibilityOptions(mask_deg=10.0).cast(_scene(), np.array([0.0, 0.0, 2.0]), st.pos_ecef_m)
+    assert not hasattr(v, "paths") and not calls
+    # the whole scene (walls and ground) 5 km away: no facet in range, no ray for reflections, in either mode
+    for mode in ("nlos", "full"):
+        opt = VisibilityOptions(mask_deg=10.0, multipath=mode, multipath_range_m=50.0)
+        state, att, v = opt.cast(_scene(5000.0), np.array([0.0, 0.0, 2.0]), st.pos_ecef_m)
+        assert v.paths.rays_cast == 0 and not v.paths.valid.any()
+    # in the canyon "full" casts and finds paths
+    state, att, v = opt.cast(_scene(), np.array([0.0, 0.0, 2.0]), st.pos_ecef_m)
+    assert v.paths.rays_cast > 0 and v.paths.valid.any()
