@@ -32,6 +32,7 @@ import yaml
 from gnss_sim_ros2.core.vocabulary import (
     EPHEMERIS_SOURCES,
     IONOSPHERE_MODELS,
+    MULTIPATH_MODES,
     PRESET_NAMES,
     PROFILES,
     SYSTEMS,
@@ -182,6 +183,15 @@ NODE_PARAMS: dict[str, list[Param]] = {
         Param("strict_world", False, "a part of the world that cannot be loaded is an error instead of a warning "
               "(CI users)"),
         Param("fresnel_rays", -1, "rays over the first Fresnel zone per satellite (0 off; -1 from preset)", min=-1),
+        Param("multipath", "", "reflections from the scene (core/multipath): off, nlos (blocked satellites "
+              "only), full (every satellite); empty: from preset", choices=("", *MULTIPATH_MODES)),
+        Param("multipath_range_m", 100.0, "facets farther than this from the antenna reflect nothing [m]",
+              min=1.0, max=2000.0),
+        Param("multipath_max_paths", 3, "reflected paths kept per satellite (the strongest)", min=1, max=10),
+        Param("multipath_bounces", 2, "with multipath on: 1 single bounces, 2 also double bounces between facing "
+              "walls", min=1, max=2),
+        Param("multipath_diffraction", False, "with multipath on: blocked satellites diffracted over the nearest roof "
+              "or wall edge (ITU-R P.526 knife edge) are received weakened"),
         Param("tf_timeout_s", 5.0, "wall-clock seconds an epoch waits for the antenna's transform before it is "
               "dropped (and `gnss-sim run` fails, naming the frames)", min=0.1, max=600.0),
     ],
@@ -197,8 +207,10 @@ NODE_PARAMS: dict[str, list[Param]] = {
               "(std_msgs/UInt8MultiArray), e.g. for the rtk node or an outside RTK engine"),
         Param("rtcm_msm", 7, "RTCM3 MSM type: 7 (full resolution, Doppler) or 4", choices=(4, 7)),
         Param("rtcm_station_id", 0, "RTCM3 reference station id (DF003)", min=0, max=4095),
-        Param("cn0_acquire_dbhz", 33.0, "C/N0 above which a signal is acquired [dB-Hz]", min=0.0, max=70.0),
-        Param("cn0_lose_dbhz", 28.0, "C/N0 below which a signal is lost [dB-Hz]", min=0.0, max=70.0),
+        Param("cn0_acquire_dbhz", -1.0, "C/N0 above which a signal is acquired [dB-Hz]; -1: the profile's "
+              "(geodetic 33, ublox 22)", min=-1.0, max=70.0),
+        Param("cn0_lose_dbhz", -1.0, "C/N0 below which a signal is lost [dB-Hz]; -1: the profile's "
+              "(geodetic 28, ublox 16)", min=-1.0, max=70.0),
     ],
     "trajectory": [
         Param("trajectory_file", "", "CSV t_s,e_m,n_m,u_m[,yaw_deg] in the world frame; empty: waypoints"),
@@ -280,10 +292,15 @@ def validate_node(key: str, values: dict, where: str) -> dict:
     file) and the nodes' configure call it.  Returns the normalised values.
     """
     out = {p.name: p.check(values[p.name] if p.name in values else p.default, where) for p in params_of(key)}
-    if key == "receiver" and out["cn0_lose_dbhz"] > out["cn0_acquire_dbhz"]:
-        raise ValueError(f"{where}: parameter 'cn0_lose_dbhz' ({out['cn0_lose_dbhz']}) exceeds "
-                         f"'cn0_acquire_dbhz' ({out['cn0_acquire_dbhz']}): a signal would be lost above the "
-                         f"level at which it is acquired")
+    if key == "receiver":
+        from gnss_sim_ros2.core.signals import traits
+
+        tr = traits(out["profile"])           # -1: the profile's threshold
+        acq = out["cn0_acquire_dbhz"] if out["cn0_acquire_dbhz"] >= 0 else tr.acquisition_cn0_dbhz
+        lose = out["cn0_lose_dbhz"] if out["cn0_lose_dbhz"] >= 0 else tr.tracking_cn0_dbhz
+        if lose > acq:
+            raise ValueError(f"{where}: parameter 'cn0_lose_dbhz' ({lose}) exceeds 'cn0_acquire_dbhz' ({acq}; -1 "
+                             f"means the profile's): a signal would be lost above the level at which it is acquired")
     if key == "trajectory" and len(out["antenna_offset_m"]) != 3:
         raise ValueError(f"{where}: parameter 'antenna_offset_m' needs 3 numbers (x, y, z in base_frame), "
                          f"got {out['antenna_offset_m']!r}")

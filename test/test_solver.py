@@ -160,9 +160,28 @@ def test_outlier_with_one_redundant_satellite_is_no_fix():
     sats, rx = make_sats(10.0, 20.0, 0.0, AZ[:5], EL[:5])
     pr = ranges(sats, rx, sv, 0.0)
     pr[1] += 80.0
-    sol = solve_pvt(sv, sats, pr)
+    sol = solve_pvt(sv, sats, pr, config=SolverConfig(residual_failure="no_fix"))
     assert sol.status == "no_fix"
     assert "chi-square" in sol.reason and "identify" in sol.reason
+
+
+def test_outlier_that_cannot_be_named_keeps_a_flagged_fix_with_a_wider_covariance():
+    """Default residual_failure="fix": a fix wherever four satellites are usable (issue 16), flagged, with the
+    covariance scaled by chi2 / dof."""
+    sv = ["G01", "G02", "G03", "G04", "G05"]
+    sats, rx = make_sats(10.0, 20.0, 0.0, AZ[:5], EL[:5])
+    pr = ranges(sats, rx, sv, 0.0)
+    clean = solve_pvt(sv, sats, pr)
+    pr[1] += 80.0
+    sol = solve_pvt(sv, sats, pr)
+    assert sol.status == "fix" and sol.chi2_ok is False
+    assert "chi-square" in sol.reason and "solution kept" in sol.reason
+    factor = sol.chi2 / 1.0                                       # 5 satellites, 4 unknowns: 1 dof
+    assert factor > 1
+    # (the elevation weights are taken at a position moved by the outlier: 3e-5 relative)
+    np.testing.assert_allclose(np.trace(sol.cov_ecef_m2), factor * np.trace(clean.cov_ecef_m2), rtol=1e-3)
+    unscaled = solve_pvt(sv, sats, pr, config=SolverConfig(scale_covariance=False))
+    np.testing.assert_allclose(unscaled.cov_ecef_m2, clean.cov_ecef_m2, rtol=1e-3)  # weights at a moved position
 
 
 def test_too_few_satellites_no_fix_with_reason():

@@ -76,8 +76,9 @@ def rtklib_observation_copy(obs_path, workdir) -> tuple[Path, list[str]]:
 
 
 def rtklib_solutions(obs_path, nav_paths, systems: str, times: np.ndarray, workdir,
-                     elevation_mask_deg: float = 10.0) -> Solutions:
-    """RTKLIB rnx2rtkp single point solutions (broadcast ionosphere, Saastamoinen) at ``times``."""
+                     elevation_mask_deg: float = 10.0, options: dict | None = None) -> Solutions:
+    """RTKLIB rnx2rtkp single point solutions (broadcast ionosphere, Saastamoinen) at ``times``;
+    ``options``: further rnx2rtkp configuration lines (e.g. {"stats-eratio1": "10000"})."""
     import shutil
     import subprocess
 
@@ -90,7 +91,8 @@ def rtklib_solutions(obs_path, nav_paths, systems: str, times: np.ndarray, workd
     out = workdir / f"{stem}.pos"
     navsys = sum(RTKLIB_NAVSYS[s] for s in set(systems) if s in RTKLIB_NAVSYS)
     opts = {"pos1-posmode": "single", "pos1-elmask": f"{elevation_mask_deg:g}", "pos1-ionoopt": "brdc",
-            "pos1-tropopt": "saas", "pos1-navsys": str(navsys), "out-solformat": "xyz", "out-timesys": "gpst"}
+            "pos1-tropopt": "saas", "pos1-navsys": str(navsys), "out-solformat": "xyz", "out-timesys": "gpst",
+            **(options or {})}
     conf.write_text("".join(f"{a}={b}\n" for a, b in opts.items()))
     obs_in, renamed = rtklib_observation_copy(obs_path, workdir / "input")
     note = (f"{Path(obs_path).name}: BeiDou {', '.join(renamed)} given to RTKLIB as attribute I (RTKLIB 2.4.3 "

@@ -66,6 +66,12 @@ class SimulationSetup:
     rtcm_path: str | None = None
     #: with broadcast ephemeris messages (1019-1046) from the navigation records
     rtcm_ephemeris: bool = True
+    #: reflections from the scene (parameters multipath*, VisibilityOptions); "" from the preset
+    multipath: str = ""
+    multipath_range_m: float = 100.0
+    multipath_max_paths: int = 3
+    multipath_diffraction: bool = False
+    multipath_bounces: int = 2
     #: the receiver node's other parameters (profile, noise, ionosphere, troposphere, cn0_*, write_nmea_file;
     #: parameters.py); absent ones take the receiver model's defaults
     params: dict = field(default_factory=dict)
@@ -113,7 +119,11 @@ def setup_from_config(cfg, out_dir: Path, trajectory: Trajectory | None = None, 
         sp3_files=list(eph["sp3_files"]), clk_files=list(eph["clk_files"]), world_file=world, mesh_file=mesh,
         materials_file=vis["materials_file"], preset=rcv["preset"], fresnel_rays=vis["fresnel_rays"],
         use_visuals=vis["use_visuals"], keep_dynamic_models=vis["keep_dynamic_models"],
-        strict_world=vis["strict_world"], params={k: v for k, v in rcv.items() if k in own},
+        strict_world=vis["strict_world"],
+        multipath=vis["multipath"], multipath_range_m=vis["multipath_range_m"],
+        multipath_max_paths=vis["multipath_max_paths"], multipath_diffraction=vis["multipath_diffraction"],
+        multipath_bounces=vis["multipath_bounces"],
+        params={k: v for k, v in rcv.items() if k in own},
         marker_name=rcv["marker_name"], seed=rcv["seed"], **extra)
 
 
@@ -254,7 +264,12 @@ def visibility_options(setup: SimulationSetup) -> VisibilityOptions:
     return VisibilityOptions.from_params({"elevation_mask_deg": setup.elevation_mask_deg, "preset": setup.preset,
                                           "fresnel_rays": setup.fresnel_rays, "use_visuals": setup.use_visuals,
                                           "keep_dynamic_models": setup.keep_dynamic_models,
-                                          "strict_world": setup.strict_world}, switches(setup))
+                                          "strict_world": setup.strict_world,
+                                          "multipath": setup.multipath, "multipath_range_m": setup.multipath_range_m,
+                                          "multipath_max_paths": setup.multipath_max_paths,
+                                          "multipath_diffraction": setup.multipath_diffraction,
+                                          "multipath_bounces": setup.multipath_bounces},
+                                         switches(setup))
 
 
 def _interval_s(setup: SimulationSetup, sw: dict) -> float:
@@ -331,7 +346,7 @@ def run_simulation(setup: SimulationSetup) -> SimulationResult:
             for b in range(len(t_rel)):
                 i = i0 + b
                 t, ecef, states, vis_state, att = block.epoch(b)
-                ep = chain.step(t, ecef, states, vis_state, att)
+                ep = chain.step(t, ecef, states, vis_state, att, multipath=block.paths_of(b))
                 obs, sol = ep.obs, ep.sol
                 if sol.is_fix:
                     fix_est.append(sol.pos_ecef_m)
@@ -388,9 +403,17 @@ class _EpochBlock:
         # the receiver drops satellites below 0 deg itself (exact cut); 1 deg margin here
         self.use = (row >= 0) & (el > -1.0)
         self.row, self.states = row, st
-        self.vis = self.att = None
+        self.vis = self.att = self.paths = None
         if scene is not None:
-            self.vis, self.att, _ = vis_opt.cast(scene, world, sat)
+            self.vis, self.att, v = vis_opt.cast(scene, world, sat)
+            self.paths = getattr(v, "paths", None)          # reflections (VisibilityOptions.multipath)
+
+    def paths_of(self, b: int):
+        """The reflected paths of epoch b's satellites (rows as in :meth:`epoch`), or None."""
+        if self.paths is None or self.states is None:
+            return None
+        cols = np.flatnonzero(self.use[b])
+        return self.paths.take((b, cols))
 
     def epoch(self, b: int):
         """(t, antenna ECEF, SatelliteStates, visibility state or None, attenuation or None) of epoch b."""

@@ -1,10 +1,11 @@
 """Polar sky plot (PNG, matplotlib Agg): satellites by system and line-of-sight state, scene skyline.
 
 North up, azimuth clockwise, zenith at the centre, horizon at the rim (radius = 90 - elevation).
-Visible satellites are filled discs, attenuated ones (foliage) hollow discs, blocked ones crosses.  The
-scene is drawn either from the casts over the whole sky (``sky``: the blocked cells of
-``Scene.sky_grid`` shaded grey, foliage cells green, so open sky under an overhang stays white) or as
-skylines (``horizon`` / ``foliage_horizon``: everything below the highest blocked elevation shaded).
+Visible satellites are filled discs, attenuated ones (foliage, diffraction) hollow discs, those received
+only by a reflection (core/multipath) hollow diamonds, blocked ones crosses.  The scene is drawn either
+from the casts over the whole sky (``sky``: the blocked cells of ``Scene.sky_grid`` shaded grey, foliage
+cells green, so open sky under an overhang stays white) or as skylines (``horizon`` / ``foliage_horizon``:
+everything below the highest blocked elevation shaded).
 """
 from __future__ import annotations
 
@@ -18,7 +19,7 @@ SYSTEM_NAMES = {"G": "GPS", "R": "GLONASS", "E": "Galileo", "C": "BeiDou", "J": 
 
 def plot_skyplot(png_path, sv, az_deg, el_deg, state, horizon=None, foliage_horizon=None, mask_deg=None,
                  title: str | None = None, sky=None) -> None:
-    """Write a sky plot.  ``state``: names ("visible", "blocked", "attenuated") or STATE_* codes.
+    """Write a sky plot.  ``state``: names ("visible", "blocked", "attenuated", "reflected") or STATE_* codes.
 
     ``horizon`` / ``foliage_horizon``: (az_deg, el_deg) skyline arrays, e.g. from ``Scene.horizon_profile``;
     ``sky``: (az_edges_deg, el_edges_deg, opaque, foliage) from ``Scene.sky_grid`` (drawn instead of them).
@@ -83,6 +84,8 @@ def plot_skyplot(png_path, sv, az_deg, el_deg, state, horizon=None, foliage_hori
             ax.plot(th, r, marker="x", ms=9, mew=2.0, color=color, ls="none")
         elif state_name == "attenuated":
             ax.plot(th, r, marker="o", ms=11, mfc="none", mew=2.0, color=color, ls="none")
+        elif state_name == "reflected":
+            ax.plot(th, r, marker="D", ms=9, mfc="none", mew=2.0, color=color, ls="none")
         else:
             ax.plot(th, r, marker="o", ms=11, color=color, ls="none")
         ax.annotate(s, (th, r), textcoords="offset points", xytext=(7, 5), fontsize=7,
@@ -93,6 +96,7 @@ def plot_skyplot(png_path, sv, az_deg, el_deg, state, horizon=None, foliage_hori
                for k in systems]
     handles += [Line2D([], [], marker="o", ls="none", color="k", label="visible"),
                 Line2D([], [], marker="o", ls="none", mfc="none", color="k", label="attenuated"),
+                Line2D([], [], marker="D", ls="none", mfc="none", color="k", label="reflected only"),
                 Line2D([], [], marker="x", ls="none", color="k", label="blocked")]
     ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.04), ncol=5, fontsize=8, frameon=False)
     if title:

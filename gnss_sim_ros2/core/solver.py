@@ -21,6 +21,12 @@ chi-square law with n - m degrees of freedom when the sigmas are right; it is
 tested at the false-alarm probability ``chi2_prob_false_alarm``.  On failure
 the satellite with the largest standardised residual (w-test, Baarda) is
 excluded and the epoch re-solved, up to ``max_exclusions`` times (RAIM FDE).
+If the test still fails (or there is too little redundancy to name the faulty
+satellite) the solution is kept and flagged (``residual_failure="fix"``, the
+default: a fix wherever four satellites are usable, as receivers report) or
+dropped (``"no_fix"``, RTKLIB's valsol()).  The covariance is scaled by the
+a-posteriori variance factor max(1, chi2 / dof) (``scale_covariance``), so a
+fix from inconsistent ranges reports a larger NavSatFix covariance.
 
 Velocity and clock drift from range rates (Doppler) by least squares:
 ``rate = e . (v_sat - v_rx) + c (ddt_rx - ddt_sat)`` with e the unit vector
@@ -69,6 +75,14 @@ class SolverConfig:
     check_residuals: bool = True
     chi2_prob_false_alarm: float = 1e-3   # RTKLIB valsol(): chi-square at alpha = 0.001
     max_exclusions: int = 2
+    #: when the residual test still fails after the exclusions (or cannot name the faulty satellite):
+    #: "fix" keeps the solution (flagged in ``reason``, ``chi2_ok`` False, covariance scaled), as u-blox and
+    #: other mass-market receivers report a position wherever four satellites are usable; "no_fix" drops it
+    #: (RTKLIB valsol() behaviour)
+    residual_failure: str = "fix"
+    #: scale the covariance by the a-posteriori variance factor max(1, chi2 / dof) (residuals larger than
+    #: the sigmas say widen the reported covariance, as receivers' NavSatFix covariances do)
+    scale_covariance: bool = True
     max_gdop: float = 30.0                # RTKLIB default maxgdop
     #: systems whose clock is that of another system (QZSST and SBAS network time are GPST)
     clock_groups: Mapping[str, str] = field(default_factory=lambda: {"J": "G", "S": "G"})
@@ -300,9 +314,13 @@ def solve_pvt(sv, sat_pos_ecef_m, pseudorange_m, *, sat_clock_bias_s=None, iono_
         if len(excluded) >= cfg.max_exclusions or res["dof"] < 2:
             why = ("no exclusion left" if len(excluded) >= cfg.max_exclusions
                    else "too few satellites to identify the faulty one")
-            res["status"] = "no_fix"
-            res["reason"] = (f"chi-square residual test failed: {res['chi2']:.1f} > {res['chi2_threshold']:.1f} "
-                             f"({res['dof']} dof), {why}")
+            msg = (f"chi-square residual test failed: {res['chi2']:.1f} > {res['chi2_threshold']:.1f} "
+                   f"({res['dof']} dof), {why}")
+            if cfg.residual_failure == "no_fix":
+                res["status"] = "no_fix"
+                res["reason"] = msg
+            else:
+                notes.append(msg + "; solution kept")
             break
         worst = res["worst"]
         excluded.append(str(sv_arr[worst]))
@@ -438,6 +456,8 @@ def _solve_position(sv, sat, y, valid, groups, sig_given, cn0, x, cfg, fac=None)
         worst = int(idx[int(np.argmax(wstat >= np.max(wstat) * (1.0 - 1e-6)))])
     used = np.zeros(n, bool)
     used[idx] = True
+    if cfg.scale_covariance and dof > 0:
+        cov = cov * max(1.0, chi2 / dof)        # a-posteriori variance factor (residuals beyond the sigmas)
     return {"status": "fix", "reason": "", "pos": x, "clk": {s: float(c) for s, c in zip(clock_sys, clk)},
             "clock_systems": clock_sys, "used": used, "v": v, "el": el, "az": _azimuth(enu, n), "cov": cov,
             "dops": dops, "gdop": dops[0], "chi2": chi2, "chi2_threshold": thr, "dof": dof, "iter": it,

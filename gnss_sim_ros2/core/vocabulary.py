@@ -22,7 +22,7 @@ class VisibilityState(enum.IntEnum):
 
 
 #: receiver profiles (core/signals.py PROFILES)
-PROFILES = ("geodetic", "single_frequency")
+PROFILES = ("geodetic", "single_frequency", "ublox_m8t", "ublox_f9p")
 #: where orbits come from (parameter source)
 EPHEMERIS_SOURCES = ("synthetic", "broadcast", "sp3", "download")
 #: true ionosphere models (core/receiver/engine.py)
@@ -33,6 +33,8 @@ ORBIT_MODES = ("broadcast", "precise")
 TRANSMIT_TIME_MODES = ("recompute", "expansion")
 FOLIAGE_MODES = ("path", "touch")
 PRESET_NAMES = ("fast", "balanced", "accurate")
+#: scene multipath: none, reflections of blocked satellites only, every satellite (core/multipath)
+MULTIPATH_MODES = ("off", "nlos", "full")
 
 
 def check_systems(systems: str, where: str) -> str:

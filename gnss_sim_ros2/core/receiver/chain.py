@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from ..presets import preset as preset_switches
+from ..signals import traits
 from ..solver import PvtSolution, SolverConfig
 from ..time import GnssTime
 from ..vocabulary import VisibilityState
@@ -45,6 +46,14 @@ class VisibilityOptions:
     #: world loading: non-static models kept as obstacles; unloadable parts an error
     keep_dynamic: bool = False
     strict_world: bool = False
+    #: reflections from the scene (core/multipath): "off", "nlos" (blocked satellites only) or "full"
+    multipath: str = "off"
+    multipath_range_m: float = 100.0
+    multipath_max_paths: int = 3
+    #: knife-edge diffraction of blocked satellites over the nearest edge (multipath modes only)
+    multipath_diffraction: bool = False
+    #: 1: single bounces; 2: also double bounces between facing walls
+    multipath_bounces: int = 2
 
     @classmethod
     def from_params(cls, p: dict, switches: dict | None = None) -> VisibilityOptions:
@@ -55,17 +64,31 @@ class VisibilityOptions:
                    fresnel_rays=int(fresnel if fresnel >= 0 else sw["fresnel_rays"]),
                    foliage=sw["foliage"], use_visuals=bool(p.get("use_visuals", False)),
                    keep_dynamic=bool(p.get("keep_dynamic_models", False)),
-                   strict_world=bool(p.get("strict_world", False)))
+                   strict_world=bool(p.get("strict_world", False)),
+                   multipath=p.get("multipath") or sw.get("multipath", "off"),
+                   multipath_range_m=float(p.get("multipath_range_m", 100.0)),
+                   multipath_max_paths=int(p.get("multipath_max_paths", 3)),
+                   multipath_diffraction=bool(p.get("multipath_diffraction", False)),
+                   multipath_bounces=int(p.get("multipath_bounces", 2)))
 
     def cast(self, scene, antenna_world_m, sat_ecef_m):
         """(state, attenuation_db, VisibilityResult) of satellites (N, 3) or (M, N, 3) seen from the antenna(s).
 
         ``state`` uses VisibilityState; satellites below the mask are not cast and count as visible (the
-        receiver does not track them)."""
+        receiver does not track them).  With ``multipath`` on, ``v.paths`` holds the reflected paths
+        (core/multipath/scene_paths.py), blocked satellites diffracted over an edge with a loss below 40 dB are
+        ATTENUATED by it, those with a reflected path REFLECTED_ONLY, and ``v.extra_path_m`` is the shortest
+        path's excess."""
         v = scene.visibility_ecef(antenna_world_m, sat_ecef_m, mask_deg=self.mask_deg,
                                   fresnel_rays=self.fresnel_rays, foliage=self.foliage)
         state = np.where(v.state < 0, int(VisibilityState.VISIBLE), v.state).astype(np.int64)
-        return state, v.attenuation_db + v.diffraction_db, v
+        att = v.attenuation_db + v.diffraction_db
+        if self.multipath != "off":
+            from ..multipath.scene_paths import cast_paths
+
+            state, edge_db = cast_paths(self, scene, antenna_world_m, sat_ecef_m, v, state)
+            att = att + edge_db
+        return state, att, v
 
 
 @dataclass
@@ -107,9 +130,11 @@ class ChainSettings:
               "noise": bool(p.get("noise", True)) and bool(sw["noise"])}
         if "profile" in p:
             kw["profile"] = p["profile"]
-        if "cn0_acquire_dbhz" in p:
-            kw["tracking"] = TrackingConfig(acquisition_cn0_dbhz=p["cn0_acquire_dbhz"],
-                                            tracking_cn0_dbhz=p["cn0_lose_dbhz"])
+        acq, lose = p.get("cn0_acquire_dbhz", -1.0), p.get("cn0_lose_dbhz", -1.0)
+        if acq >= 0 or lose >= 0:        # negative: the profile's thresholds (signals.RECEIVER_TRAITS)
+            tr = traits(p.get("profile", "geodetic"))
+            kw["tracking"] = TrackingConfig(acquisition_cn0_dbhz=acq if acq >= 0 else tr.acquisition_cn0_dbhz,
+                                            tracking_cn0_dbhz=lose if lose >= 0 else tr.tracking_cn0_dbhz)
         kw.update({k: v for k, v in (receiver_overrides or {}).items() if v is not None and v != ""})
         out_dir = p.get("output_dir", "")
         return cls(receiver=ReceiverConfig(**kw), solver=SolverConfig(elevation_mask_deg=p["elevation_mask_deg"]),
@@ -202,7 +227,8 @@ class ReceiverChain:
 
     # ------------------------------------------------------------------ one epoch
     def step(self, t: GnssTime, antenna_ecef_m, states, vis_state=None, attenuation_db=None,
-             antenna_vel_ecef_mps=None) -> EpochProducts:
+             antenna_vel_ecef_mps=None, multipath=None) -> EpochProducts:
+        """One epoch; ``multipath``: the reflected paths of the states' rows (VisibilityOptions.cast) or None."""
         ecef = np.asarray(antenna_ecef_m, dtype=float)
         if antenna_vel_ecef_mps is None and self._pos_prev is not None:
             dt = float(t - self._pos_prev[0])
@@ -210,7 +236,8 @@ class ReceiverChain:
         self._pos_prev = (t, ecef)
         if self.rx is None:
             self.rx = self._receiver(states)
-        obs = self.rx.epoch(t, ecef, states, vis_state, attenuation_db, antenna_vel_ecef_mps=antenna_vel_ecef_mps)
+        obs = self.rx.epoch(t, ecef, states, vis_state, attenuation_db, antenna_vel_ecef_mps=antenna_vel_ecef_mps,
+                            multipath=multipath)
         sol = position_fix(obs, self.settings.receiver.profile, self.prior_ecef_m, self.settings.solver)
         self.epochs += 1
         if sol.is_fix:

@@ -42,6 +42,7 @@ IS-GPS-200N 20.3.3.3.3, RTKLIB manual E.5):
 """
 from __future__ import annotations
 
+import re
 import warnings
 from dataclasses import dataclass, field
 
@@ -93,9 +94,14 @@ class ReceiverConfig:
     transmit_time: str = "recompute"
     light_time_iterations: int = 2
     seed: int = 1
-    #: DLL: noise bandwidth [Hz], early-late spacing [chips], integration [s]
-    dll_bn_hz: float = 0.5
-    dll_spacing_chips: float = 0.2
+    #: DLL: noise bandwidth [Hz], early-late spacing [chips] (None: the profile's, signals.RECEIVER_TRAITS)
+    dll_bn_hz: float | None = None
+    dll_spacing_chips: float | None = None
+    #: antenna pattern for reflections (multipath/antenna.py), double-sided front-end bandwidth [Hz],
+    #: satellites not tracked (regular expression on the RINEX id); None: the profile's
+    antenna: str | None = None
+    frontend_bandwidth_hz: float | None = None
+    excluded_svs: str | None = None
     #: code multipath/residual model (see module doc) [m], correlation time [s]; checked on OPEC 2022-001:
     #: the scatter of each satellite's code residual about its own mean is 0.47-0.69 m RMS per system for the
     #: real NETR9 and 0.65 m for these values with the DLL noise below (test_receiver_acceptance), so kept
@@ -114,7 +120,8 @@ class ReceiverConfig:
     #: hardware code biases [m] (core/receiver/hardware_bias.py); None: the table of a named profile
     code_bias_m: dict | None = None
     cn0_noise_db: float = 0.3
-    tracking: TrackingConfig = field(default_factory=TrackingConfig)
+    #: acquisition / loss-of-lock thresholds; None: the profile's (signals.RECEIVER_TRAITS)
+    tracking: TrackingConfig | None = None
     clock: ClockConfig = field(default_factory=ClockConfig)
     link_budget: cn0_model.LinkBudget = field(default_factory=cn0_model.LinkBudget)
 
@@ -134,6 +141,20 @@ class ReceiverConfig:
             named = self.profile if isinstance(self.profile, str) else None
             self.code_bias_m = hardware_bias.PROFILE_CODE_BIAS_M.get(named, {})
         self.code_bias_m = hardware_bias.validate(self.code_bias_m)
+        tr = sig.traits(self.profile if isinstance(self.profile, str) else "")
+        for name in ("dll_bn_hz", "dll_spacing_chips", "antenna", "frontend_bandwidth_hz", "excluded_svs"):
+            if getattr(self, name) is None:
+                setattr(self, name, getattr(tr, name))
+        if self.tracking is None:
+            self.tracking = TrackingConfig(acquisition_cn0_dbhz=tr.acquisition_cn0_dbhz,
+                                           tracking_cn0_dbhz=tr.tracking_cn0_dbhz)
+        from ..multipath.antenna import PATTERNS
+
+        if self.antenna not in PATTERNS:
+            raise ValueError(f"receiver: parameter 'antenna' = {self.antenna!r} (one of {PATTERNS})")
+        if not (self.frontend_bandwidth_hz > 0 and 0 < self.dll_spacing_chips <= 1):
+            raise ValueError("receiver: 'frontend_bandwidth_hz' must be > 0 and 'dll_spacing_chips' in (0, 1]")
+        self._excluded = re.compile(self.excluded_svs) if self.excluded_svs else None
         if isinstance(self.profile, str):
             self.profile = sig.profile(self.profile)
         else:
@@ -270,7 +291,9 @@ class Receiver:
         hit = self._keep_cache.get(key)
         if hit is None:
             cfg = self.cfg
-            hit = np.array([sv[0] in cfg.systems and sv[0] in cfg.profile for sv in sv_all.tolist()], dtype=bool)
+            ex = cfg._excluded
+            hit = np.array([sv[0] in cfg.systems and sv[0] in cfg.profile and not (ex and ex.fullmatch(sv))
+                            for sv in sv_all.tolist()], dtype=bool)
             if len(self._keep_cache) > 64:
                 self._keep_cache.clear()
             self._keep_cache[key] = hit
@@ -283,11 +306,12 @@ class Receiver:
         return self._geo
 
     def epoch(self, t: GnssTime, antenna_ecef_m, states: SatelliteStates, vis_state=None, attenuation_db=None,
-              antenna_vel_ecef_mps=None) -> EpochObservations:
+              antenna_vel_ecef_mps=None, multipath=None) -> EpochObservations:
         """Observables at epoch tag ``t`` (GPS time on the receiver's clock).
 
         ``states``: satellites at ``t`` (rows); ``vis_state``/``attenuation_db``: per row
-        (None: all visible); ``antenna_ecef_m``: (3,) antenna phase centre.
+        (None: all visible); ``antenna_ecef_m``: (3,) antenna phase centre; ``multipath``: reflected paths
+        per row (multipath.reflections.ScenePaths of arrays (N, K)) or None.
         """
         cfg = self.cfg
         rx = np.asarray(antenna_ecef_m, dtype=float)
@@ -310,6 +334,7 @@ class Receiver:
         keep &= el > 0.0
         st = states.select(keep)
         az, el, vis, att = az[keep], el[keep], vis[keep], att[keep]
+        paths = multipath.take(keep) if multipath is not None and multipath.valid.any() else None
         svs = np.asarray(st.sv)
         n = len(svs)
 
@@ -363,7 +388,22 @@ class Receiver:
         else:
             cn0_meas = cn0
         vis_j = vis[sat_i]
+        mp_err = None
+        if paths is not None:
+            mp_err = self._scene_multipath(paths, sat_i, vis_j, att[sat_i], el_j, chip, lam)
+            if mp_err is not None:
+                rows_mp, err = mp_err
+                # composite amplitude relative to the unobstructed line of sight replaces the obstruction loss
+                delta = cn0_meas - cn0                     # the C/N0 estimate's noise, drawn above
+                cn0 = cn0.copy()
+                cn0[rows_mp] += att[sat_i][rows_mp] + 20.0 * np.log10(np.maximum(err.amplitude, 1e-6))
+                cn0_meas = cn0 + delta
         line_ok = (vis_j == VISIBLE) | (vis_j == ATTENUATED)
+        if mp_err is not None:
+            # no line of sight, a reflected path: tracked if strong enough (thresholds with hysteresis, tracking.py);
+            # REFLECTED_ONLY without the paths (a caller that has only the state) stays untracked
+            nlos_rows = mp_err[0][mp_err[1].nlos]
+            line_ok[nlos_rows] |= vis_j[nlos_rows] == REFLECTED_ONLY
         line_ok &= el_j >= cfg.elevation_mask_deg
         sv_j = rows.sv_j
         trk = self.tracker.update(t, sv_j, codes, cn0, visible=line_ok)
@@ -383,7 +423,12 @@ class Receiver:
         if cfg.noise:
             common = common + (rows.sisre_sigma * self._world_process_terms(t_true, rows.sisre_terms))[sat_i]
         pr = common + iono_true + rows.code_bias_m + mp + e_p
-        phase = (common - iono_true + e_l) / lam + trk.ambiguity_cyc
+        phase_m = common - iono_true + e_l
+        if mp_err is not None:
+            rows_mp, err = mp_err
+            pr[rows_mp] += err.code_m
+            phase_m[rows_mp] += err.phase_m
+        phase = phase_m / lam + trk.ambiguity_cyc
         dop = -(rho_dot + k.C_MPS * (drift - ddts)) / lam + e_d
 
         tr = trk.tracked
@@ -397,6 +442,32 @@ class Receiver:
             sat_clock_s=dts[tr], sat_clock_drift_sps=ddts[tr], iono_model_m=iono_model[tr],
             tropo_model_m=tropo[tr], el_deg=el_j[tr], true_range_m=rho[tr],
         )
+
+    def _scene_multipath(self, paths, sat_i, vis_j, att_j, el_j, chip, lam):
+        """(signal rows with reflected paths, multipath.composite.CompositeErrors) or None (none this epoch)."""
+        from ..multipath.composite import composite_errors
+
+        cfg = self.cfg
+        has = paths.valid.any(axis=1)[sat_i]
+        rows_mp = np.flatnonzero(has)
+        if len(rows_mp) == 0:
+            return None
+        si = sat_i[rows_mp]
+        los = np.where((vis_j[rows_mp] == BLOCKED) | (vis_j[rows_mp] == REFLECTED_ONLY), 0.0,
+                       10.0 ** (-att_j[rows_mp] / 20.0))
+        # front-end bandwidth in chip rates per signal (C/A 1.023 Mchip/s, B1I 2.046, ...): grouped by value
+        bw_chips = cfg.frontend_bandwidth_hz * chip[rows_mp] / k.C_MPS
+        out = None
+        for bw in np.unique(bw_chips):
+            g = np.flatnonzero(bw_chips == bw)
+            e = composite_errors(los[g], paths.excess_m[si[g]], paths.gamma_co[si[g]], paths.gamma_cross[si[g]],
+                                 paths.arrival_el_deg[si[g]], el_j[rows_mp[g]], chip[rows_mp[g]], lam[rows_mp[g]],
+                                 cfg.dll_spacing_chips, float(bw), cfg.antenna)
+            if out is None:
+                out = type(e)(*(np.empty(len(rows_mp), dtype=np.asarray(v).dtype) for v in e.__dict__.values()))
+            for name, v in e.__dict__.items():
+                getattr(out, name)[g] = v
+        return rows_mp, out
 
     def _day_of_year(self, t: GnssTime) -> float:
         """prop.day_of_year(t), from a cached value at the start of t's GPS day (no datetime per epoch)."""

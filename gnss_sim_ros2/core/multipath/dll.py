@@ -1,0 +1,142 @@
+"""What a code and carrier tracking loop makes of a line of sight plus reflections.
+
+Signal model (one satellite): the composite correlation of LOS (amplitude a_0, 0 when blocked) and
+reflections i (relative amplitude a_i, code delay delta_i chips, carrier phase phi_i rad)
+
+    R_c(tau) = sum_i a_i exp(j phi_i) R_B(tau - delta_i)
+
+with R_B the code's autocorrelation after the front-end filter: the BPSK triangle 1 - |tau| (infinite
+bandwidth), or its band-limited form for an ideal (brick-wall) double-sided bandwidth B [chips^-1 units:
+B / chip rate]:  R_B(tau) = int_{-B/2}^{B/2} sinc^2(f) cos(2 pi f tau) df, in closed form with the sine
+integral (_bandlimited_table) (Betz, Engineering
+Satellite-Based Navigation and Timing, 2016, ch. 19; the spectrum of a BPSK-R code is sinc^2).
+
+- Carrier: the PLL locks to the composite phase at the code lock point, theta = arg R_c(eps); the carrier
+  phase error is theta (relative to the LOS phase 0) and the received amplitude |R_c(eps)| sets C/N0.
+- Code: a coherent early-minus-late discriminator with spacing d chips on the in-phase arm,
+  D(eps) = Re[(R_c(eps - d/2) - R_c(eps + d/2)) exp(-j theta)]; the loop settles where D = 0.  The zero
+  is found by bisection inside [tau_p - d/2, tau_p + d/2] around the composite correlation's peak tau_p
+  (a sign change is guaranteed there), so a receiver with the LOS blocked tracks the strongest reflection.
+
+For one reflection in phase (phi = 0) or in anti-phase (phi = pi) at infinite bandwidth the zero has the
+closed form of Van Dierendonck, Fenton and Ford (Navigation 39(3), 1992) and Braasch (Parkinson & Spilker,
+vol. I, ch. 14), :func:`analytic_envelope_chips`; :func:`tracking_error` is tested against it.
+"""
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+from scipy.special import sici
+
+#: tau grid [chips] of the band-limited correlation table
+_TAU_MAX = 3.0
+_TAU_STEP = 1e-3
+
+
+def _h(a, half_band):
+    """int_{-F}^{F} (1 - cos(2 pi a f)) / (pi f)^2 df = (4|a| / pi) [Si(X) - (1 - cos X) / X], X = 2 pi |a| F."""
+    x = 2.0 * np.pi * np.abs(a) * half_band
+    si, _ = sici(x)
+    safe = np.where(x > 0, x, 1.0)
+    return np.where(x > 0, 4.0 * np.abs(a) / np.pi * (si - (1.0 - np.cos(x)) / safe), 0.0)
+
+
+@functools.lru_cache(maxsize=16)
+def _bandlimited_table(bandwidth_chips: float):
+    """R_B on a tau grid, closed form: with sinc^2(f) = (1 - cos 2 pi f) / (2 (pi f)^2),
+    R_B(tau) = -H(tau) / 2 + H(tau + 1) / 4 + H(tau - 1) / 4 (H: :func:`_h`, F = B / 2), which tends to
+    1 - |tau| as B grows."""
+    tau = np.arange(-_TAU_MAX, _TAU_MAX + _TAU_STEP / 2, _TAU_STEP)
+    f = bandwidth_chips / 2.0
+    r = -0.5 * _h(tau, f) + 0.25 * _h(tau + 1.0, f) + 0.25 * _h(tau - 1.0, f)
+    return tau, r / np.interp(0.0, tau, r)         # normalised to R(0) = 1
+
+
+def correlation(tau_chips, bandwidth_chips: float = np.inf):
+    """Code autocorrelation R_B(tau) of a BPSK-R code (module docstring), normalised to 1 at tau = 0."""
+    t = np.asarray(tau_chips, dtype=np.float64)
+    if not np.isfinite(bandwidth_chips):
+        return np.maximum(1.0 - np.abs(t), 0.0)
+    if not bandwidth_chips > 0:
+        raise ValueError(f"multipath.dll: bandwidth {bandwidth_chips!r} (chip rates) must be > 0")
+    tau, r = _bandlimited_table(float(bandwidth_chips))
+    return np.interp(t, tau, r, left=0.0, right=0.0)
+
+
+def composite(tau_chips, amp, delay_chips, phase_rad, bandwidth_chips=np.inf):
+    """R_c at ``tau_chips`` (..., K) for paths (..., P): complex (..., K)."""
+    t = np.asarray(tau_chips, dtype=np.float64)[..., :, None]
+    a = np.asarray(amp, dtype=np.float64)[..., None, :]
+    dl = np.asarray(delay_chips, dtype=np.float64)[..., None, :]
+    ph = np.asarray(phase_rad, dtype=np.float64)[..., None, :]
+    return np.sum(a * np.exp(1j * ph) * correlation(t - dl, bandwidth_chips), axis=-1)
+
+
+def tracking_error(amp, delay_chips, phase_rad, spacing_chips: float, bandwidth_chips: float = np.inf,
+                   iterations: int = 32):
+    """(code error [chips], carrier phase error [rad], composite amplitude) of signals (N, P paths).
+
+    Path 0 is usually the line of sight (delay 0; amplitude 0 when blocked); delays are relative to it.
+    Rows whose amplitudes are all 0 give NaN (nothing to track)."""
+    a = np.atleast_2d(np.asarray(amp, dtype=np.float64))
+    dl = np.atleast_2d(np.asarray(delay_chips, dtype=np.float64))
+    ph = np.atleast_2d(np.asarray(phase_rad, dtype=np.float64))
+    d = float(spacing_chips)
+    if not 0 < d <= 2:
+        raise ValueError(f"multipath.dll: correlator spacing {spacing_chips!r} chips must be in (0, 2]")
+    n = a.shape[0]
+    # peak of |R_c| on a grid over the paths' span, then the discriminator zero next to it
+    lo, hi = np.min(dl, axis=1) - 1.0, np.max(dl, axis=1) + 1.0
+    # grid step below d / 4 (and 0.05 chip): the grid's peak lies within d / 2 of the true one, so the
+    # discriminator changes sign inside the bracket below
+    step = min(d / 4.0, 0.05)
+    n_grid = int(min(np.ceil(float(np.max(hi - lo)) / step), 4000)) + 1
+    grid = lo[:, None] + (hi - lo)[:, None] * np.linspace(0.0, 1.0, n_grid)[None, :]
+    mag = np.abs(composite(grid, a, dl, ph, bandwidth_chips))
+    tau_p = grid[np.arange(n), np.argmax(mag, axis=1)]
+    theta = np.angle(composite(tau_p[:, None], a, dl, ph, bandwidth_chips)[:, 0])
+    rot = np.exp(-1j * theta)[:, None]
+
+    def disc(eps):
+        e = eps[:, None]
+        early = composite(e - d / 2, a, dl, ph, bandwidth_chips)
+        late = composite(e + d / 2, a, dl, ph, bandwidth_chips)
+        return np.real((early - late) * rot)[:, 0]
+
+    left, right = tau_p - d / 2, tau_p + d / 2
+    f_left = disc(left)
+    for _ in range(iterations):
+        mid = 0.5 * (left + right)
+        f_mid = disc(mid)
+        same = np.sign(f_mid) == np.sign(f_left)
+        left = np.where(same, mid, left)
+        f_left = np.where(same, f_mid, f_left)
+        right = np.where(same, right, mid)
+    eps = 0.5 * (left + right)
+    rc = composite(eps[:, None], a, dl, ph, bandwidth_chips)[:, 0]
+    dead = ~np.any(a > 0, axis=1)
+    eps = np.where(dead, np.nan, eps)
+    return eps, np.where(dead, np.nan, np.angle(rc)), np.where(dead, 0.0, np.abs(rc))
+
+
+def analytic_envelope_chips(amp: float, delay_chips, spacing_chips: float, in_phase: bool = True):
+    """Closed-form code error [chips] of one reflection at phase 0 (``in_phase``) or pi, infinite bandwidth,
+    coherent early-minus-late with spacing d <= 1 (module docstring references):
+
+    in phase:      a delta / (1 + a)              delta <= d (1 + a) / 2
+                   a d / 2                        ... <= 1 - d/2 + a d / 2
+                   a (1 + d/2 - delta) / (2 - a)  ... <= 1 + d / 2, then 0
+    anti-phase:   -a delta / (1 - a)              delta <= d (1 - a) / 2
+                  -a d / 2                        ... <= 1 - d/2 - a d / 2
+                  -a (1 + d/2 - delta) / (2 + a)  ... <= 1 + d / 2, then 0
+    """
+    a, d = float(amp), float(spacing_chips)
+    x = np.asarray(delay_chips, dtype=np.float64)
+    s = 1.0 if in_phase else -1.0
+    b1 = d * (1 + s * a) / 2
+    b2 = 1 - d / 2 + s * a * d / 2
+    out = np.where(x <= b1, s * a * x / (1 + s * a),
+                   np.where(x <= b2, s * a * d / 2,
+                            np.where(x <= 1 + d / 2, s * a * (1 + d / 2 - x) / (2 - s * a), 0.0)))
+    return out

@@ -1,0 +1,83 @@
+"""Reflected paths of one cast: the bridge between VisibilityOptions.cast and core/multipath/reflections.py.
+
+Uses only the Scene's public members (``world``, ``rays``, ``spherical``, ``antenna_ecef``); the facets of
+a scene are built once and kept on the Scene object.  Satellite directions in the world frame: the
+ECEF line of sight rotated by the world's fixed rotation (``spherical.rotation_world_from_ecef``).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..constants import C_MPS, F_L1_HZ
+from ..vocabulary import MULTIPATH_MODES, VisibilityState
+from .diffraction import MAX_LOSS_DB, edge_loss_db
+from .reflections import Facets, ScenePaths, find_paths
+
+L1_WAVELENGTH_M = C_MPS / F_L1_HZ
+
+_ATTR = "_multipath_facets"
+
+
+def facets_of(scene) -> Facets:
+    """The scene's facets (cached on the scene)."""
+    f = scene.__dict__.get(_ATTR)
+    if f is None:
+        f = Facets(scene.world)
+        setattr(scene, _ATTR, f)
+    return f
+
+
+def world_directions(scene, antenna_world_m, sat_ecef_m) -> np.ndarray:
+    """(M, N, 3) unit satellite directions in the world frame from antennas (M, 3) and satellites (N|M,N, 3)."""
+    a = np.asarray(antenna_world_m, dtype=np.float64).reshape(-1, 3)
+    rx = scene.antenna_ecef(a)
+    sat = np.asarray(sat_ecef_m, dtype=np.float64)
+    if sat.ndim == 2:
+        sat = np.broadcast_to(sat, (len(a),) + sat.shape)
+    d = sat - rx[:, None, :]
+    d = d @ scene.spherical.rotation_world_from_ecef().T
+    return d / np.linalg.norm(d, axis=-1, keepdims=True)
+
+
+def cast_paths(options, scene, antenna_world_m, sat_ecef_m, v, state):
+    """Attach ``v.paths`` (ScenePaths, (M, N, K) or (N, K) for one antenna); returns (state, extra loss dB).
+
+    Blocked satellites: knife-edge diffraction over the nearest edge (diffraction.py); below
+    MAX_LOSS_DB the satellite is ATTENUATED by that loss (a weakened direct signal), else it stays
+    blocked; with a reflected path it is REFLECTED_ONLY (or ATTENUATED with reflections on top)."""
+    mode = options.multipath
+    if mode not in MULTIPATH_MODES:
+        raise ValueError(f"visibility: parameter 'multipath' = {mode!r} (one of {', '.join(MULTIPATH_MODES)})")
+    a = np.asarray(antenna_world_m, dtype=np.float64)
+    single = a.ndim == 1
+    st = np.atleast_2d(state).copy()
+    cast = np.atleast_2d(v.el_deg) >= options.mask_deg
+    blocked = st == int(VisibilityState.BLOCKED)
+    only = cast & blocked if mode == "nlos" else cast
+    facets = facets_of(scene)
+    dirs = world_directions(scene, a, sat_ecef_m) if (only.any() or (cast & blocked).any()) else None
+    if only.any() and len(facets):
+        paths = find_paths(scene, facets, a.reshape(-1, 3), dirs,
+                           max_range_m=options.multipath_range_m, max_paths=options.multipath_max_paths, only=only,
+                           bounces=options.multipath_bounces)
+    else:
+        paths = ScenePaths.empty(st.shape[0], st.shape[1], options.multipath_max_paths)
+    extra_db = np.zeros(st.shape)
+    a2 = a.reshape(-1, 3)
+    for i in np.flatnonzero((cast & blocked).any(axis=1) if options.multipath_diffraction else []):
+        j = np.flatnonzero(cast[i] & blocked[i])
+        loss, _, n_rays = edge_loss_db(scene.rays, a2[i], dirs[i, j], L1_WAVELENGTH_M)
+        paths.rays_cast += n_rays
+        weak = np.isfinite(loss) & (loss <= MAX_LOSS_DB)
+        extra_db[i, j[weak]] = loss[weak]
+        st[i, j[weak]] = int(VisibilityState.ATTENUATED)
+    has = paths.valid.any(axis=-1)
+    st = np.where(blocked & has & (st == int(VisibilityState.BLOCKED)), int(VisibilityState.REFLECTED_ONLY), st)
+    shortest = np.where(has, np.nanmin(np.where(paths.valid, paths.excess_m, np.inf), axis=-1), 0.0)
+    if single:
+        paths = ScenePaths(paths.excess_m[0], paths.gamma_co[0], paths.gamma_cross[0], paths.arrival_el_deg[0],
+                           paths.rays_cast)
+        st, shortest, extra_db = st[0], shortest[0], extra_db[0]
+    v.extra_path_m = shortest
+    v.paths = paths
+    return st.astype(np.int64), extra_db

@@ -1,0 +1,29 @@
+"""Small scenes for the multipath tests (imported by test_multipath_* and test_urban_*)."""
+from __future__ import annotations
+
+import numpy as np
+
+from gnss_sim_ros2.core.scene.sdf_world import MaterialTable, WorldMesh
+from gnss_sim_ros2.core.scene.visibility import Scene
+
+
+def _box(x0, x1, y0, y1, z0, z1):
+    v = np.array([[x, y, z] for x in (x0, x1) for y in (y0, y1) for z in (z0, z1)], dtype=float)
+    f = [[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1], [2, 3, 7], [2, 7, 6],
+         [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]]
+    return v, np.array(f)
+
+
+def canyon_scene():
+    """West wall face at x = -5 (20 m high), east wall face at x = +10 (10 m high), ground z = 0."""
+    parts = [_box(-6.0, -5.0, -200, 200, 0, 20), _box(10.0, 11.0, -200, 200, 0, 10)]
+    verts, tris = [], []
+    for v, f in parts:
+        tris.append(f + sum(len(p) for p in verts))
+        verts.append(v)
+    g = np.array([[-300, -300, 0], [300, -300, 0], [300, 300, 0], [-300, 300, 0]], float)
+    tris.append(np.array([[0, 1, 2], [0, 2, 3]]) + sum(len(p) for p in verts))
+    verts.append(g)
+    v, t = np.vstack(verts), np.vstack(tris)
+    world = WorldMesh(v, t, np.zeros(len(t), np.int16), MaterialTable())
+    return Scene(world)
