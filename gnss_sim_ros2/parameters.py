@@ -203,6 +203,9 @@ NODE_PARAMS: dict[str, list[Param]] = {
               "are given, else Klobuchar)", choices=("", *IONOSPHERE_MODELS)),
         Param("troposphere", "", "troposphere model (empty: from preset)", choices=("", *TROPOSPHERE_MODELS)),
         Param("write_nmea_file", False, "also write the NMEA sentences to output_dir/gnss_sim.nmea"),
+        Param("smoothing_s", 100.0, "carrier smoothing window of the code the receiver's own fix uses (Hatch "
+              "filter, RTCA DO-229) [s]; 0: raw code. RINEX and observations keep the raw code", min=0.0,
+              max=3600.0),
         Param("rtcm", False, "publish each epoch as RTCM3 (station, MSM observations) on `rtcm` "
               "(std_msgs/UInt8MultiArray), e.g. for the rtk node or an outside RTK engine"),
         Param("rtcm_msm", 7, "RTCM3 MSM type: 7 (full resolution, Doppler) or 4", choices=(4, 7)),

@@ -3,8 +3,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from gnss_sim_ros2.core.scene.sdf_world import MaterialTable, WorldMesh
+from gnss_sim_ros2.core.scene.materials import MaterialTable
 from gnss_sim_ros2.core.scene.visibility import Scene
+from gnss_sim_ros2.core.scene.world_mesh import WorldMesh
 
 
 def _box(x0, x1, y0, y1, z0, z1):

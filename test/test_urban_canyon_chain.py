@@ -8,7 +8,7 @@ import pytest
 from multipath_scenes import canyon_scene
 
 from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris
-from gnss_sim_ros2.core.scene.sdf_world import SphericalCoordinates
+from gnss_sim_ros2.core.scene.georeference import SphericalCoordinates
 from gnss_sim_ros2.core.scene.visibility import Scene
 from gnss_sim_ros2.core.simulation import SimulationSetup, run_simulation
 from gnss_sim_ros2.core.time import GnssTime

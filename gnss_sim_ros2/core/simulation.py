@@ -111,7 +111,7 @@ def setup_from_config(cfg, out_dir: Path, trajectory: Trajectory | None = None, 
         if not world and not mesh:
             world = str(demo_world_path())
     own = {"profile", "noise", "ionosphere", "troposphere", "cn0_acquire_dbhz", "cn0_lose_dbhz", "write_nmea_file",
-           "rtcm_msm", "rtcm_station_id"}
+           "rtcm_msm", "rtcm_station_id", "smoothing_s"}
     return SimulationSetup(
         start=GnssTime.from_iso(rcv["start_time"]), duration_s=eph["duration_s"], interval_s=1.0 / rcv["rate_hz"],
         out_dir=Path(out_dir), trajectory=trajectory, systems=rcv["systems"],

@@ -106,6 +106,8 @@ class ChainSettings:
     switches: dict = field(default_factory=dict)
     #: the SISRE was set explicitly (kept even for precise orbits)
     sisre_given: bool = False
+    #: carrier smoothing of the code the position fix uses (Hatch filter) [s]; 0: raw code
+    smoothing_s: float = 100.0
     #: RTCM3 output: MSM7 or MSM4, reference station id (DF003)
     rtcm_msm: int = 7
     rtcm_station_id: int = 0
@@ -142,6 +144,7 @@ class ChainSettings:
                    marker_name=p.get("marker_name", "GSIM"), preset=p["preset"],
                    output_dir=Path(out_dir) if out_dir else None,
                    write_nmea_file=bool(p.get("write_nmea_file", False)), switches=dict(sw),
+                   smoothing_s=float(p.get("smoothing_s", 100.0)),
                    sisre_given="sisre_m" in (receiver_overrides or {}), rtcm_msm=int(p.get("rtcm_msm", 7)),
                    rtcm_station_id=int(p.get("rtcm_station_id", 0)))
 
@@ -205,6 +208,7 @@ class ReceiverChain:
         self.close()
         self.rx = None
         self._header = None
+        self._smooth: dict = {}        # (sv, code) -> (smoothed code [m], phase [m], epochs in the window)
         self.prior_ecef_m = None
         self._pos_prev = None
         self.epochs = 0
@@ -238,7 +242,8 @@ class ReceiverChain:
             self.rx = self._receiver(states)
         obs = self.rx.epoch(t, ecef, states, vis_state, attenuation_db, antenna_vel_ecef_mps=antenna_vel_ecef_mps,
                             multipath=multipath)
-        sol = position_fix(obs, self.settings.receiver.profile, self.prior_ecef_m, self.settings.solver)
+        fix_obs = self._smoothed(obs) if self.settings.smoothing_s > 0 else obs
+        sol = position_fix(fix_obs, self.settings.receiver.profile, self.prior_ecef_m, self.settings.solver)
         self.epochs += 1
         if sol.is_fix:
             self.fixes += 1
@@ -261,6 +266,32 @@ class ReceiverChain:
                 self._rtcm = self._open_rtcm()
             rtcm = self._rtcm.write_epoch(t, arrays)
         return EpochProducts(t, ecef, obs, sol, text, rtcm)
+
+    def _smoothed(self, obs: EpochObservations) -> EpochObservations:
+        """The observables with carrier-smoothed code for the position fix, as receivers compute their fix
+        (Hatch filter, RTCA DO-229 2.1.4.1.1: P_s = P / M + (M - 1) / M (P_s' + L - L'), window M up to
+        smoothing_s; restarted at a loss of lock).  The raw code stays in the observations and RINEX."""
+        from ..constants import C_MPS
+
+        n_max = max(1, int(round(self.settings.smoothing_s / self.settings.interval_s)))
+        lam = C_MPS / np.asarray(obs.frequency_hz, dtype=float)
+        # the carrier advances where the code is delayed: twice the receiver's own (broadcast) ionosphere
+        # model is added to the phase, so the window does not drift with the ionosphere (code-carrier
+        # divergence, DO-229 2.1.4.1.1 note); what the model misses still diverges, as in a real receiver
+        phase_m = np.asarray(obs.carrier_phase_cyc, dtype=float) * lam + 2.0 * np.asarray(obs.iono_model_m, float)
+        pr = np.asarray(obs.pseudorange_m, dtype=float)
+        out = pr.copy()
+        prev, cur = self._smooth, {}
+        for j, key in enumerate(zip(obs.sv.tolist(), obs.code.tolist())):
+            old = prev.get(key)
+            if old is None or int(obs.lli[j]) & 1 or not np.isfinite(phase_m[j]):
+                cur[key] = (pr[j], phase_m[j], 1)
+                continue
+            m = min(old[2] + 1, n_max)
+            out[j] = pr[j] / m + (m - 1) / m * (old[0] + phase_m[j] - old[1])
+            cur[key] = (out[j], phase_m[j], m)
+        self._smooth = cur                 # a signal not tracked this epoch starts again
+        return replace(obs, pseudorange_m=out)
 
     # ------------------------------------------------------------------ files
     def _make_header(self, ecef, states):
