@@ -32,7 +32,7 @@ def test_long_spans_are_a_marked_straight_line_through_the_measured_ones():
     ext = extrapolate_epochs(measured)
     assert [e["duration_s"] for e in ext] == [d for d in EPOCH_SPANS_S if d > 3600.0]
     day = ext[-1]
-    assert day["extrapolated"] and day["epochs"] == 86401
+    assert day["extrapolated"] and day["epochs"] == 86401 and day["setup_s"] is None   # set-up not fitted
     assert day["loop_s"] == pytest.approx(0.5 + 0.003 * 86401, rel=1e-9)
     assert day["peak_rss_mb"] == pytest.approx(400 + 0.01 * 86400, rel=1e-6)
     assert day["ms_per_epoch"] * day["epochs"] == pytest.approx(1e3 * day["loop_s"], rel=1e-12)

@@ -410,6 +410,8 @@ def plot(report: dict, path) -> Path:
     import matplotlib.pyplot as plt
     from matplotlib.ticker import NullFormatter
 
+    from gnss_sim_ros2.core.sweep.plot import save_figure
+
     rows = report["presets"]
     cost = [1.0 / e["realtime_factor"] for e in rows]
     opec = "presets" in report["scenarios"].get("opec", {})
@@ -431,12 +433,7 @@ def plot(report: dict, path) -> Path:
         ax.set_ylabel(label)
         ax.grid(True, which="both", alpha=0.3)
     fig.suptitle("gnss-sim presets: cost against accuracy")
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, dpi=120)
 
 
 def run_scaling_command(args) -> int:

@@ -12,9 +12,14 @@ peak memory is its own):
   signal of the geodetic profile.
 * **epochs** 1 min to 24 h at 1 Hz on the demo: measured up to ``--scaling-max-hours``
   (default 1 h); longer spans are a straight-line fit of the measured points
-  (epoch-loop time and peak memory against epochs), marked "extrapolated" in the
-  table, the JSON and the plot.
+  (epoch-loop time and peak memory against epochs; no set-up time), marked
+  "extrapolated" in the table, the JSON and the plot.
 * **rate** 1 to 20 Hz over 60 s on the demo.
+
+Each point's process runs on one thread (BLAS, OpenMP and Open3D limited to one,
+as a sweep worker): the figures of one core, and a multi-threaded OpenBLAS
+would otherwise spend more time waiting for its threads than computing the
+solver's 8 x 8 matrices (see the README).
 
 Per point: ``ms_per_epoch`` (wall time of the epoch loop per epoch),
 ``cpu_ms_per_epoch`` (its CPU time: insensitive to other processes on a shared
@@ -25,6 +30,7 @@ machine), ``setup_s`` (ephemeris and files before the first epoch),
 from __future__ import annotations
 
 import multiprocessing
+import os
 import resource
 import tempfile
 import time
@@ -82,11 +88,12 @@ def measure_point(point: dict) -> dict:
     out = dict(point)
     if point["axis"] == "triangles":
         t0 = time.perf_counter()
-        scene = Scene(box_city(int(point["value"]), demo.spherical))
+        scene = Scene(box_city(int(point["value"]), demo.spherical), nthreads=1)
         out["build_s"] = time.perf_counter() - t0
         out["triangles"] = int(len(scene.world.triangles))
         trajectory = Trajectory.static([0.0, 0.0, 1.5], "world")
     else:
+        demo.rays.nthreads = 1
         scene, trajectory = demo, demo_trajectory(loop=True)
         out["triangles"] = int(len(demo.world.triangles))
     with tempfile.TemporaryDirectory(prefix="gnss_sim_scaling_") as tmp:
@@ -128,6 +135,25 @@ def scaling_points(quick: bool = False, max_hours: float = 1.0, epochs: int | No
     return pts
 
 
+#: BLAS and OpenMP pools of the point's process: one thread, as a sweep worker (Dask sets the same)
+ONE_THREAD_ENV = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+
+
+class _one_thread_env:
+    """ONE_THREAD_ENV in os.environ while a point's process is spawned (it inherits it), restored after."""
+
+    def __enter__(self):
+        self.saved = {k: os.environ.get(k) for k in ONE_THREAD_ENV}
+        os.environ.update(ONE_THREAD_ENV)
+
+    def __exit__(self, *exc):
+        for k, v in self.saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
 def extrapolate_epochs(measured: list[dict]) -> list[dict]:
     """The spans of EPOCH_SPANS_S beyond the measured ones from straight lines through the measured
     points (loop time and peak memory against epochs); each marked ``extrapolated``."""
@@ -135,15 +161,15 @@ def extrapolate_epochs(measured: list[dict]) -> list[dict]:
         return []
     n = np.array([m["epochs"] for m in measured], float)
     out = []
-    fits = {k: np.polyfit(n, [m[k] for m in measured], 1)
-            for k in ("loop_s", "cpu_s", "peak_rss_mb", "setup_s")}
+    fits = {k: np.polyfit(n, [m[k] for m in measured], 1) for k in ("loop_s", "cpu_s", "peak_rss_mb")}
     for d in EPOCH_SPANS_S:
         if d <= max(m["duration_s"] for m in measured) + 1e-6:
             continue
         e = int(d) + 1
         v = {k: float(np.polyval(c, e)) for k, c in fits.items()}
         out.append({"axis": "epochs", "value": d, "systems": "GRECJI", "duration_s": d, "rate_hz": 1.0,
-                    "epochs": e, **v, "ms_per_epoch": 1e3 * v["loop_s"] / e, "cpu_ms_per_epoch": 1e3 * v["cpu_s"] / e,
+                    "epochs": e, **v, "setup_s": None, "ms_per_epoch": 1e3 * v["loop_s"] / e,
+                    "cpu_ms_per_epoch": 1e3 * v["cpu_s"] / e,
                     "realtime_factor": d / v["loop_s"], "extrapolated": True,
                     "base_rss_mb": measured[-1]["base_rss_mb"]})
     return out
@@ -155,7 +181,7 @@ def run_scaling(quick: bool = False, max_hours: float = 1.0, log=print, epochs: 
     ctx = multiprocessing.get_context("spawn")
     rows = []
     for p in points:
-        with ProcessPoolExecutor(max_workers=1, mp_context=ctx) as pool:
+        with _one_thread_env(), ProcessPoolExecutor(max_workers=1, mp_context=ctx) as pool:
             r = pool.submit(measure_point, p).result()
         rows.append(r)
         log(f"[bench --scaling] {_label(r):28s} {r['epochs']:6d} epochs  {r['ms_per_epoch']:7.2f} ms/epoch "
@@ -189,7 +215,8 @@ def scaling_table(report: dict) -> str:
         sats = f"{r['satellites_tracked_mean']:.1f}" if "satellites_tracked_mean" in r else "-"
         lines.append("| " + " | ".join([r["axis"], _label(r).split(" ", 1)[1], str(r["epochs"]), sats,
                                         f"{r['ms_per_epoch']:.2f}", f"{r['cpu_ms_per_epoch']:.2f}",
-                                        f"{r['realtime_factor']:.0f}", f"{r['setup_s']:.1f}",
+                                        f"{r['realtime_factor']:.0f}",
+                                        "-" if r["setup_s"] is None else f"{r['setup_s']:.1f}",
                                         f"{r['peak_rss_mb']:.0f}", note]) + " |")
     return "\n".join(lines)
 
@@ -199,6 +226,8 @@ def scaling_plot(report: dict, path) -> Path:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
+    from gnss_sim_ros2.core.sweep.plot import save_figure
 
     fig, axes = plt.subplots(2, 2, figsize=(12, 8))
     spec = [("triangles", "scene triangles (generated boxes)", True),
@@ -240,9 +269,4 @@ def scaling_plot(report: dict, path) -> Path:
         h2, l2 = ax2.get_legend_handles_labels()
         ax.legend(h1 + h2, l1 + l2, fontsize=8, loc="upper left")
     fig.suptitle("gnss-sim simulate: cost against the size of the problem (one process per point)")
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)

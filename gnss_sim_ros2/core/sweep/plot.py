@@ -64,9 +64,16 @@ def summary_plot(rows: list[dict], path: Path, title: str = "gnss-sim sweep") ->
     ax2.grid(True, axis="y", alpha=0.3)
     failed = len(rows) - len(ok)
     fig.suptitle(f"{title}: {len(ok)} runs" + (f", {failed} failed" if failed else ""))
+    return save_figure(fig, path)
+
+
+def save_figure(fig, path, dpi: int = 110) -> Path:
+    """Lay out, write (PNG, folders made) and close a matplotlib figure; its path."""
+    import matplotlib.pyplot as plt
+
     fig.tight_layout()
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=dpi)
     plt.close(fig)
     return path
