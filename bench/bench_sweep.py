@@ -34,16 +34,15 @@ def one_sweep(seeds: str, duration_s: float, workers: int, out: Path) -> dict:
     args = p.parse_args(["--seeds", seeds, "--duration", str(duration_s), "--out", str(out), "--quiet"])
     tasks = sweep_cmd.build_tasks(args, out)
     t0 = time.perf_counter()
-    cpu0 = os.times()
     outcome = run_sweep(tasks, out, workers=workers, progress=False)
     total = time.perf_counter() - t0
-    cpu1 = os.times()
     failed = [r for r in outcome.rows if r["status"] != "ok"]
     if failed:
         raise SystemExit(f"{len(failed)} runs failed: {failed[0]['error']}")
     return {"total_s": total, "runs_s": outcome.wall_s, "cluster_s": outcome.cluster_s,
-            "run_cpu_s": cpu1.children_user + cpu1.children_system - cpu0.children_user - cpu0.children_system,
             "mean_run_s": sum(r["runtime_s"] for r in outcome.rows) / len(outcome.rows),
+            # epoch-loop wall / CPU time over the runs: 1.0 when every worker had its core to itself
+            "wall_per_cpu": sum(r["loop_s"] for r in outcome.rows) / sum(r["loop_cpu_s"] for r in outcome.rows),
             "rows": len(outcome.rows), "load": os.getloadavg()[0]}
 
 
@@ -62,7 +61,8 @@ def main(argv=None) -> int:
                 m = one_sweep(a.seeds, a.duration, w, Path(tmp) / f"w{w}_{r}")
                 res[w].append(m)
                 print(f"[bench_sweep] round {r + 1} workers {w}: {m['rows']} runs, total {m['total_s']:.1f} s "
-                      f"(cluster {m['cluster_s']:.1f} s, runs {m['runs_s']:.1f} s, mean run {m['mean_run_s']:.1f} s), "
+                      f"(cluster {m['cluster_s']:.1f} s, runs {m['runs_s']:.1f} s, mean run {m['mean_run_s']:.1f} s, "
+                      f"loop wall/CPU {m['wall_per_cpu']:.2f}), "
                       f"load average {m['load']:.2f}", flush=True)
     best = {w: {k: min(m[k] for m in res[w]) for k in ("total_s", "runs_s")} for w in res}
     print(f"[bench_sweep] speed-up 2 workers / 1 worker: total {best[1]['total_s'] / best[2]['total_s']:.2f}x, "

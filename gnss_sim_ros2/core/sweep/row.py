@@ -160,7 +160,7 @@ def result_columns(res) -> dict:
     cols = {"epochs": int(res.epochs), "fixes": int(res.fixes),
             "fix_availability": res.fixes / res.epochs if res.epochs else None,
             "interval_s": float(res.interval_s),
-            "setup_s": float(res.setup_s), "loop_s": float(res.wall_s),
+            "setup_s": float(res.setup_s), "loop_s": float(res.wall_s), "loop_cpu_s": float(res.cpu_s),
             "realtime_factor": float(res.realtime_factor) if res.wall_s > 0 else None}
     for p in PERCENTILES:
         cols[f"h_err_p{p}_m"] = float(np.percentile(e, p)) if e.size else None
