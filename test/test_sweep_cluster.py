@@ -85,3 +85,29 @@ def test_eight_seeds_of_600_s_on_a_hand_started_cluster(dask_cluster, tmp_path):
     assert "8 runs on 2 worker(s)" in r.stdout
     for i in range(1, 9):
         assert (out / "runs" / f"run{i:05d}" / "fix.csv").is_file()
+
+
+def test_an_interrupted_sweep_keeps_its_finished_rows(tmp_path):
+    """Ctrl-C (SIGINT) in the middle: exit 130, results.parquet holds the runs finished so far."""
+    out = tmp_path / "sweep"
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    proc = subprocess.Popen([sys.executable, "-m", "gnss_sim_ros2.cli", "sweep", "--seeds", "1-40", "--duration",
+                             "1200", "--workers", "2", "--quiet", "--out", str(out)], env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    try:
+        deadline = time.monotonic() + 300
+        while not (out / "results.parquet").is_file():      # written as soon as rows arrive
+            assert proc.poll() is None and time.monotonic() < deadline, proc.stderr.read()[-2000:]
+            time.sleep(0.5)
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 130, err[-2000:]
+    rows = read_rows(out / "results.parquet")
+    assert 1 <= len(rows) < 40
+    assert all(r["status"] == "ok" and r["epochs"] == 1201 for r in rows)
+    assert not (out / ".cache").exists()
