@@ -156,3 +156,24 @@ def test_unreachable_scheduler_is_a_clear_error(tmp_path, capsys, monkeypatch):
     assert rc == 2
     assert f"--scheduler tcp://127.0.0.1:{port}: cannot reach the scheduler" in err
     assert "Traceback" not in err
+
+
+@pytest.mark.parametrize("orbits", ["broadcast", "sp3"])
+def test_cached_real_ephemeris_gives_the_fresh_row(opec_dir, tmp_path, orbits):
+    """OPEC navigation files (and the CODE SP3 with their group delays): a worker's cached provider and a
+    fresh one give the same row."""
+    nav = [str(opec_dir / f"OPEC00NOR_S_20220010000_01D_{s}N.rnx") for s in "GE"]
+    from gnss_sim_ros2.core.simulation import orbit_source
+
+    extra = (["--sp3", str(opec_dir / "COD0MGXFIN_20220010000_01D_05M_ORB.SP3"), "--preset", "accurate"]
+             if orbits == "sp3" else [])
+    args = sweep_args("--nav", *nav, *extra, "--position-ecef", "3149785.9652,598260.8822,5495348.4927",
+                      "--start", "2022-01-01T00:00:00", "--duration", "300", "--interval", "30", "--systems", "GE",
+                      "--seeds", "3", "--out", str(tmp_path))
+    [(point, setup)] = sweep_cmd.build_tasks(args, tmp_path)
+    assert orbit_source(setup) == orbits
+    cache = str(tmp_path / ".cache")
+    first, cached, fresh = run_row(point, setup, cache), run_row(point, setup, cache), run_row(point, setup, None)
+    assert first["status"] == "ok", first["error"]
+    assert first["epochs"] == 11 and first["fixes"] == 11
+    assert _rows_equal_but_timing(first, cached) == [] and _rows_equal_but_timing(first, fresh) == []

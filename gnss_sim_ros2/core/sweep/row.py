@@ -73,19 +73,17 @@ class SetupCache:
 
             extra["scene"], w = self.get(key, make_scene)
             notes += w
+        # the provider run_simulation would open (the same call), made once
         source = orbit_source(setup)
-        wanted = [source] + (["broadcast"] if source == "sp3" and setup.nav_files else [])
         eph = dict(setup.ephemeris)
-        for src in wanted:
-            if src in eph:
-                continue
-            files = {"broadcast": (setup.nav_files, (), ()), "sp3": ((), setup.sp3_files, setup.clk_files)}
-            nav, sp3, clk = files.get(src, (setup.nav_files, setup.sp3_files, setup.clk_files))
-            key = ("ephemeris", src, int(setup.start.sec), float(setup.start.frac), float(setup.duration_s),
-                   setup.systems, tuple(nav), tuple(sp3), tuple(clk), *(_mtime(f) for f in (*nav, *sp3, *clk)))
+        if source not in eph:
+            files = (tuple(setup.nav_files), tuple(setup.sp3_files), tuple(setup.clk_files))
+            key = ("ephemeris", source, int(setup.start.sec), float(setup.start.frac), float(setup.duration_s),
+                   setup.systems, *files, *(_mtime(f) for group in files for f in group))
             where = Path(workdir) / f"eph{next(self._made):04d}"
-            (eph[src], w) = self.get(key, lambda src=src, nav=nav, sp3=sp3, clk=clk, where=where: open_ephemeris(
-                src, setup.start, setup.duration_s, setup.systems, nav, sp3, clk, workdir=where))
+            eph[source], w = self.get(key, lambda: open_ephemeris(
+                source, setup.start, setup.duration_s, setup.systems, setup.nav_files, setup.sp3_files,
+                setup.clk_files, workdir=where))
             notes += w
         extra["ephemeris"] = eph
         return dataclasses.replace(setup, **extra), notes
