@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import math
+from pathlib import Path
 
 import pytest
 
@@ -47,6 +48,16 @@ def test_run_points_are_the_product_seed_innermost():
         (1, "fast", 1), (2, "fast", 2), (3, "fast", 3), (4, "balanced", 1), (5, "balanced", 2), (6, "balanced", 3)]
     assert [p.name for p in pts][:2] == ["run00001", "run00002"]
     assert run_points() == [RunPoint(1)]       # nothing swept: the scenario once
+
+
+def test_relative_paths_reach_the_workers_absolute(tmp_path, monkeypatch):
+    from gnss_sim_ros2.core.scene.demo_world import demo_world_path
+
+    monkeypatch.chdir(demo_world_path().parent)
+    args = sweep_args("--worlds", demo_world_path().name, "--out", "sweep_out", "--duration", "5")
+    [(_, setup)] = sweep_cmd.build_tasks(args, Path("sweep_out"))
+    assert setup.world_file == str(demo_world_path()) and setup.out_dir == demo_world_path().parent / "sweep_out" / \
+        "runs" / "run00001"
 
 
 def test_axis_options_map_onto_simulate_and_bad_values_name_the_option(tmp_path):

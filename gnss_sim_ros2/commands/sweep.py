@@ -116,11 +116,26 @@ def build_tasks(args, out: Path):
     tasks = []
     for point in run_points(**axes):
         try:
-            tasks.append((point, simulate.setup_from_args(point_args(args, point, out))))
+            tasks.append((point, absolute_paths(simulate.setup_from_args(point_args(args, point, out)))))
         except ValueError as exc:
             given = ", ".join(f"{k}={v}" for k, v in point.inputs().items() if k != "index" and v is not None)
             raise ValueError(f"run {point.name} ({given}): {exc}") from None
     return tasks
+
+
+def absolute_paths(setup):
+    """``setup`` with its files and output folder as absolute paths (from this process's working folder), so
+    that a worker started in another folder finds them."""
+    import dataclasses
+
+    def absolute(p):
+        return str(Path(p).absolute()) if p else p
+
+    return dataclasses.replace(
+        setup, out_dir=Path(setup.out_dir).absolute(), world_file=absolute(setup.world_file),
+        mesh_file=absolute(setup.mesh_file), materials_file=absolute(setup.materials_file),
+        nav_files=[absolute(f) for f in setup.nav_files], sp3_files=[absolute(f) for f in setup.sp3_files],
+        clk_files=[absolute(f) for f in setup.clk_files])
 
 
 def run(args) -> int:
