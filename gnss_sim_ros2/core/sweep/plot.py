@@ -59,7 +59,8 @@ def summary_plot(rows: list[dict], path: Path, title: str = "gnss-sim sweep") ->
     ax.grid(True, axis="y", alpha=0.3)
     if len(groups) > 1:
         ax.legend(fontsize=8, title=" ".join(varying), title_fontsize=8)
-    ax2.set_xticks(range(len(groups)), [str(i + 1) for i in range(len(groups))] if len(groups) > 1 else [""])
+    names = [label if len(label) <= 14 else f"{i + 1}" for i, label in enumerate(groups)] if len(groups) > 1 else [""]
+    ax2.set_xticks(range(len(groups)), names, rotation=20 if len(groups) > 3 else 0, fontsize=8)
     ax2.set_ylabel("fix availability [%]")
     ax2.grid(True, axis="y", alpha=0.3)
     failed = len(rows) - len(ok)
