@@ -16,6 +16,8 @@ setup(
     packages=find_packages(include=["gnss_sim_ros2", "gnss_sim_ros2.*"]),
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
+        # the Python nodes as components (`ros2 component types`; gnss_sim_ros2/nodes/components.py)
+        ("share/ament_index/resource_index/rclcpp_components", ["resource/rclcpp_components/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
         ("share/" + package_name + "/launch", glob("launch/*.py")),
         ("share/" + package_name + "/config", glob("config/*.yaml")),
@@ -37,6 +39,8 @@ setup(
             "receiver_node = gnss_sim_ros2.nodes.receiver_node:main",
             "container = gnss_sim_ros2.nodes.container:main",
             "lifecycle_manager = gnss_sim_ros2.nodes.lifecycle_manager:main",
+            "recorder = gnss_sim_ros2.nodes.recorder_node:main",
+            "rtk_node = gnss_sim_ros2.nodes.rtk_node:main",
         ],
     },
 )

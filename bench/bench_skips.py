@@ -41,8 +41,9 @@ from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris  # noqa: E402
 from gnss_sim_ros2.core.frames import az_el_from_ecef  # noqa: E402
 from gnss_sim_ros2.core.receiver.engine import Receiver, ReceiverConfig  # noqa: E402
 from gnss_sim_ros2.core.scene.demo_world import demo_world_path  # noqa: E402
-from gnss_sim_ros2.core.scene.sdf_world import MaterialTable, WorldMesh  # noqa: E402
+from gnss_sim_ros2.core.scene.materials import MaterialTable  # noqa: E402
 from gnss_sim_ros2.core.scene.visibility import Scene  # noqa: E402
+from gnss_sim_ros2.core.scene.world_mesh import WorldMesh  # noqa: E402
 from gnss_sim_ros2.core.simulation import (  # noqa: E402
     AntennaPath,
     SimulationSetup,

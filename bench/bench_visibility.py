@@ -30,14 +30,11 @@ from pathlib import Path
 import numpy as np
 import open3d as o3d
 
-from gnss_sim_ros2.core.scene.sdf_world import (
-    MaterialClass,
-    MaterialTable,
-    SphericalCoordinates,
-    WorldMesh,
-    load_sdf_world,
-)
+from gnss_sim_ros2.core.scene.georeference import SphericalCoordinates
+from gnss_sim_ros2.core.scene.loader import load_sdf_world
+from gnss_sim_ros2.core.scene.materials import MaterialClass, MaterialTable
 from gnss_sim_ros2.core.scene.visibility import Scene
+from gnss_sim_ros2.core.scene.world_mesh import WorldMesh
 
 REPO = Path(__file__).resolve().parents[1]
 

@@ -10,6 +10,10 @@ from dataclasses import dataclass
 
 from gnss_sim_ros2.parameters import NODE_NAMES
 
+#: the ROS package, and the scheme of Python classes in its component index (nodes/components.py)
+PACKAGE = "gnss_sim"
+PYTHON_TARGET_PREFIX = "python:"
+
 
 @dataclass(frozen=True)
 class NodeSpec:
@@ -21,6 +25,16 @@ class NodeSpec:
     @property
     def name(self) -> str:
         return NODE_NAMES[self.key]
+
+    @property
+    def plugin(self) -> str:
+        """Component name (``ros2 component types``, ``ComposableNode(plugin=...)``)."""
+        return f"{PACKAGE}::{self.cls}"
+
+    @property
+    def target(self) -> str:
+        """Where the class is (second field of the rclcpp_components index line)."""
+        return f"{PYTHON_TARGET_PREFIX}{self.module}:{self.cls}"
 
 
 #: start order: TF first, then the chain upstream -> downstream
@@ -42,6 +56,7 @@ REMAPPINGS = (
     ("vel", f"{TOPIC_NAMESPACE}/vel"),
     ("status", f"{TOPIC_NAMESPACE}/status"),
     ("nmea", f"{TOPIC_NAMESPACE}/nmea"),
+    ("rtcm", f"{TOPIC_NAMESPACE}/rtcm"),
 )
 
 #: topics a run records (rosbag2) with their types; the sky view images are left out (bulky)

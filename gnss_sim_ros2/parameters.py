@@ -45,6 +45,7 @@ NODE_NAMES = {
     "visibility": "gnss_sim_visibility",
     "receiver": "gnss_sim_receiver",
     "trajectory": "gnss_sim_trajectory_player",
+    "rtk": "gnss_sim_rtk",
 }
 SHARED_KEY = "/**"
 
@@ -176,6 +177,10 @@ NODE_PARAMS: dict[str, list[Param]] = {
         Param("mesh_file", "", "mesh exported by `gnss-sim export-world` (overrides world_file)"),
         Param("materials_file", "", "YAML of material classes by name pattern"),
         Param("use_visuals", False, "export visual instead of collision geometry"),
+        Param("keep_dynamic_models", False, "also take the world's non-static models (robots, movable objects) "
+              "as static obstacles; default: only static models block"),
+        Param("strict_world", False, "a part of the world that cannot be loaded is an error instead of a warning "
+              "(CI users)"),
         Param("fresnel_rays", -1, "rays over the first Fresnel zone per satellite (0 off; -1 from preset)", min=-1),
         Param("tf_timeout_s", 5.0, "wall-clock seconds an epoch waits for the antenna's transform before it is "
               "dropped (and `gnss-sim run` fails, naming the frames)", min=0.1, max=600.0),
@@ -188,6 +193,10 @@ NODE_PARAMS: dict[str, list[Param]] = {
               "are given, else Klobuchar)", choices=("", *IONOSPHERE_MODELS)),
         Param("troposphere", "", "troposphere model (empty: from preset)", choices=("", *TROPOSPHERE_MODELS)),
         Param("write_nmea_file", False, "also write the NMEA sentences to output_dir/gnss_sim.nmea"),
+        Param("rtcm", False, "publish each epoch as RTCM3 (station, MSM observations) on `rtcm` "
+              "(std_msgs/UInt8MultiArray), e.g. for the rtk node or an outside RTK engine"),
+        Param("rtcm_msm", 7, "RTCM3 MSM type: 7 (full resolution, Doppler) or 4", choices=(4, 7)),
+        Param("rtcm_station_id", 0, "RTCM3 reference station id (DF003)", min=0, max=4095),
         Param("cn0_acquire_dbhz", 33.0, "C/N0 above which a signal is acquired [dB-Hz]", min=0.0, max=70.0),
         Param("cn0_lose_dbhz", 28.0, "C/N0 below which a signal is lost [dB-Hz]", min=0.0, max=70.0),
     ],
@@ -199,6 +208,27 @@ NODE_PARAMS: dict[str, list[Param]] = {
         Param("antenna_offset_m", [0.0, 0.0, 0.5], "antenna position in base_frame [m] (static TF)"),
         Param("publish_rate_hz", 20.0, "TF publish rate [Hz]", min=0.1, max=1000.0),
         Param("loop", False, "restart the path at its end"),
+    ],
+    "rtk": [
+        Param("rtkrcv_path", "", "RTKLIB rtkrcv executable; empty: rtkrcv on PATH (Debian package rtklib)"),
+        Param("rtkrcv_conf", "", "a user's rtkrcv options file, kept as it is except the stream and output format "
+              "options the node owns; empty: the generated RTK setup"),
+        Param("rtk_systems", "", "systems RTK uses (pos1-navsys of the generated setup); empty: systems"),
+        Param("rtk_mode", "kinematic", "positioning mode of the generated setup: kinematic, static, or movingbase "
+              "(heading from two antennas of the robot)", choices=("kinematic", "static", "movingbase")),
+        Param("rtk_frequencies", 2, "carrier frequencies of the generated setup (pos1-frequency: 1 l1, 2 l1+2, "
+              "3 l1+2+3)", min=1, max=3),
+        Param("rtk_ratio_threshold", 3.0, "ambiguity ratio test threshold of the generated setup (pos2-arthres)",
+              min=1.0, max=100.0),
+        Param("nav_files", [], "RINEX navigation files whose ephemerides the node sends to rtkrcv (its input stream 3) "
+              "at the simulated time, for RTCM3 streams without ephemeris messages; empty: those of the streams",
+              item_type="string"),
+        Param("rtkrcv_clock", "auto", "rtkrcv's clock: simulated (started under faketime at the simulated time: RTCM3 "
+              "carries times of week, RTKLIB takes the week from the clock), system, or auto (simulated when the "
+              "simulated time is more than an hour from the system clock)", choices=("auto", "simulated", "system")),
+        Param("autostart", True, "start rtkrcv on activate (else through the start service)"),
+        Param("time_mapping", "offset", "ROS time <-> GNSS time of the stamps: offset (ROS time 0 = start_time) or utc",
+              choices=("offset", "utc")),
     ],
 }
 

@@ -7,22 +7,34 @@ merged with these launch arguments by gnss_sim_ros2.parameters.load_config.
 Arguments:
   world:=FILE.sdf | mesh:=FILE.ply   scene (default: the demo courtyard)
   config:=FILE.yaml                  gnss_sim parameter file
-  composed:=true|false               all nodes in one process, or one process per node
+  composed:=true|false               the nodes as components of one container (gnss_sim's Python
+                                     container, composition_interfaces), or one process per node [true]
   use_sim_time:=true|false           follow /clock (Gazebo) [true]
   trajectory_player:=true|false      move the robot along a path here; false when Gazebo publishes TF [true]
-  record:=true|false                 ros2 bag record -s mcap of the gnss_sim topics [false]
+  record:=true|false                 record the gnss_sim topics into output_dir/bag (MCAP): `ros2 bag record`
+                                     where it exists, else gnss_sim's recorder node [false]
   output_dir:=DIR                    RINEX files (and the bag) [gnss_sim_output]
   antenna_frame:=FRAME               TF frame of the antenna [from config]
-  autostart:=true|false              configure and activate the nodes [true]
+  autostart:=true|false              configure and activate the nodes (lifecycle manager) [true]
+
+Every node is a lifecycle node driven by the `lifecycle_manager` process, in
+both modes; `ros2 lifecycle set /gnss_sim_receiver ...` works on each, and
+`ros2 component load /gnss_sim_container gnss_sim gnss_sim::ReceiverNode -n NAME`
+adds a node to the running container.
 """
+import importlib.util
 import os
+import shutil
 import tempfile
 
 import yaml
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument, ExecuteProcess, OpaqueFunction
+from launch.actions import DeclareLaunchArgument, EmitEvent, ExecuteProcess, OpaqueFunction, RegisterEventHandler
+from launch.event_handlers import OnProcessExit
+from launch.events import Shutdown
 from launch.substitutions import LaunchConfiguration
-from launch_ros.actions import LifecycleNode, Node
+from launch_ros.actions import ComposableNodeContainer, LifecycleNode, Node
+from launch_ros.descriptions import ComposableNode
 
 from gnss_sim_ros2 import graph
 from gnss_sim_ros2.parameters import load_config
@@ -31,10 +43,47 @@ ARGS = {
     "world": "", "mesh": "", "config": "", "composed": "true", "use_sim_time": "true", "trajectory_player": "true",
     "record": "false", "output_dir": "gnss_sim_output", "antenna_frame": "", "autostart": "true",
 }
+CONTAINER = "gnss_sim_container"
 
 
 def _true(v: str) -> bool:
     return v.lower() in ("true", "1", "yes", "on")
+
+
+def _stop_launch_if_failed(action, what: str):
+    """A recorder or container that exits with an error ends the launch (no run without the bag asked
+    for; no lifecycle manager waiting for nodes that will never come)."""
+    def on_exit(event, _context):
+        if event.returncode != 0:
+            return [EmitEvent(event=Shutdown(reason=f"{what} exited with code {event.returncode}"))]
+        return None
+
+    return RegisterEventHandler(OnProcessExit(target_action=action, on_exit=on_exit))
+
+
+def _recorder(output_dir: str) -> list:
+    bag = os.path.join(output_dir, "bag")
+    if os.path.exists(bag):
+        raise ValueError(f"record:=true: the bag folder {bag} exists already (rosbag2 does not overwrite); "
+                           "choose another output_dir:= or remove it")
+    if shutil.which("ros2") and importlib.util.find_spec("ros2bag") is not None:
+        proc = ExecuteProcess(cmd=["ros2", "bag", "record", "-s", "mcap", "-o", bag, *graph.RECORDED_TOPICS],
+                              output="screen")
+        return [proc, _stop_launch_if_failed(proc, "ros2 bag record")]
+    if importlib.util.find_spec("rosbags") is not None:
+        proc = Node(package=graph.PACKAGE, executable="recorder", name="gnss_sim_recorder", output="screen",
+                    parameters=[{"bag_dir": bag}])
+        return [proc, _stop_launch_if_failed(proc, "the gnss_sim recorder")]
+    raise RuntimeError("record:=true: nothing can record here: `ros2 bag` (rosbag2, e.g. ros-<distro>-rosbag2) is "
+                       "not installed and neither is the Python package rosbags (pip install rosbags) that "
+                       "gnss_sim's recorder uses")
+
+
+def _write_params(params: dict, name: str) -> str:
+    path = os.path.join(tempfile.mkdtemp(prefix="gnss_sim_launch_"), name)
+    with open(path, "w") as f:
+        yaml.safe_dump(params, f, sort_keys=False)
+    return path
 
 
 def _setup(context):
@@ -51,30 +100,36 @@ def _setup(context):
     sim_time = _true(a["use_sim_time"])
     params = cfg.ros_parameter_file_dict()
     params["/**"] = {"ros__parameters": {"use_sim_time": sim_time}}  # every node, composed or not
-    params_file = os.path.join(tempfile.mkdtemp(prefix="gnss_sim_launch_"), "params.yaml")
-    with open(params_file, "w") as f:
-        yaml.safe_dump(params, f, sort_keys=False)
+    params_file = _write_params(params, "params.yaml")
     specs = graph.nodes(_true(a["trajectory_player"]))
     remaps = list(graph.REMAPPINGS)
+    node_params = [params_file, {"use_sim_time": sim_time}]
+    # launch_ros turns a composable node's parameter file into Parameter messages and rejects empty
+    # lists; every list parameter whose value is empty has the empty list as its default: leave them out
+    composable_params = [_write_params({node: {"ros__parameters": {k: v for k, v in sec["ros__parameters"].items()
+                                                                  if v != []}}
+                                        for node, sec in params.items()}, "composable_params.yaml"),
+                         {"use_sim_time": sim_time}]
     actions = []
+    if _true(a["record"]):  # first: a recorder that cannot start fails the launch before any node runs
+        actions += _recorder(shared["output_dir"])
     if _true(a["composed"]):
-        actions.append(Node(package="gnss_sim", executable="container", name="gnss_sim_container", output="screen",
-                            parameters=[params_file, {"use_sim_time": sim_time, "autostart": _true(a["autostart"]),
-                                                      "trajectory_player": _true(a["trajectory_player"])}],
-                            remappings=remaps))
+        container = ComposableNodeContainer(
+            package=graph.PACKAGE, executable="container", name=CONTAINER, namespace="", output="screen",
+            parameters=[{"use_sim_time": sim_time}],
+            composable_node_descriptions=[
+                ComposableNode(package=graph.PACKAGE, plugin=spec.plugin, name=spec.name, namespace="",
+                               parameters=composable_params, remappings=remaps)
+                for spec in specs])
+        actions += [container, _stop_launch_if_failed(container, "the component container")]
     else:
         for spec in specs:
-            actions.append(LifecycleNode(package="gnss_sim", executable=spec.executable, name=spec.name,
-                                         namespace="", output="screen", remappings=remaps,
-                                         parameters=[params_file, {"use_sim_time": sim_time}]))
-        actions.append(Node(package="gnss_sim", executable="lifecycle_manager", name="gnss_sim_lifecycle_manager",
-                            output="screen", parameters=[{"node_names": [s.name for s in specs],
-                                                          "autostart": _true(a["autostart"]),
-                                                          "use_sim_time": sim_time}]))
-    if _true(a["record"]):
-        bag = os.path.join(shared["output_dir"], "bag")
-        actions.append(ExecuteProcess(cmd=["ros2", "bag", "record", "-s", "mcap", "-o", bag,
-                                           *graph.RECORDED_TOPICS], output="screen"))
+            actions.append(LifecycleNode(package=graph.PACKAGE, executable=spec.executable, name=spec.name,
+                                         namespace="", output="screen", remappings=remaps, parameters=node_params))
+    actions.append(Node(package=graph.PACKAGE, executable="lifecycle_manager", name="gnss_sim_lifecycle_manager",
+                        output="screen", parameters=[{"node_names": [s.name for s in specs],
+                                                      "autostart": _true(a["autostart"]),
+                                                      "use_sim_time": sim_time}]))
     return actions
 
 

@@ -36,7 +36,8 @@ command -v cmake >/dev/null 2>&1 || need_debs+=(cmake)
 command -v g++ >/dev/null 2>&1 || need_debs+=(g++)
 command -v make >/dev/null 2>&1 || need_debs+=(make)
 ldconfig -p 2>/dev/null | grep -q 'libusb-1.0.so.0' || need_debs+=(libusb-1.0-0)   # open3d imports it
-command -v rnx2rtkp >/dev/null 2>&1 || need_debs+=(rtklib)                         # independent RINEX reader (tests)
+command -v rnx2rtkp >/dev/null 2>&1 || need_debs+=(rtklib)                         # independent RINEX reader (tests), rtkrcv
+command -v faketime >/dev/null 2>&1 || need_debs+=(faketime)                       # rtkrcv at the simulated date (rtk node)
 if [ ${#need_debs[@]} -gt 0 ]; then
   if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
     log "installing Debian packages: ${need_debs[*]}"
@@ -154,5 +155,9 @@ fi
 for exe in "$VENV"/lib/gnss_sim/*; do
   [ -e "$exe" ] && ln -sf "$exe" "$VENV/bin/$(basename "$exe")"
 done
+# The ament index entries colcon would install (the editable install writes
+# none): marker, components, share/gnss_sim/{package.xml,launch,config,worlds}
+# as copies, redone on every set-up so that they stay current.
+"$VPY" "$REPO/scripts/ament_register.py" "$VENV" >&2
 
-log "ready: $VENV (gnss-sim at $VENV/bin/gnss-sim)"
+log "ready: $VENV (gnss-sim at $VENV/bin/gnss-sim; ament index: export AMENT_PREFIX_PATH=$VENV)"

@@ -6,6 +6,7 @@ Expected poses and extents are worked out by hand from the SDF pose rules
 from __future__ import annotations
 
 import math
+import re
 import textwrap
 import warnings
 
@@ -14,15 +15,23 @@ import pytest
 
 from gnss_sim_ros2.core import frames
 from gnss_sim_ros2.core.constants import FOLIAGE_ATTENUATION_DB_PER_M
+from gnss_sim_ros2.core.scene.georeference import SphericalCoordinates
+from gnss_sim_ros2.core.scene.loader import load_sdf_world
 from gnss_sim_ros2.core.scene.mesh_io import export_world, read_scene, sidecar_path
-from gnss_sim_ros2.core.scene.sdf_world import SdfError, SphericalCoordinates, load_sdf_world
+from gnss_sim_ros2.core.scene.scene_report import SceneWarning
+from gnss_sim_ros2.core.scene.sdf_xml import SdfError
 
 HEAD = '<?xml version="1.0"?>\n<sdf version="1.9" xmlns:gnss_sim="urn:gnss_sim">\n<world name="w">\n'
 TAIL = "</world>\n</sdf>\n"
 
 
+def static(body: str) -> str:
+    """Every model made static (only static models are obstacles; test_world_loading covers the others)."""
+    return re.sub(r'(<model name="[^"]*">)', r"\1<static>true</static>", body)
+
+
 def write(path, body, head=HEAD, tail=TAIL):
-    path.write_text(head + textwrap.dedent(body) + tail)
+    path.write_text(head + static(textwrap.dedent(body)) + tail)
     return path
 
 
@@ -111,7 +120,8 @@ def make_model(root, name, body):
           <sdf version="1.6">old.sdf</sdf>
           <sdf version="1.9">model.sdf</sdf>
         </model>"""))
-    (d / "model.sdf").write_text('<?xml version="1.0"?>\n<sdf version="1.9">\n' + textwrap.dedent(body) + "</sdf>\n")
+    (d / "model.sdf").write_text('<?xml version="1.0"?>\n<sdf version="1.9">\n' + static(textwrap.dedent(body))
+                                 + "</sdf>\n")
     return d
 
 
@@ -293,7 +303,7 @@ def test_error_missing_mesh_names_file_line_and_uri(tmp_path):
           <geometry><mesh><uri>meshes/missing.stl</uri></mesh></geometry>
         </collision></link></model>""")
     with pytest.raises(SdfError) as e:
-        load_sdf_world(w)
+        load_sdf_world(w, strict=True)
     msg = str(e.value)
     assert "w.sdf:" in msg and "<uri>" in msg and "missing.stl" in msg
     assert ":6:" in msg   # the <uri> line: 3 header lines, blank line, model line, geometry line
@@ -303,10 +313,10 @@ def test_error_unknown_model_uri(tmp_path, monkeypatch):
     monkeypatch.setenv("GZ_SIM_RESOURCE_PATH", str(tmp_path / "nowhere"))
     w = write(tmp_path / "w.sdf", "<include><uri>model://no_such_model</uri></include>")
     with pytest.raises(SdfError, match=r"model://no_such_model.*GZ_SIM_RESOURCE_PATH"):
-        load_sdf_world(w)
+        load_sdf_world(w, strict=True)
     w = write(tmp_path / "w2.sdf", "<include><uri>https://fuel.gazebosim.org/x</uri></include>")
     with pytest.raises(SdfError, match="network URI"):
-        load_sdf_world(w)
+        load_sdf_world(w, strict=True)
 
 
 def test_error_malformed_xml_and_bad_elements(tmp_path):
@@ -317,34 +327,38 @@ def test_error_malformed_xml_and_bad_elements(tmp_path):
     w = write(tmp_path / "pose.sdf", f'<model name="M"><pose>1 2 3</pose><link name="L"><collision name="c">'
                                      f'{box("1 1 1")}</collision></link></model>')
     with pytest.raises(SdfError, match=r"pose.sdf:4: <pose>.*6"):
-        load_sdf_world(w)
+        load_sdf_world(w, strict=True)
     w = write(tmp_path / "rel.sdf", f'<model name="M"><link name="L"><pose relative_to="nope">0 0 0 0 0 0</pose>'
                                     f'<collision name="c">{box("1 1 1")}</collision></link></model>')
     with pytest.raises(SdfError, match=r"unknown frame 'nope'"):
-        load_sdf_world(w)
+        load_sdf_world(w, strict=True)
     w = write(tmp_path / "geo.sdf", '<model name="M"><link name="L"><collision name="c">'
                                     '<geometry><torus/></geometry></collision></link></model>')
-    with pytest.raises(SdfError, match=r"geo.sdf:4: <torus>.*unknown geometry"):
-        load_sdf_world(w)
+    with pytest.raises(SdfError, match=r"geo.sdf:4: <torus>.*geometry <torus> is not supported"):
+        load_sdf_world(w, strict=True)
     w = write(tmp_path / "mat.sdf", f'<model name="M"><gnss_sim:material>jelly</gnss_sim:material><link name="L">'
                                     f'<collision name="c">{box("1 1 1")}</collision></link></model>')
     with pytest.raises(SdfError, match=r"mat.sdf:4: <material>.*unknown material class 'jelly'"):
-        load_sdf_world(w)
+        load_sdf_world(w, strict=True)
     w = write(tmp_path / "cyc.sdf", f"""
         <model name="M">
           <frame name="a" attached_to="b"/><frame name="b" attached_to="a"/>
           <link name="L"><pose relative_to="a"/><collision name="c">{box("1 1 1")}</collision></link></model>""")
     with pytest.raises(SdfError, match="cycle"):
-        load_sdf_world(w)
+        load_sdf_world(w, strict=True)
 
 
-def test_heightmap_warns_and_is_skipped(tmp_path):
+def test_missing_heightmap_image_is_one_warning_naming_the_part(tmp_path):
     w = write(tmp_path / "w.sdf", '<model name="M"><link name="L"><collision name="c"><geometry><heightmap>'
-                                  '<uri>x.png</uri></heightmap></geometry></collision></link></model>')
+                                  '<uri>x.png</uri></heightmap></geometry></collision></link></model>'
+                                  f'<model name="N"><link name="L"><collision name="c">{box("1 1 1")}</collision>'
+                                  '</link></model>')
     with warnings.catch_warnings(record=True) as rec:
         warnings.simplefilter("always")
         world = load_sdf_world(w)
-    assert len(world.triangles) == 0 and any("heightmap" in str(r.message) for r in rec)
+    msgs = [str(r.message) for r in rec if issubclass(r.category, SceneWarning)]
+    assert len(msgs) == 1 and "M::L::c" in msgs[0] and "x.png" in msgs[0]
+    assert len(world.triangles) == 12 and world.report["skipped"][0]["part"] == "M::L::c"
 
 
 # ------------------------------------------------------------------ export round trip

@@ -200,7 +200,8 @@ def test_foliage_box_attenuation_is_chord_times_rate(tmp_path):
 
 def test_foliage_then_wall_is_blocked_and_sphere_crown(tmp_path):
     models = (box_model("bush", (10, 0, 5), (4, 4, 4)) + box_model("wall", (20, 0, 10), (1, 20, 20))
-              + '<model name="tree_a"><pose>0 30 6 0 0 0</pose><link name="crown"><collision name="c"><geometry>'
+              + '<model name="tree_a"><static>true</static><pose>0 30 6 0 0 0</pose><link name="crown">'
+              '<collision name="c"><geometry>'
               '<sphere><radius>3</radius></sphere></geometry></collision></link></model>')
     scene = Scene.from_sdf(world_sdf(tmp_path, models))
     r = scene.visibility(np.zeros(3), az_deg=[90.0], el_deg=[math.degrees(math.atan2(5, 10))])

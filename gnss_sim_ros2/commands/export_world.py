@@ -1,12 +1,15 @@
-"""``gnss-sim export-world WORLD.sdf --out MESH.ply [--materials FILE.yaml] [--visuals]``.
+"""``gnss-sim export-world WORLD.sdf --out MESH.ply [--materials FILE.yaml] [--visuals] [--strict] [--keep-dynamic]``.
 
-Reads a Gazebo SDF world (collision geometry, or visuals with ``--visuals``), assigns a material class to
-every triangle (opaque / foliage / user classes) and writes a PLY mesh plus its ``.scene.yaml`` sidecar
-(geodetic origin and material table): see gnss_sim_ros2/core/scene/mesh_io.py.
+Reads a Gazebo SDF world (collision geometry, or visuals with ``--visuals``) as Gazebo loads it (URIs
+from the resource paths and the local Fuel cache), assigns a material class to every triangle
+(opaque / foliage / user classes) and writes a PLY mesh plus its ``.scene.yaml`` sidecar (geodetic
+origin, material table, scene report): see gnss_sim_ros2/core/scene/mesh_io.py.  A part that cannot be
+loaded is skipped with a warning and listed in the scene report; ``--strict`` makes it an error.
 """
 from __future__ import annotations
 
 import sys
+import warnings
 
 
 def add_arguments(parser):
@@ -14,18 +17,31 @@ def add_arguments(parser):
     parser.add_argument("--out", required=True, metavar="MESH.ply", help="output mesh (PLY); sidecar written beside")
     parser.add_argument("--materials", metavar="FILE.yaml", help="material classes and name rules (fnmatch)")
     parser.add_argument("--visuals", action="store_true", help="use <visual> instead of <collision> geometry")
+    parser.add_argument("--strict", action="store_true",
+                        help="a part that cannot be loaded (missing mesh, uncached Fuel model...) is an error")
+    parser.add_argument("--keep-dynamic", action="store_true",
+                        help="keep non-static models (robots, movable objects) as obstacles")
+    parser.add_argument("--seed", type=int, default=0, help="seed of random <population> placement (default 0)")
 
 
 def run(args) -> int:
     from gnss_sim_ros2.core.scene.mesh_io import export_world, sidecar_path
+    from gnss_sim_ros2.core.scene.scene_report import LeftOutWarning, SceneWarning, report_lines
 
     try:
-        world = export_world(args.world, args.out, materials_yaml=args.materials, use_visuals=args.visuals)
+        with warnings.catch_warnings():
+            # each skip is listed once in the scene report below
+            warnings.simplefilter("ignore", SceneWarning)
+            warnings.simplefilter("ignore", LeftOutWarning)
+            world = export_world(args.world, args.out, materials_yaml=args.materials, use_visuals=args.visuals,
+                                 keep_dynamic=args.keep_dynamic, strict=args.strict, seed=args.seed)
     except ValueError as exc:
         print(f"gnss-sim export-world: error: {exc}", file=sys.stderr)
         return 2
     counts = ", ".join(f"{k} {v}" for k, v in world.class_counts().items())
     print(f"{args.out}: {len(world.triangles)} triangles ({counts}) from {len(world.parts)} parts")
+    for line in report_lines(world.report):
+        print(line)
     sph = world.spherical_coordinates
     if sph is None:
         print("warning: the world has no <spherical_coordinates>: satellites cannot be placed in it",

@@ -337,26 +337,26 @@ class Runner:
 
     def finish(self, n_epochs: int, dropped: int, wall_s: float, period: float):
         """Close the files (nodes cleaned up), then summary, sky plot and bag counts."""
-        horizon = self._local_horizon()    # before cleanup frees the visibility node's scene
+        sky = self._local_sky()    # before cleanup frees the visibility node's scene
         self.shutdown_nodes()
         if self.recorder is not None:
             self.recorder.close()
         summary = self.summary(n_epochs, dropped, wall_s, period)
         (self.out / "summary.json").write_text(json.dumps(summary, indent=2))
         (self.out / "summary.md").write_text(_summary_markdown(summary))
-        self.sky_plot(horizon)
+        self.sky_plot(sky)
         print(_summary_markdown(summary))
 
     def _antenna_world_m(self):
         m = self.last_vis
         return None if m is None else np.array([m.antenna_world_m.x, m.antenna_world_m.y, m.antenna_world_m.z])
 
-    def _local_horizon(self):
+    def _local_sky(self):
         """The skyline at the last antenna position from the visibility node of this process (composed
         mode); None when the nodes run in other processes."""
         at = self._antenna_world_m()
         scenes = [node.scene for node in self.local if getattr(node, "scene", None) is not None]
-        return scenes[0].horizon_profile(at) if at is not None and scenes else None
+        return scenes[0].sky_grid(at) if at is not None and scenes else None
 
     def summary(self, n_epochs, dropped, wall_s, period) -> dict:
         from gnss_sim_ros2.core.frames import ecef_to_enu, ecef_to_geodetic, geodetic_to_ecef
@@ -398,8 +398,9 @@ class Runner:
             out["bag_messages"] = count_messages(self.out / "bag")
         return out
 
-    def sky_plot(self, horizon=None):
-        """skyplot.png of the last epoch; ``horizon``: the skyline if known, else the scene is loaded here
+    def sky_plot(self, sky=None):
+        """skyplot.png of the last epoch; ``sky``: what the casts find (Scene.sky_grid) if known, else the scene
+        is loaded here
         (nodes in other processes)."""
         m = self.last_vis
         if m is None:
@@ -407,18 +408,20 @@ class Runner:
         from gnss_sim_ros2.core.skyplot import plot_skyplot
 
         at = self._antenna_world_m()
-        if horizon is None:
+        if sky is None:
             from gnss_sim_ros2.core.scene.demo_world import demo_world_path
             from gnss_sim_ros2.core.simulation import load_scene
 
             vis = self.cfg.node("visibility")
             world = vis["world_file"] if vis["world_file"] or vis["mesh_file"] else str(demo_world_path())
-            horizon = load_scene(world, vis["mesh_file"], vis["materials_file"],
-                                 vis["use_visuals"]).horizon_profile(at)
+            from gnss_sim_ros2.core.receiver.chain import VisibilityOptions
+
+            sky = load_scene(world, vis["mesh_file"], vis["materials_file"],
+                                 VisibilityOptions.from_params(vis)).sky_grid(at)
         sats = m.satellites
         plot_skyplot(self.out / "skyplot.png", [s.sv for s in sats], np.array([s.azimuth_deg for s in sats]),
                      np.array([s.elevation_deg for s in sats]), np.array([s.state for s in sats]),
-                     horizon=horizon, mask_deg=self.cfg.node("receiver")["elevation_mask_deg"],
+                     sky=sky, mask_deg=self.cfg.node("receiver")["elevation_mask_deg"],
                      title=f"last epoch, antenna at E {at[0]:.1f} N {at[1]:.1f} U {at[2]:.1f} m")
 
     def shutdown_nodes(self):

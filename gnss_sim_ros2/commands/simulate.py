@@ -40,6 +40,9 @@ def add_arguments(p):
                    help="an ideal receiver: no random errors and no hardware code biases (deterministic models kept)")
     p.add_argument("--profile", choices=("geodetic", "single_frequency"), default=None)
     p.add_argument("--marker", default=None, help="RINEX marker name")
+    p.add_argument("--rtcm", nargs="?", const="", default=None, metavar="FILE",
+                   help="also write the observations as RTCM3 (1006, 1033, MSM, broadcast ephemerides); "
+                        "FILE default: next to the RINEX observation file, .rtcm3")
     p.add_argument("--quiet", action="store_true", help="no progress output")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder")
 
@@ -103,7 +106,7 @@ def setup_from_args(args):
         tr = Trajectory.static(parse_triple(args.position, "--position"), "geodetic")
     elif args.trajectory:
         tr = Trajectory.from_csv(args.trajectory)
-    return setup_from_config(cfg, Path(args.out), tr, progress=not args.quiet)
+    return setup_from_config(cfg, Path(args.out), tr, progress=not args.quiet, rtcm_path=args.rtcm)
 
 
 def run(args) -> int:
@@ -127,7 +130,7 @@ def run(args) -> int:
     print(f"{res.sim_s:.0f} s simulated in {res.wall_s:.1f} s: {res.realtime_factor:.0f}x real time")
     if res.obs_path is None:
         print("no observation file written: no epoch was simulated", file=sys.stderr)
-    for path in (res.obs_path, res.nav_path, res.fix_path):
+    for path in (res.obs_path, res.nav_path, res.fix_path, res.rtcm_path):
         if path is not None and Path(path).is_file() and Path(path).stat().st_size > 0:
             print(f"wrote {path}")
     return 0

@@ -98,10 +98,9 @@ def _run(args) -> int:
     if args.png:
         from gnss_sim_ros2.core.skyplot import plot_skyplot
 
-        horizon = scene.horizon_profile(at, az_step_deg=1.0)
-        fol = scene.horizon_profile(at, az_step_deg=1.0, which="foliage") if scene.has_foliage else None
+        # the blocked sky from casts over the whole sky: gaps under overhangs stay open
         plot_skyplot(args.png, np.asarray(st.sv)[order], res.az_deg[order], res.el_deg[order],
-                     [names[i] for i in order], horizon=horizon, foliage_horizon=fol, mask_deg=mask or None,
+                     [names[i] for i in order], sky=scene.sky_grid(at), mask_deg=mask or None,
                      title=f"{Path(args.world or args.mesh).name} at E,N,U = {args.at} m, "
                            f"{args.time} {args.time_scale}")
         print(f"{args.png}: sky plot")

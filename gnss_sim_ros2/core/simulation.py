@@ -60,6 +60,12 @@ class SimulationSetup:
     preset: str = "balanced"
     fresnel_rays: int = -1
     use_visuals: bool = False
+    keep_dynamic_models: bool = False
+    strict_world: bool = False
+    #: RTCM3 file written next to the RINEX (None: none; "": the RINEX observation name with .rtcm3)
+    rtcm_path: str | None = None
+    #: with broadcast ephemeris messages (1019-1046) from the navigation records
+    rtcm_ephemeris: bool = True
     #: the receiver node's other parameters (profile, noise, ionosphere, troposphere, cn0_*, write_nmea_file;
     #: parameters.py); absent ones take the receiver model's defaults
     params: dict = field(default_factory=dict)
@@ -98,14 +104,16 @@ def setup_from_config(cfg, out_dir: Path, trajectory: Trajectory | None = None, 
         trajectory = antenna_path(robot_path(trj), trj["antenna_offset_m"])
         if not world and not mesh:
             world = str(demo_world_path())
-    own = {"profile", "noise", "ionosphere", "troposphere", "cn0_acquire_dbhz", "cn0_lose_dbhz", "write_nmea_file"}
+    own = {"profile", "noise", "ionosphere", "troposphere", "cn0_acquire_dbhz", "cn0_lose_dbhz", "write_nmea_file",
+           "rtcm_msm", "rtcm_station_id"}
     return SimulationSetup(
         start=GnssTime.from_iso(rcv["start_time"]), duration_s=eph["duration_s"], interval_s=1.0 / rcv["rate_hz"],
         out_dir=Path(out_dir), trajectory=trajectory, systems=rcv["systems"],
         elevation_mask_deg=rcv["elevation_mask_deg"], source=eph["source"], nav_files=list(eph["nav_files"]),
         sp3_files=list(eph["sp3_files"]), clk_files=list(eph["clk_files"]), world_file=world, mesh_file=mesh,
         materials_file=vis["materials_file"], preset=rcv["preset"], fresnel_rays=vis["fresnel_rays"],
-        use_visuals=vis["use_visuals"], params={k: v for k, v in rcv.items() if k in own},
+        use_visuals=vis["use_visuals"], keep_dynamic_models=vis["keep_dynamic_models"],
+        strict_world=vis["strict_world"], params={k: v for k, v in rcv.items() if k in own},
         marker_name=rcv["marker_name"], seed=rcv["seed"], **extra)
 
 
@@ -127,22 +135,26 @@ class SimulationResult:
     cpu_s: float = 0.0            # CPU time of this process (all its threads) during the epoch loop [s]
     interval_s: float = 0.0
     orbit_source: str = ""
+    rtcm_path: Path | None = None
 
     @property
     def realtime_factor(self) -> float:
         return self.sim_s / self.wall_s if self.wall_s > 0 else float("inf")
 
 
-def load_scene(world_file: str = "", mesh_file: str = "", materials_file: str = "", use_visuals: bool = False):
-    """The raycasting scene from an exported mesh or an SDF world (None when neither is given);
-    ``use_visuals``: an SDF world's visual geometry instead of its collision geometry."""
+def load_scene(world_file: str = "", mesh_file: str = "", materials_file: str = "",
+               options: VisibilityOptions | None = None):
+    """The raycasting scene from an exported mesh or an SDF world (None when neither is given); ``options``:
+    visual or collision geometry, non-static models, strictness (VisibilityOptions; default: their defaults)."""
     if not world_file and not mesh_file:
         return None
     from .scene.visibility import Scene
 
     if mesh_file:
         return Scene.load(mesh_file)
-    return Scene.from_sdf(world_file, materials_yaml=materials_file or None, use_visuals=use_visuals)
+    o = options or VisibilityOptions()
+    return Scene.from_sdf(world_file, materials_yaml=materials_file or None, use_visuals=o.use_visuals,
+                          keep_dynamic=o.keep_dynamic, strict=o.strict_world)
 
 
 def crop_world_mesh(world, antenna_world_m, mask_deg: float, margin_deg: float = 0.0):
@@ -240,8 +252,9 @@ def chain_settings(setup: SimulationSetup, interval_s: float | None = None) -> C
 
 def visibility_options(setup: SimulationSetup) -> VisibilityOptions:
     return VisibilityOptions.from_params({"elevation_mask_deg": setup.elevation_mask_deg, "preset": setup.preset,
-                                          "fresnel_rays": setup.fresnel_rays, "use_visuals": setup.use_visuals},
-                                         switches(setup))
+                                          "fresnel_rays": setup.fresnel_rays, "use_visuals": setup.use_visuals,
+                                          "keep_dynamic_models": setup.keep_dynamic_models,
+                                          "strict_world": setup.strict_world}, switches(setup))
 
 
 def _interval_s(setup: SimulationSetup, sw: dict) -> float:
@@ -260,7 +273,7 @@ def run_simulation(setup: SimulationSetup) -> SimulationResult:
     n_epochs = int(np.floor(setup.duration_s / interval_s + 1e-9)) + 1
     vis_opt = visibility_options(setup)
     scene = setup.scene if setup.scene is not None else load_scene(setup.world_file, setup.mesh_file,
-                                                                   setup.materials_file, vis_opt.use_visuals)
+                                                                   setup.materials_file, vis_opt)
     path = AntennaPath(setup.trajectory, scene)
     if scene is not None and setup.crop_scene:
         scene = _cropped_scene(scene, path, n_epochs, interval_s, setup.elevation_mask_deg, vis_opt.fresnel_rays)
@@ -284,8 +297,8 @@ def run_simulation(setup: SimulationSetup) -> SimulationResult:
                        list(setup.sp3_files) + list(setup.nav_files), warn=False)
 
     out.mkdir(parents=True, exist_ok=True)
-    for old in list(out.glob("*_MO.rnx")) + list(out.glob("*_MN.rnx")):
-        old.unlink()  # exactly one observation and one navigation file per run
+    for old in list(out.glob("*_MO*.rnx")) + list(out.glob("*_MN.rnx")) + list(out.glob("fix.csv")):
+        old.unlink()  # exactly one observation and one navigation file (and one fix.csv) per run
     nav_path = out / rinex_name(setup.marker_name, setup.start, setup.duration_s, interval_s, "MN")
     nav_written = write_navigation(nav_path, provider, setup.systems)
     if nav_written is None and nav_paths:
@@ -296,8 +309,13 @@ def run_simulation(setup: SimulationSetup) -> SimulationResult:
     for sv, ch in zip(st0.sv, st0.glo_channel):
         if sv[0] == "R":
             glo_slots[str(sv)] = int(ch)
+    rtcm = None
+    if setup.rtcm_path is not None:
+        rtcm = Path(setup.rtcm_path) if setup.rtcm_path else out / rinex_name(
+            setup.marker_name, setup.start, setup.duration_s, interval_s, "MO").replace("_MO.rnx", "_MO.rtcm3")
     chain = ReceiverChain(settings, provider, duration_s=setup.duration_s, glonass_slots=glo_slots,
-                          comment=f"gnss_sim simulate, source {source}")
+                          comment=f"gnss_sim simulate, source {source}", rtcm=rtcm,
+                          rtcm_ephemeris=setup.rtcm_ephemeris)
     res = SimulationResult(None, nav_written, out / "fix.csv", 0, 0, [], [], [], [], [], 0.0, 0.0,
                            interval_s=interval_s, orbit_source=source)
     svs_all = np.asarray(provider.svs(setup.systems), dtype="<U3")
@@ -335,6 +353,7 @@ def run_simulation(setup: SimulationSetup) -> SimulationResult:
     if setup.progress:
         print(file=sys.stderr)
     res.obs_path, res.epochs, res.fixes = chain.obs_path, chain.epochs, chain.fixes
+    res.rtcm_path = chain.rtcm_path
     if fix_est:
         res.horizontal_error_m = horizontal_errors_m(np.array(fix_est), np.array(fix_true)).tolist()
     res.wall_s = time.perf_counter() - wall0

@@ -1,8 +1,10 @@
 """Polar sky plot (PNG, matplotlib Agg): satellites by system and line-of-sight state, scene skyline.
 
 North up, azimuth clockwise, zenith at the centre, horizon at the rim (radius = 90 - elevation).
-Visible satellites are filled discs, attenuated ones (foliage) hollow discs, blocked ones crosses; the
-opaque skyline of the scene is shaded grey and the foliage skyline green.
+Visible satellites are filled discs, attenuated ones (foliage) hollow discs, blocked ones crosses.  The
+scene is drawn either from the casts over the whole sky (``sky``: the blocked cells of
+``Scene.sky_grid`` shaded grey, foliage cells green, so open sky under an overhang stays white) or as
+skylines (``horizon`` / ``foliage_horizon``: everything below the highest blocked elevation shaded).
 """
 from __future__ import annotations
 
@@ -15,10 +17,11 @@ SYSTEM_NAMES = {"G": "GPS", "R": "GLONASS", "E": "Galileo", "C": "BeiDou", "J": 
 
 
 def plot_skyplot(png_path, sv, az_deg, el_deg, state, horizon=None, foliage_horizon=None, mask_deg=None,
-                 title: str | None = None) -> None:
+                 title: str | None = None, sky=None) -> None:
     """Write a sky plot.  ``state``: names ("visible", "blocked", "attenuated") or STATE_* codes.
 
-    ``horizon`` / ``foliage_horizon``: (az_deg, el_deg) skyline arrays, e.g. from ``Scene.horizon_profile``.
+    ``horizon`` / ``foliage_horizon``: (az_deg, el_deg) skyline arrays, e.g. from ``Scene.horizon_profile``;
+    ``sky``: (az_edges_deg, el_edges_deg, opaque, foliage) from ``Scene.sky_grid`` (drawn instead of them).
     """
     import matplotlib
 
@@ -53,10 +56,20 @@ def plot_skyplot(png_path, sv, az_deg, el_deg, state, horizon=None, foliage_hori
         ax.fill_between(th, r, 90.0, color=color, alpha=alpha, lw=0, label=label)
         ax.plot(th, r, color=color, lw=1.0)
 
-    if foliage_horizon is not None:
-        shade(foliage_horizon, "#2e8b57", 0.25, "foliage")
-    if horizon is not None:
-        shade(horizon, "#606060", 0.45, "buildings")
+    if sky is not None:
+        from matplotlib.colors import ListedColormap
+
+        az_e, el_e, opaque, foliage = (np.asarray(x) for x in sky)
+        th, r = np.meshgrid(np.radians(az_e), 90.0 - np.asarray(el_e, float), indexing="ij")
+        for cells, color, alpha in ((foliage, "#2e8b57", 0.35), (opaque, "#606060", 0.55)):
+            if np.any(cells):
+                ax.pcolormesh(th, r, np.ma.masked_where(~cells.astype(bool), np.ones(cells.shape)),
+                              cmap=ListedColormap([color]), alpha=alpha, shading="flat", lw=0)
+    else:
+        if foliage_horizon is not None:
+            shade(foliage_horizon, "#2e8b57", 0.25, "foliage")
+        if horizon is not None:
+            shade(horizon, "#606060", 0.45, "buildings")
     if mask_deg:
         th = np.linspace(0, 2 * np.pi, 361)
         ax.plot(th, np.full_like(th, 90.0 - mask_deg), ls="--", color="k", lw=0.7, label=f"mask {mask_deg:g}°")

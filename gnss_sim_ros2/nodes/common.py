@@ -181,9 +181,16 @@ class GnssSimNode(LifecycleNode):
 
 def run_origin_ns(node) -> int:
     """ROS time [ns] at which a run's time 0 lies: 0 on a simulated clock (Gazebo, gnss-sim run
-    start their /clock at 0), the current time on a wall clock (the run starts now)."""
+    start their /clock at 0), the time of the node's first call on a wall clock (the run starts
+    then). A lifecycle cycle (deactivate, cleanup, configure, activate) continues that timeline:
+    starting it again would repeat GNSS epochs and the RINEX file names of the first activation."""
     use_sim = node.get_parameter("use_sim_time").value if node.has_parameter("use_sim_time") else False
-    return 0 if use_sim else node.get_clock().now().nanoseconds
+    if use_sim:
+        return 0
+    origin = getattr(node, "_run_origin_ns", None)
+    if origin is None:
+        origin = node._run_origin_ns = node.get_clock().now().nanoseconds
+    return origin
 
 
 class TimeMapping:
@@ -212,23 +219,71 @@ class TimeMapping:
         return Time(sec=total // 1_000_000_000, nanosec=total % 1_000_000_000)
 
 
+class StopSignals:
+    """SIGINT and SIGTERM as a flag that a spin loop polls.
+
+    rclpy's own handlers shut the context down at once, wherever the executor
+    is (the container then failed in ``wait set`` with exit 1, a node inside
+    ``take_message``); here the loop ends, the nodes free their resources on a
+    valid context (RINEX and bag files closed) and the process exits 0.  ros2
+    launch sends SIGINT, then SIGTERM after its timeout: both are handled.
+    Use with ``rclpy.init(..., signal_handler_options=SignalHandlerOptions.NO)``.
+    """
+
+    def __init__(self):
+        import signal
+
+        self.signum = None
+        for s in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(s, self._on_signal)
+
+    def _on_signal(self, signum, _frame):
+        self.signum = signum
+
+    @property
+    def stopped(self) -> bool:
+        return self.signum is not None
+
+
+def init_ros(args=None) -> StopSignals:
+    """``rclpy.init`` without rclpy's signal handlers, ours installed first."""
+    import rclpy
+    from rclpy.signals import SignalHandlerOptions
+
+    stop = StopSignals()
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    return stop
+
+
+def spin_until_stopped(executor, stop: StopSignals, poll_s: float = 0.1):
+    """Spin until a signal (or the context is shut down); the poll bounds the reaction time."""
+    while not stop.stopped and executor.context.ok():
+        executor.spin_once(timeout_sec=poll_s)
+
+
+def close_ros(executor, *nodes):
+    """After the spin loop: the nodes out of the executor and destroyed, then rclpy shut down."""
+    import rclpy
+
+    for node in nodes:
+        executor.remove_node(node)
+        node.destroy_node()
+    executor.shutdown()
+    rclpy.try_shutdown()
+
+
 def run_node(cls, args=None) -> int:
     """``main`` of a node executable: spin until Ctrl-C / SIGTERM / shutdown, then free the node's
-    resources (files closed: a RINEX file stays valid up to its last epoch)."""
-    import signal
+    resources (files closed: a RINEX file stays valid up to its last epoch) and exit 0."""
+    from rclpy.executors import SingleThreadedExecutor
 
-    import rclpy
-    from rclpy.executors import ExternalShutdownException
-
-    rclpy.init(args=args)
+    stop = init_ros(args)
     node = cls()
-    signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
     try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        spin_until_stopped(executor, stop)
     finally:
         node.release()
-        node.destroy_node()
-        rclpy.try_shutdown()
+        close_ros(executor, node)
     return 0

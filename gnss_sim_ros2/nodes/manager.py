@@ -47,17 +47,18 @@ class LocalNodes:
 class RemoteNodes:
     """Nodes in other processes, driven through their lifecycle services."""
 
-    def __init__(self, client_node, names, executor):
+    def __init__(self, client_node, names, executor, should_stop=None):
         self.node = client_node
         self.names = list(names)
         self.executor = executor
+        self.should_stop = should_stop or (lambda: False)  # e.g. a signal: every wait ends early
         self.change = {n: client_node.create_client(ChangeState, f"/{n}/change_state") for n in self.names}
         self.get = {n: client_node.create_client(GetState, f"/{n}/get_state") for n in self.names}
 
     def _call(self, client, request, timeout_s: float):
         future = client.call_async(request)
         deadline = time.monotonic() + timeout_s
-        while not future.done() and time.monotonic() < deadline:
+        while not future.done() and time.monotonic() < deadline and not self.should_stop():
             self.executor.spin_once(timeout_sec=0.05)
         return future.result() if future.done() else None
 
@@ -65,6 +66,8 @@ class RemoteNodes:
         deadline = time.monotonic() + timeout_s
         for n in self.names:
             while not self.change[n].service_is_ready():
+                if self.should_stop():
+                    return
                 if time.monotonic() > deadline:
                     raise TransitionFailed(f"{n}: its lifecycle services did not appear within {timeout_s:.0f} s "
                                            f"(did the process start? see its log)")
@@ -74,10 +77,14 @@ class RemoteNodes:
         tid, goal = TRANSITIONS[name]
         order = list(reversed(self.names)) if name == "activate" else self.names
         for n in order:
+            if self.should_stop():
+                return
             req = ChangeState.Request()
             req.transition.id = tid
             res = self._call(self.change[n], req, timeout_s)
             state = self._call(self.get[n], GetState.Request(), 10.0)
+            if self.should_stop():
+                return
             label = state.current_state.label if state is not None else "?"
             if res is None or not res.success or label != goal:
                 raise TransitionFailed(f"{n}: {name} failed (state {label}; the node's error is in its log above)")

@@ -55,7 +55,8 @@ class ReceiverNode(GnssSimNode):
             settings = ChainSettings.from_params(p)
         except ValueError as exc:
             raise ValueError(f"node {self.get_name()}: {exc}") from None
-        self.chain = ReceiverChain(settings, None, nmea=True, comment="gnss_sim receiver node")
+        self.chain = ReceiverChain(settings, None, nmea=True, comment="gnss_sim receiver node",
+                                   rtcm=True if p["rtcm"] else None)
         self.last_stamp = None
         self.pubs = {
             "obs": self.lifecycle_publisher(Observations, "observations", 100),
@@ -65,6 +66,10 @@ class ReceiverNode(GnssSimNode):
             "nmea": self.lifecycle_publisher(String, "nmea", 100),
             "diag": self.lifecycle_publisher(DiagnosticArray, "/diagnostics", 10),
         }
+        if p["rtcm"]:
+            from std_msgs.msg import UInt8MultiArray
+
+            self.pubs["rtcm"] = self.lifecycle_publisher(UInt8MultiArray, "rtcm", 100)
 
     def activate(self):
         from gnss_sim_msgs.msg import SatelliteStates, Visibility
@@ -125,6 +130,10 @@ class ReceiverNode(GnssSimNode):
         self.pubs["vel"].publish(self._vel_msg(header, sol))
         self.pubs["status"].publish(self._status_msg(header, obs, sol))
         self.pubs["nmea"].publish(String(data=ep.nmea))
+        if ep.rtcm:
+            from std_msgs.msg import UInt8MultiArray
+
+            self.pubs["rtcm"].publish(UInt8MultiArray(data=ep.rtcm))
         if self.chain.epochs % 10 == 1:
             self._diagnose(obs, sol)
 

@@ -42,7 +42,7 @@ class VisibilityNode(GnssSimNode):
         self.processed = 0
         self.dropped = 0
         self._last_image_s = -1e9
-        self._horizon = None
+        self._sky = None
 
     def configure(self, p):
         from gnss_sim_ros2.core.receiver.chain import VisibilityOptions
@@ -52,7 +52,7 @@ class VisibilityNode(GnssSimNode):
         try:
             self.options = VisibilityOptions.from_params(p)
             world = p["world_file"] if p["world_file"] or p["mesh_file"] else str(demo_world_path())
-            self.scene = load_scene(world, p["mesh_file"], p["materials_file"], self.options.use_visuals)
+            self.scene = load_scene(world, p["mesh_file"], p["materials_file"], self.options)
         except ValueError as exc:
             raise ValueError(f"node {self.get_name()}: {exc}") from None
         if self.scene.spherical is None:
@@ -60,7 +60,7 @@ class VisibilityNode(GnssSimNode):
                              f"on the Earth (parameter world_file/mesh_file)")
         self.processed = self.dropped = 0
         self._last_image_s = -1e9
-        self._horizon = None
+        self._sky = None
         from gnss_sim_msgs.msg import Visibility
 
         self.pub = self.lifecycle_publisher(Visibility, "visibility", 100)
@@ -84,7 +84,7 @@ class VisibilityNode(GnssSimNode):
             self.tf.close()
             self.tf = None
         self.scene = self.options = None
-        self._horizon = None
+        self._sky = None
 
     # ------------------------------------------------------------------
     def _on_states(self, msg):
@@ -141,20 +141,24 @@ class VisibilityNode(GnssSimNode):
             self._diagnose(len(sats))
 
     def _sky_image(self, vis, antenna_world_m, size: int = 241) -> Image:
-        """A polar sky view (north up, zenith centre): skyline grey, satellites green/yellow/red."""
+        """A polar sky view (north up, zenith centre): blocked sky grey, foliage pale green, satellites
+        green (visible), red (blocked), yellow (attenuated), blue (reflection only)."""
         img = np.full((size, size, 3), 255, dtype=np.uint8)
         c = size // 2
         yy, xx = np.mgrid[0:size, 0:size]
         dx, dy = xx - c, c - yy
         r = np.hypot(dx, dy) / c  # 0 at zenith, 1 at the horizon
         az = np.degrees(np.arctan2(dx, dy)) % 360.0
-        if self._horizon is None or np.linalg.norm(self._horizon[0] - antenna_world_m) > 1.0:
-            prof = self.scene.horizon_profile(antenna_world_m, az_step_deg=2.0)
-            self._horizon = (np.array(antenna_world_m), prof)
-        prof_az, prof_el = self._horizon[1]
-        sky_el = np.interp(az, prof_az, prof_el, period=360.0)
+        if self._sky is None or np.linalg.norm(self._sky[0] - antenna_world_m) > 1.0:
+            # what the casts find over the sky (open sky under an overhang stays open), cached per metre moved
+            self._sky = (np.array(antenna_world_m), self.scene.sky_grid(antenna_world_m, az_step_deg=2.0))
+        az_e, el_e, opaque, foliage = self._sky[1]
         el_px = 90.0 * (1.0 - r)
-        img[(r <= 1.0) & (el_px <= sky_el)] = (170, 170, 170)
+        inside = r <= 1.0
+        ia = np.clip(np.searchsorted(az_e, az, side="right") - 1, 0, opaque.shape[0] - 1)
+        ie = np.clip(np.searchsorted(el_e, el_px, side="right") - 1, 0, opaque.shape[1] - 1)
+        img[inside & opaque[ia, ie]] = (170, 170, 170)
+        img[inside & foliage[ia, ie] & ~opaque[ia, ie]] = (200, 230, 200)
         img[(r > 1.0)] = (40, 40, 40)
         colors = {0: (0, 170, 0), 1: (200, 0, 0), 2: (230, 170, 0), 3: (0, 0, 200)}
         for s in vis.satellites:

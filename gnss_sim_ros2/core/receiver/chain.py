@@ -42,6 +42,9 @@ class VisibilityOptions:
     fresnel_rays: int = 0
     foliage: str = "path"
     use_visuals: bool = False
+    #: world loading: non-static models kept as obstacles; unloadable parts an error
+    keep_dynamic: bool = False
+    strict_world: bool = False
 
     @classmethod
     def from_params(cls, p: dict, switches: dict | None = None) -> VisibilityOptions:
@@ -50,7 +53,9 @@ class VisibilityOptions:
         fresnel = p.get("fresnel_rays", -1)
         return cls(mask_deg=float(p["elevation_mask_deg"]),
                    fresnel_rays=int(fresnel if fresnel >= 0 else sw["fresnel_rays"]),
-                   foliage=sw["foliage"], use_visuals=bool(p.get("use_visuals", False)))
+                   foliage=sw["foliage"], use_visuals=bool(p.get("use_visuals", False)),
+                   keep_dynamic=bool(p.get("keep_dynamic_models", False)),
+                   strict_world=bool(p.get("strict_world", False)))
 
     def cast(self, scene, antenna_world_m, sat_ecef_m):
         """(state, attenuation_db, VisibilityResult) of satellites (N, 3) or (M, N, 3) seen from the antenna(s).
@@ -78,6 +83,9 @@ class ChainSettings:
     switches: dict = field(default_factory=dict)
     #: the SISRE was set explicitly (kept even for precise orbits)
     sisre_given: bool = False
+    #: RTCM3 output: MSM7 or MSM4, reference station id (DF003)
+    rtcm_msm: int = 7
+    rtcm_station_id: int = 0
 
     @classmethod
     def from_params(cls, p: dict, *, switches: dict | None = None, interval_s: float | None = None,
@@ -109,7 +117,8 @@ class ChainSettings:
                    marker_name=p.get("marker_name", "GSIM"), preset=p["preset"],
                    output_dir=Path(out_dir) if out_dir else None,
                    write_nmea_file=bool(p.get("write_nmea_file", False)), switches=dict(sw),
-                   sisre_given="sisre_m" in (receiver_overrides or {}))
+                   sisre_given="sisre_m" in (receiver_overrides or {}), rtcm_msm=int(p.get("rtcm_msm", 7)),
+                   rtcm_station_id=int(p.get("rtcm_station_id", 0)))
 
 
 @dataclass
@@ -121,6 +130,8 @@ class EpochProducts:
     obs: EpochObservations
     sol: PvtSolution
     nmea: str = ""
+    #: the epoch's RTCM3 messages (empty without RTCM output or without a tracked signal)
+    rtcm: bytes = b""
 
 
 class ReceiverChain:
@@ -130,11 +141,15 @@ class ReceiverChain:
     ``duration_s``: the span of the run, for the RINEX file name (None: "00U", unknown);
     ``glonass_slots``: GLONASS frequency channels for the RINEX header (None: from the first epoch's states);
     ``nmea``: produce NMEA text every epoch (a node publishes it); the NMEA file follows ``write_nmea_file``;
-    ``comment``: who wrote the files (first RINEX header comment).
+    ``comment``: who wrote the files (first RINEX header comment);
+    ``rtcm``: RTCM3 output: a file path (written epoch by epoch), True (the bytes of each epoch only, in
+    ``EpochProducts.rtcm``: a node publishes them) or None; ``rtcm_ephemeris``: with the broadcast
+    ephemeris messages of the provider's navigation records (offline).
     """
 
     def __init__(self, settings: ChainSettings, provider=None, *, duration_s: float | None = None,
-                 glonass_slots: dict | None = None, nmea: bool = False, comment: str = "gnss_sim"):
+                 glonass_slots: dict | None = None, nmea: bool = False, comment: str = "gnss_sim",
+                 rtcm: Path | bool | None = None, rtcm_ephemeris: bool = True):
         self.settings = settings
         self.provider = provider
         self.duration_s = duration_s
@@ -146,10 +161,17 @@ class ReceiverChain:
         self.obs_types = obs_types_for(settings.receiver.profile, settings.receiver.systems)
         self.obs_path: Path | None = None
         self.fix_path: Path | None = None
+        self.rtcm_target = rtcm if rtcm not in (None, False) else None
+        self.rtcm_ephemeris = rtcm_ephemeris
+        self.rtcm_path: Path | None = None
+        self._rtcm = None
+        self._header = None
         self._writer = None
         self._fix_file = None
         self._fix_csv = None
         self._nmea_file = None
+        if settings.output_dir is not None:
+            settings.output_dir.mkdir(parents=True, exist_ok=True)   # an unwritable folder fails the start
         self.reset()
 
     # ------------------------------------------------------------------ state of one run
@@ -157,6 +179,7 @@ class ReceiverChain:
         """Forget everything of the previous run (a reconfigured node starts clean); files closed."""
         self.close()
         self.rx = None
+        self._header = None
         self.prior_ecef_m = None
         self._pos_prev = None
         self.epochs = 0
@@ -199,44 +222,88 @@ class ReceiverChain:
 
             text = join_sentences(sentences_from_solution(t, sol, cn0_dbhz=obs.cn0_dbhz[
                 spp_rows(obs, self.settings.receiver.profile)]))
+        wanted = self.settings.output_dir is not None or self.rtcm_target is not None
+        arrays = epoch_arrays(obs, self.obs_types) if len(obs.sv) and wanted else None
+        if self._header is None:
+            self._header = self._make_header(ecef, states)
         if self.settings.output_dir is not None:
-            self._write(t, ecef, states, obs, sol, text)
-        return EpochProducts(t, ecef, obs, sol, text)
+            self._write(t, ecef, obs, sol, text, arrays)
+        rtcm = b""
+        if self.rtcm_target is not None and arrays is not None:
+            if self._rtcm is None:
+                self._rtcm = self._open_rtcm()
+            rtcm = self._rtcm.write_epoch(t, arrays)
+        return EpochProducts(t, ecef, obs, sol, text, rtcm)
 
     # ------------------------------------------------------------------ files
-    def _open(self, t: GnssTime, ecef, states):
+    def _make_header(self, ecef, states):
+        """The RINEX header of the run (first epoch's antenna position, GLONASS slots); RTCM uses it too."""
+        s = self.settings
+        slots = self.glonass_slots
+        if slots is None:
+            slots = {str(sv): int(ch) for sv, ch in zip(states.sv, states.glo_channel) if sv[0] == "R"}
+        cfg = s.receiver
+        return header(self.obs_types, s.marker_name, ecef, s.interval_s, slots,
+                      comments=[f"{self.comment}, preset {s.preset}",
+                                f"seed {cfg.seed}; noise {'on' if cfg.noise else 'off'}"])
+
+    def _open_rtcm(self):
+        from ..rtcm.writer import RtcmWriter
+
+        nav = getattr(self.provider, "nav", None) if self.rtcm_ephemeris else None
+        navigation = None
+        if nav is not None:
+            from ..rinex.nav_read import records_as_dicts
+
+            navigation = records_as_dicts(nav, self.settings.receiver.systems)
+        if self.rtcm_target is True:
+            sink = _Discard()
+        else:
+            self.rtcm_path = Path(self.rtcm_target)
+            self.rtcm_path.parent.mkdir(parents=True, exist_ok=True)
+            sink = self.rtcm_path
+        return RtcmWriter(sink, self._header, msm=self.settings.rtcm_msm, station_id=self.settings.rtcm_station_id,
+                          navigation=navigation)
+
+    def _open(self, t: GnssTime):
         from ..rinex.obs_write import RinexObsWriter
 
         s = self.settings
         out = s.output_dir
         out.mkdir(parents=True, exist_ok=True)
-        slots = self.glonass_slots
-        if slots is None:
-            slots = {str(sv): int(ch) for sv, ch in zip(states.sv, states.glo_channel) if sv[0] == "R"}
-        cfg = s.receiver
-        hdr = header(self.obs_types, s.marker_name, ecef, s.interval_s, slots,
-                     comments=[f"{self.comment}, preset {s.preset}",
-                               f"seed {cfg.seed}; noise {'on' if cfg.noise else 'off'}"])
-        self.obs_path = out / rinex_name(s.marker_name, t, self.duration_s, s.interval_s, "MO")
+        hdr = self._header
+        name = rinex_name(s.marker_name, t, self.duration_s, s.interval_s, "MO")
+        self.obs_path = out / name
+        k = 1
+        while self.obs_path.exists():
+            # a reconfigured node in the same minute: never overwrite a file; the next file counts up the
+            # receiver number of the long name (SSSSMR: RINEX 3.04 section 4.1), so it still ends _MO.rnx
+            if k > 9:
+                raise ValueError(f"{out}: ten observation files of marker {s.marker_name} start in this minute "
+                                 f"already; give another output_dir or marker_name")
+            self.obs_path = out / (name[:5] + str(k) + name[6:])
+            k += 1
         self._writer = RinexObsWriter(self.obs_path, hdr)
         self.fix_path = out / "fix.csv"
-        self._fix_file = open(self.fix_path, "w", newline="", buffering=1)  # noqa: SIM115 - closed in close()
+        new = not self.fix_path.exists()
+        self._fix_file = open(self.fix_path, "a", newline="", buffering=1)  # noqa: SIM115 - closed in close()
         self._fix_csv = csv.writer(self._fix_file)
-        self._fix_csv.writerow(["time", "lat_deg", "lon_deg", "h_m", "n_sats", "status"])
+        if new:
+            self._fix_csv.writerow(["time", "lat_deg", "lon_deg", "h_m", "n_sats", "status"])
         if s.write_nmea_file:
             self._nmea_file = open(out / "gnss_sim.nmea", "a", buffering=1)  # noqa: SIM115 - closed in close()
 
-    def _write(self, t, ecef, states, obs, sol, nmea_text):
+    def _write(self, t, ecef, obs, sol, nmea_text, arrays):
         if self._writer is None:
-            self._open(t, ecef, states)
+            self._open(t)
         stamp = t.isoformat(digits=3 if self.settings.interval_s < 1 else 0)
         if sol.is_fix:
             self._fix_csv.writerow([stamp, f"{sol.lat_deg:.9f}", f"{sol.lon_deg:.9f}", f"{sol.h_m:.4f}", sol.n_used,
                                     "fix"])
         else:
             self._fix_csv.writerow([stamp, "", "", "", sol.n_used, "no_fix"])
-        if len(obs.sv):
-            self._writer.write_epoch(t, epoch_arrays(obs, self.obs_types))
+        if arrays is not None:
+            self._writer.write_epoch(t, arrays)
         if self._nmea_file is not None:
             self._nmea_file.write(nmea_text)
 
@@ -245,7 +312,17 @@ class ReceiverChain:
         if self._writer is not None:
             self._writer.close()
             self._writer = None
+        if self._rtcm is not None:
+            self._rtcm.close()
+            self._rtcm = None
         for f in (self._fix_file, self._nmea_file):
             if f is not None:
                 f.close()
         self._fix_file = self._fix_csv = self._nmea_file = None
+
+
+class _Discard:
+    """An RTCM sink that keeps nothing: the bytes of each epoch are returned to the caller."""
+
+    def write(self, data: bytes) -> int:
+        return len(data)

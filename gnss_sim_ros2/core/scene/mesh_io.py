@@ -17,6 +17,8 @@ face property is ignored by viewers that do not know it).
     materials: [{index: 0, name: opaque, attenuation_db_per_m: null}, {index: 1, name: foliage, ...}]
     source: WORLD.sdf
     triangles: {opaque: 1234, foliage: 560}
+    parts: [{name, class, triangles}, ...]
+    report: {parts_loaded, triangles, skipped: [{part, reason}], left_out: [...], mesh_files_read, ...}
 
 A mesh without the ``material`` face property (any PLY/OBJ/STL from elsewhere)
 loads with every triangle in class 0 of the sidecar table (``opaque`` when
@@ -29,7 +31,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .sdf_world import MaterialTable, SphericalCoordinates, WorldMesh, load_sdf_world
+from .georeference import SphericalCoordinates
+from .loader import load_sdf_world
+from .materials import MaterialTable
+from .world_mesh import WorldMesh
 
 SCENE_FORMAT = "gnss_sim.scene/1"
 FRAME_DESCRIPTION = ("Gazebo world frame [m]: ENU at the spherical_coordinates origin rotated by heading_deg "
@@ -155,6 +160,7 @@ def write_scene(mesh_path, world: WorldMesh) -> Path:
         "source": str(world.source),
         "triangles": world.class_counts(),
         "parts": world.parts,
+        "report": world.report,
     }
     sp = sidecar_path(mesh_path)
     sp.write_text(yaml.safe_dump(side, sort_keys=False))
@@ -201,13 +207,21 @@ def read_scene(mesh_path) -> WorldMesh:
                          f"{len(table.classes)} classes in {sp}")
     sph = side.get("spherical_coordinates")
     sph = SphericalCoordinates.from_dict(sph, f"{sp}: spherical_coordinates") if sph else None
-    return WorldMesh(verts, tris, mat, table, sph, side.get("parts") or [], side.get("source", str(mesh_path)))
+    return WorldMesh(verts, tris, mat, table, sph, side.get("parts") or [], side.get("source", str(mesh_path)),
+                     side.get("report") or {})
 
 
-def export_world(sdf_path, out_mesh_path, materials_yaml=None, use_visuals: bool = False) -> WorldMesh:
-    """Read an SDF world and write ``out_mesh_path`` (PLY) plus its sidecar; returns the WorldMesh."""
-    world = load_sdf_world(sdf_path, materials_yaml=materials_yaml, use_visuals=use_visuals)
+def export_world(sdf_path, out_mesh_path, materials_yaml=None, use_visuals: bool = False, *,
+                 keep_dynamic: bool = False, strict: bool = False, seed: int = 0) -> WorldMesh:
+    """Read an SDF world and write ``out_mesh_path`` (PLY) plus its sidecar; returns the WorldMesh.
+
+    Keyword options as :func:`~.loader.load_sdf_world`."""
+    world = load_sdf_world(sdf_path, materials_yaml=materials_yaml, use_visuals=use_visuals,
+                           keep_dynamic=keep_dynamic, strict=strict, seed=seed)
     if len(world.triangles) == 0:
-        raise ValueError(f"{sdf_path}: no {'visual' if use_visuals else 'collision'} geometry found")
+        why = [f"{it['part']}: {it['reason']}" for it in world.report.get("skipped", [])[:5]]
+        why += [f"{it['part']}: {it['reason']}" for it in world.report.get("left_out", [])[:5]]
+        raise ValueError(f"{sdf_path}: no {'visual' if use_visuals else 'collision'} geometry loaded"
+                         + (": " + "; ".join(why) if why else ""))
     write_scene(out_mesh_path, world)
     return world

@@ -48,7 +48,7 @@ import numpy as np
 from .. import frames
 from ..constants import C_MPS, F_L1_HZ, FOLIAGE_MEDIAN_LOSS_DB
 from .raycast import RayScene
-from .sdf_world import WorldMesh
+from .world_mesh import WorldMesh
 
 STATE_BELOW_MASK = -1
 STATE_VISIBLE = 0
@@ -169,11 +169,13 @@ class Scene:
         return cls(read_scene(mesh_path), nthreads=nthreads)
 
     @classmethod
-    def from_sdf(cls, sdf_path, materials_yaml=None, use_visuals: bool = False, nthreads: int = 0) -> Scene:
-        from .sdf_world import load_sdf_world
+    def from_sdf(cls, sdf_path, materials_yaml=None, use_visuals: bool = False, nthreads: int = 0, *,
+                 keep_dynamic: bool = False, strict: bool = False, seed: int = 0) -> Scene:
+        """From an SDF world: keyword options as :func:`~.loader.load_sdf_world`."""
+        from .loader import load_sdf_world
 
-        return cls(load_sdf_world(Path(sdf_path), materials_yaml=materials_yaml, use_visuals=use_visuals),
-                   nthreads=nthreads)
+        return cls(load_sdf_world(Path(sdf_path), materials_yaml=materials_yaml, use_visuals=use_visuals,
+                                  keep_dynamic=keep_dynamic, strict=strict, seed=seed), nthreads=nthreads)
 
     @property
     def has_foliage(self) -> bool:
@@ -385,6 +387,29 @@ class Scene:
         return res
 
     # ---------------------------------------------------------------- skyline
+    def sky_grid(self, antenna_world_m, az_step_deg: float = 2.0, el_step_deg: float = 1.0, tnear_m: float = 1e-3):
+        """What the casts find over the whole sky: one ray per cell centre of an azimuth x elevation grid.
+
+        Returns (az_edges_deg (A+1,), el_edges_deg (E+1,), opaque (A, E) bool, foliage (A, E) bool) in the
+        antenna's local ENU; ``foliage`` is set where the ray is not blocked but crosses a penetrable
+        volume.  Unlike :meth:`horizon_profile` (the highest blocked elevation per azimuth), the grid keeps
+        open sky under an overhang (a gap under a beam or a gantry) open."""
+        if not (az_step_deg > 0 and el_step_deg > 0):
+            raise ValueError(f"sky_grid: az_step_deg and el_step_deg must be > 0, got {az_step_deg}, {el_step_deg}")
+        a = np.asarray(antenna_world_m, dtype=np.float64).reshape(3)
+        az_e = np.arange(0.0, 360.0 + 1e-9, az_step_deg)
+        el_e = np.arange(0.0, 90.0 + 1e-9, el_step_deg)
+        if el_e[-1] < 90.0:
+            el_e = np.append(el_e, 90.0)
+        A, E = np.meshgrid(0.5 * (az_e[:-1] + az_e[1:]), 0.5 * (el_e[:-1] + el_e[1:]), indexing="ij")
+        R = self.world_from_local_enu(a)[0]
+        dw = (frames.enu_unit_from_az_el(A, E) @ R.T).reshape(-1, 3)
+        opaque = self.rays.occluded(a, dw, tnear_m=tnear_m).reshape(A.shape)
+        foliage = np.zeros_like(opaque)
+        if self.has_foliage:
+            foliage = self.rays.touches_penetrable(a, dw, tnear_m=tnear_m).reshape(A.shape) & ~opaque
+        return az_e, el_e, opaque, foliage
+
     def horizon_profile(self, antenna_world_m, az_step_deg: float = 1.0, which: str = "opaque",
                         iterations: int = 14, tnear_m: float = 1e-3):
         """Skyline elevation [deg] at each azimuth (local ENU of the antenna).

@@ -1,0 +1,44 @@
+"""``ros2 run gnss_sim recorder --ros-args -p bag_dir:=DIR``: the project's rosbag2 (MCAP) recorder
+(gnss_sim_ros2/recorder.py) as a node of a launch, where ``ros2 bag`` does not exist.
+
+Records graph.RECORDED until SIGINT/SIGTERM, then closes the bag (exit 0).  A
+bag folder that exists already, or no ``bag_dir``, is an error (exit 2).
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+
+from gnss_sim_ros2.nodes.common import close_ros, init_ros, spin_until_stopped
+
+
+def main(args=None) -> int:
+    stop = init_ros(args)
+    node = rclpy.create_node("gnss_sim_recorder")
+    bag_dir = node.declare_parameter("bag_dir", "").value
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    recorder = None
+    try:
+        if not bag_dir:
+            raise ValueError("node gnss_sim_recorder: parameter 'bag_dir' is empty (the bag folder to write)")
+        from gnss_sim_ros2.recorder import BagRecorder
+
+        recorder = BagRecorder(node, Path(bag_dir))
+        node.get_logger().info(f"recording into {bag_dir}")
+        spin_until_stopped(executor, stop)
+    except ValueError as exc:
+        node.get_logger().error(str(exc))
+        return 2
+    finally:
+        if recorder is not None:
+            recorder.close()
+        close_ros(executor, node)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

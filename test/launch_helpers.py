@@ -1,0 +1,147 @@
+"""What the launch tests share: a probe node in the test process (a simulated /clock, the
+fixes, lifecycle and composition service calls), the ``ros2`` command line, RINEX epochs."""
+from __future__ import annotations
+
+import os
+import subprocess
+import threading
+import time
+from pathlib import Path
+
+import rclpy
+from builtin_interfaces.msg import Time
+from lifecycle_msgs.msg import Transition
+from lifecycle_msgs.srv import ChangeState, GetState
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.signals import SignalHandlerOptions
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import NavSatFix
+
+from gnss_sim_ros2 import graph
+
+#: the graph's lifecycle nodes, upstream first
+NODES = tuple(s.name for s in graph.NODES)
+TRANSITION_IDS = {
+    "configure": Transition.TRANSITION_CONFIGURE, "activate": Transition.TRANSITION_ACTIVATE,
+    "deactivate": Transition.TRANSITION_DEACTIVATE, "cleanup": Transition.TRANSITION_CLEANUP,
+    "shutdown": Transition.TRANSITION_ACTIVE_SHUTDOWN,
+}
+
+
+def stamp_s(stamp) -> float:
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
+class Probe:
+    """One node of the test process, spun in a background thread; publishes /clock at ``speed``x."""
+
+    def __init__(self, speed: float):
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context, signal_handler_options=SignalHandlerOptions.NO)
+        self.node = rclpy.create_node("gnss_sim_launch_probe", context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.lock = threading.Lock()
+        self.fixes: list[NavSatFix] = []
+        self.node.create_subscription(NavSatFix, "/gnss/fix", self._on_fix, 100)
+        self.speed = speed
+        self.clock_ns = None  # None: no /clock yet
+        self._clock_pub = self.node.create_publisher(Clock, "/clock", 10)
+        self._wall0 = None
+        self.node.create_timer(0.01, self._tick_clock)  # wall (steady) clock: the probe is not on sim time
+        self._clients: dict = {}
+        self._stop = False
+        self.thread = threading.Thread(target=self._spin, daemon=True)
+        self.thread.start()
+
+    def _spin(self):
+        while not self._stop and self.context.ok():
+            self.executor.spin_once(timeout_sec=0.05)
+
+    def _on_fix(self, msg):
+        with self.lock:
+            self.fixes.append(msg)
+
+    def _tick_clock(self):
+        if self._wall0 is None:
+            return
+        ns = int((time.monotonic() - self._wall0) * self.speed * 1e9)
+        self.clock_ns = ns
+        self._clock_pub.publish(Clock(clock=Time(sec=ns // 10**9, nanosec=ns % 10**9)))
+
+    def start_clock(self):
+        self._wall0 = time.monotonic()
+
+    def fixes_copy(self) -> list[NavSatFix]:
+        with self.lock:
+            return list(self.fixes)
+
+    def wait_for(self, predicate, timeout_s: float) -> bool:
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            if predicate():
+                return True
+            time.sleep(0.1)
+        return predicate()
+
+    # ----------------------------------------------------------------- services
+    def call(self, srv_type, name: str, request, timeout_s: float = 30.0):
+        client = self._clients.get(name)
+        if client is None:
+            client = self._clients[name] = self.node.create_client(srv_type, name)
+        if not client.wait_for_service(timeout_sec=timeout_s):
+            raise AssertionError(f"service {name} did not appear within {timeout_s} s")
+        done = threading.Event()
+        future = client.call_async(request)
+        future.add_done_callback(lambda _f: done.set())
+        if not done.wait(timeout_s):
+            raise AssertionError(f"service {name}: no answer within {timeout_s} s")
+        return future.result()
+
+    def state(self, node: str) -> str:
+        return self.call(GetState, f"/{node}/get_state", GetState.Request()).current_state.label
+
+    def state_or_none(self, node: str):
+        """The node's lifecycle state, None while it does not answer."""
+        try:
+            return self.state(node)
+        except AssertionError:
+            return None
+
+    def transition(self, node: str, name: str) -> bool:
+        req = ChangeState.Request()
+        req.transition.id = TRANSITION_IDS[name]
+        return self.call(ChangeState, f"/{node}/change_state", req, timeout_s=120.0).success
+
+    def publishers_of(self, node: str) -> set[str]:
+        return {t for t, _ in self.node.get_publisher_names_and_types_by_node(node, "/")}
+
+    def close(self):
+        self._stop = True
+        self.thread.join(timeout=5)
+        self.executor.remove_node(self.node)
+        self.node.destroy_node()
+        self.executor.shutdown()
+        rclpy.try_shutdown(context=self.context)
+
+
+def ros2(*args: str, timeout_s: float = 60.0) -> str:
+    """Run the ``ros2`` command line of this environment; its stdout (fails on a non-zero exit)."""
+    proc = subprocess.run(["ros2", *args], capture_output=True, text=True, timeout=timeout_s, env=os.environ.copy())
+    if proc.returncode != 0:
+        raise AssertionError(f"ros2 {' '.join(args)}: exit {proc.returncode}\n{proc.stdout}\n{proc.stderr}")
+    return proc.stdout
+
+
+def rinex_obs_epochs(path: Path) -> tuple[dict, list[float]]:
+    """Header fields (label -> text) and epoch times [s of day] of a RINEX 3/4 observation file."""
+    header, epochs, in_header = {}, [], True
+    for line in path.read_text().splitlines():
+        if in_header:
+            header.setdefault(line[60:].strip(), line[:60])
+            if line[60:].strip() == "END OF HEADER":
+                in_header = False
+        elif line.startswith(">"):
+            f = line[1:].split()
+            epochs.append(int(f[3]) * 3600 + int(f[4]) * 60 + float(f[5]))
+    return header, epochs
