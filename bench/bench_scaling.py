@@ -4,10 +4,10 @@
 
 The same as ``gnss-sim bench --scaling`` (gnss_sim_ros2/commands/bench_scaling.py
 says what each axis runs): each point in a fresh process, one after another;
-spans longer than ``--max-hours`` (to 24 h) extrapolated from a straight line
-through the measured spans, and marked so.  The load average before and after is
-printed with the figures: on a shared machine the wall times move, the CPU times
-much less.
+spans longer than ``--max-hours`` (to 24 h) extrapolated from the longest
+measured span (commands/bench_scaling.py says how), and marked so.  The load
+average before and after is printed with the figures: on a shared machine the
+wall times move, the CPU times much less.
 """
 from __future__ import annotations
 

@@ -25,7 +25,7 @@ def test_box_city_has_the_triangles_asked_closed_boxes_and_an_open_square():
     assert box.volume == pytest.approx(14.0 * 14.0 * (w.vertices_m[:8, 2].max()), rel=1e-9)
 
 
-def test_long_spans_are_a_marked_straight_line_through_the_measured_ones():
+def test_long_spans_are_extrapolated_from_the_longest_measured_one_and_marked():
     measured = [{"axis": "epochs", "duration_s": d, "epochs": int(d) + 1, "loop_s": 0.5 + 0.003 * (d + 1),
                  "cpu_s": 0.4 + 0.002 * (d + 1), "peak_rss_mb": 400 + 0.01 * d, "setup_s": 1.0 + 1e-4 * d,
                  "base_rss_mb": 380.0} for d in (60.0, 600.0, 3600.0)]
@@ -33,9 +33,13 @@ def test_long_spans_are_a_marked_straight_line_through_the_measured_ones():
     assert [e["duration_s"] for e in ext] == [d for d in EPOCH_SPANS_S if d > 3600.0]
     day = ext[-1]
     assert day["extrapolated"] and day["epochs"] == 86401 and day["setup_s"] is None   # set-up not fitted
-    assert day["loop_s"] == pytest.approx(0.5 + 0.003 * 86401, rel=1e-9)
-    assert day["peak_rss_mb"] == pytest.approx(400 + 0.01 * 86400, rel=1e-6)
+    assert day["ms_per_epoch"] == pytest.approx(1e3 * (0.5 + 0.003 * 3601) / 3601, rel=1e-12)
+    assert day["cpu_ms_per_epoch"] == pytest.approx(1e3 * (0.4 + 0.002 * 3601) / 3601, rel=1e-12)
+    assert day["peak_rss_mb"] == pytest.approx(400 + 0.01 * 86400, rel=1e-9)
     assert day["ms_per_epoch"] * day["epochs"] == pytest.approx(1e3 * day["loop_s"], rel=1e-12)
+    # memory that fell between the measured spans (noise) is not extrapolated downwards
+    noisy = [dict(m, peak_rss_mb=450 - 0.01 * m["duration_s"]) for m in measured]
+    assert extrapolate_epochs(noisy)[-1]["peak_rss_mb"] == pytest.approx(noisy[-1]["peak_rss_mb"])
     assert extrapolate_epochs(measured[:1]) == []
 
 

@@ -11,9 +11,10 @@ peak memory is its own):
   GPS only, then adding Galileo, BeiDou, GLONASS, QZSS, NavIC (all six); every
   signal of the geodetic profile.
 * **epochs** 1 min to 24 h at 1 Hz on the demo: measured up to ``--scaling-max-hours``
-  (default 1 h); longer spans are a straight-line fit of the measured points
-  (epoch-loop time and peak memory against epochs; no set-up time), marked
-  "extrapolated" in the table, the JSON and the plot.
+  (default 1 h); longer spans are extrapolated (the cost per epoch of the
+  longest measured span; its peak memory growing along a straight line through
+  the measured points; no set-up time), marked "extrapolated" in the table, the
+  JSON and the plot.
 * **rate** 1 to 20 Hz over 60 s on the demo.
 
 Each point's process runs on one thread (BLAS, OpenMP and Open3D limited to one,
@@ -56,7 +57,8 @@ _BOX_CORNERS = np.array([[(k >> 2) & 1, (k >> 1) & 1, k & 1] for k in range(8)],
 
 def box_city(n_triangles: int, spherical, seed: int = 0):
     """A WorldMesh of ceil(n/12) opaque boxes on a square grid around an open square at the origin."""
-    from gnss_sim_ros2.core.scene.sdf_world import MaterialTable, WorldMesh
+    from gnss_sim_ros2.core.scene.materials import MaterialTable
+    from gnss_sim_ros2.core.scene.world_mesh import WorldMesh
 
     n_boxes = max(1, int(np.ceil(n_triangles / 12)))
     side = int(np.ceil(np.sqrt(n_boxes + 16))) | 1            # odd: a cell at the origin, left open
@@ -155,23 +157,25 @@ class _one_thread_env:
 
 
 def extrapolate_epochs(measured: list[dict]) -> list[dict]:
-    """The spans of EPOCH_SPANS_S beyond the measured ones from straight lines through the measured
-    points (loop time and peak memory against epochs); each marked ``extrapolated``."""
+    """The spans of EPOCH_SPANS_S beyond the measured ones, each marked ``extrapolated``: the loop's
+    (wall and CPU) time per epoch of the longest measured span, and the peak memory of that span plus the
+    slope (never negative) of a straight line through every measured (epochs, peak memory)."""
     if len(measured) < 2:
         return []
+    last = max(measured, key=lambda m: m["epochs"])
     n = np.array([m["epochs"] for m in measured], float)
+    slope_mb = max(float(np.polyfit(n, [m["peak_rss_mb"] for m in measured], 1)[0]), 0.0)
     out = []
-    fits = {k: np.polyfit(n, [m[k] for m in measured], 1) for k in ("loop_s", "cpu_s", "peak_rss_mb")}
     for d in EPOCH_SPANS_S:
-        if d <= max(m["duration_s"] for m in measured) + 1e-6:
+        if d <= last["duration_s"] + 1e-6:
             continue
         e = int(d) + 1
-        v = {k: float(np.polyval(c, e)) for k, c in fits.items()}
+        loop_s, cpu_s = last["loop_s"] * e / last["epochs"], last["cpu_s"] * e / last["epochs"]
         out.append({"axis": "epochs", "value": d, "systems": "GRECJI", "duration_s": d, "rate_hz": 1.0,
-                    "epochs": e, **v, "setup_s": None, "ms_per_epoch": 1e3 * v["loop_s"] / e,
-                    "cpu_ms_per_epoch": 1e3 * v["cpu_s"] / e,
-                    "realtime_factor": d / v["loop_s"], "extrapolated": True,
-                    "base_rss_mb": measured[-1]["base_rss_mb"]})
+                    "epochs": e, "loop_s": loop_s, "cpu_s": cpu_s, "setup_s": None,
+                    "peak_rss_mb": last["peak_rss_mb"] + slope_mb * (e - last["epochs"]),
+                    "ms_per_epoch": 1e3 * loop_s / e, "cpu_ms_per_epoch": 1e3 * cpu_s / e,
+                    "realtime_factor": d / loop_s, "extrapolated": True, "base_rss_mb": last["base_rss_mb"]})
     return out
 
 

@@ -62,12 +62,13 @@ class SetupCache:
         notes: list[str] = []
         extra: dict = {}
         if setup.scene is None and (setup.world_file or setup.mesh_file):
-            use_visuals = visibility_options(setup).use_visuals
+            opts = visibility_options(setup)
             key = ("scene", setup.world_file, _mtime(setup.world_file), setup.mesh_file, _mtime(setup.mesh_file),
-                   setup.materials_file, _mtime(setup.materials_file), use_visuals)
+                   setup.materials_file, _mtime(setup.materials_file), opts.use_visuals, opts.keep_dynamic,
+                   opts.strict_world)
 
             def make_scene():
-                scene = load_scene(setup.world_file, setup.mesh_file, setup.materials_file, use_visuals)
+                scene = load_scene(setup.world_file, setup.mesh_file, setup.materials_file, opts)
                 scene.rays.nthreads = self.scene_threads
                 return scene
 
