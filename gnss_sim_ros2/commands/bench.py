@@ -86,6 +86,11 @@ def add_arguments(p):
     p.add_argument("--no-real", action="store_true", help="skip the OPEC scenario even when its data is present")
     p.add_argument("--presets", default=",".join(PRESET_ORDER), help="comma-separated presets (all)")
     p.add_argument("--epochs", type=int, default=None, help=argparse.SUPPRESS)   # tiny runs for tests
+    p.add_argument("--scaling", action="store_true",
+                   help="instead of the presets: cost and peak memory against triangles, satellites, epochs and "
+                   "rate (commands/bench_scaling.py); --plot draws them, --json writes them")
+    p.add_argument("--scaling-max-hours", type=float, default=1.0, metavar="H",
+                   help="with --scaling: spans up to H hours are run, longer ones (to 24 h) extrapolated (1)")
 
 
 def shared_data_dir() -> Path:
@@ -405,6 +410,8 @@ def plot(report: dict, path) -> Path:
     import matplotlib.pyplot as plt
     from matplotlib.ticker import NullFormatter
 
+    from gnss_sim_ros2.core.sweep.plot import save_figure
+
     rows = report["presets"]
     cost = [1.0 / e["realtime_factor"] for e in rows]
     opec = "presets" in report["scenarios"].get("opec", {})
@@ -426,15 +433,27 @@ def plot(report: dict, path) -> Path:
         ax.set_ylabel(label)
         ax.grid(True, which="both", alpha=0.3)
     fig.suptitle("gnss-sim presets: cost against accuracy")
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, dpi=120)
+
+
+def run_scaling_command(args) -> int:
+    from gnss_sim_ros2.commands.bench_scaling import run_scaling, scaling_plot, scaling_table
+
+    if not 0 < args.scaling_max_hours <= 24:
+        print(f"gnss-sim bench: error: option --scaling-max-hours is {args.scaling_max_hours:g}: "
+              f"must be in (0, 24]", file=sys.stderr)
+        return 2
+    if args.epochs is not None and args.epochs < 2:
+        print("gnss-sim bench: error: --epochs must be >= 2", file=sys.stderr)
+        return 2
+    report = run_scaling(args.quick, args.scaling_max_hours, log=lambda m: print(m, file=sys.stderr, flush=True),
+                         epochs=args.epochs)
+    return _report_out(args, report, scaling_table(report), scaling_plot)
 
 
 def run(args) -> int:
+    if args.scaling:
+        return run_scaling_command(args)
     try:
         presets = tuple(p.strip() for p in args.presets.split(",") if p.strip())
         if args.epochs is not None and args.epochs < 2:
@@ -444,8 +463,13 @@ def run(args) -> int:
     except ValueError as exc:
         print(f"gnss-sim bench: error: {exc}", file=sys.stderr)
         return 2
+    return _report_out(args, report, table(report), plot)
+
+
+def _report_out(args, report: dict, text_table: str, plot_fn) -> int:
+    """The table (stdout, or stderr when the JSON goes to stdout), --json and --plot."""
     text = sys.stderr if args.json == "-" else sys.stdout
-    print(table(report), file=text)
+    print(text_table, file=text)
     if args.json == "-":
         print(json.dumps(report, indent=1, default=_json_default))
     elif args.json:
@@ -453,7 +477,7 @@ def run(args) -> int:
         Path(args.json).write_text(json.dumps(report, indent=1, default=_json_default))
         print(f"wrote {args.json}", file=text)
     if args.plot:
-        print(f"wrote {plot(report, args.plot)}", file=text)
+        print(f"wrote {plot_fn(report, args.plot)}", file=text)
     return 0
 
 
