@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import re
+import signal
 import sys
 
 from . import __version__
@@ -90,14 +91,27 @@ def main(argv=None) -> int:
         parser.print_help()
         return 0
     module = importlib.import_module(f"gnss_sim_ros2.commands.{COMMANDS[args.command][0]}")
+    # SIGTERM unwinds like Ctrl-C (files closed by their finally blocks); `run` installs its own handlers
+    signal.signal(signal.SIGTERM, _terminate)
     try:
         return int(module.run(args) or 0)
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
+    except _Terminated:
+        print("terminated", file=sys.stderr)
+        return 143
     except OSError as exc:   # unwritable folder, a path under a regular file, disk full: one line, no traceback
         print(f"gnss-sim {args.command}: error: {os_error_text(exc)}", file=sys.stderr)
         return 1
+
+
+class _Terminated(BaseException):
+    """SIGTERM, raised where the program is (a BaseException: no ``except Exception`` swallows it)."""
+
+
+def _terminate(signum, frame):
+    raise _Terminated
 
 
 def os_error_text(exc: OSError) -> str:

@@ -29,3 +29,25 @@ def test_os_errors_are_one_line(tmp_path, make_args, where):
     assert "Traceback" not in res.stderr
     last = res.stderr.strip().splitlines()[-1]
     assert last.startswith("gnss-sim ") and ": error: " in last and ("plain" in last or "/proc/" in last), last
+
+
+@pytest.mark.parametrize("signum, code", [(2, 130), (15, 143)])
+def test_simulate_stopped_by_a_signal_closes_its_rinex(tmp_path, signum, code):
+    import signal
+    import time
+
+    proc = subprocess.Popen(CLI + ["simulate", "--position", "50,4,100", "--duration", "86400", "--systems", "G",
+                                   "--out", str(tmp_path / "o"), "--quiet"], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline:
+        found = list((tmp_path / "o").glob("*_MO.rnx"))
+        if found and found[0].stat().st_size > 50_000:
+            break
+        time.sleep(0.2)
+    proc.send_signal(signum)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == code and "Traceback" not in err, err[-2000:]
+    header = found[0].read_text().split("END OF HEADER")[0]
+    assert "TIME OF LAST OBS" in header
