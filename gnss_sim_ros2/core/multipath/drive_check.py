@@ -254,7 +254,8 @@ def city_scene(model_dir, workdir):
     old = os.environ.get("GZ_SIM_RESOURCE_PATH")
     os.environ["GZ_SIM_RESOURCE_PATH"] = str(dst / "models")
     try:
-        return Scene.from_sdf(dst / "worlds" / "hong_kong_city_only.world")
+        # the city model's buildings are not marked <static> (the world was made for visuals): keep them
+        return Scene.from_sdf(dst / "worlds" / "hong_kong_city_only.world", keep_dynamic=True)
     finally:
         if old is None:
             os.environ.pop("GZ_SIM_RESOURCE_PATH", None)
