@@ -6,6 +6,8 @@ from __future__ import annotations
 import gzip
 import warnings
 
+import hatanaka  # a declared dependency (requirements/python.txt): an import error fails
+import ncompress  # installed with georinex; the readers use it for .Z files
 import numpy as np
 import pytest
 
@@ -75,7 +77,6 @@ def test_sp3_starting_with_a_blank_line(formats_dir):
 
 
 def test_navigation_z_and_gz_read_directly(opec_dir, tmp_path):
-    ncompress = pytest.importorskip("ncompress")
     src = opec_dir / "OPEC00NOR_S_20220010000_01D_GN.rnx"
     (tmp_path / "n.rnx.gz").write_bytes(gzip.compress(src.read_bytes()))
     (tmp_path / "n.rnx.Z").write_bytes(ncompress.compress(src.read_bytes()))
@@ -134,7 +135,6 @@ def test_rinex2_observations_in_compare(opec_obs, tmp_path):
 
 @pytest.mark.slow
 def test_compressed_and_hatanaka_observations(opec_obs, tmp_path):
-    hatanaka = pytest.importorskip("hatanaka")
     ref = load_observations(opec_obs)
     text = opec_obs.read_bytes()
     text += b"" if text.endswith(b"\n") else b"\r\n"      # the file's last line has no line end; RNX2CRX needs it
