@@ -35,7 +35,7 @@ def _run(tmp_path, eph, scene, multipath, name, **kw):
     seen = []
     setup = SimulationSetup(start=T0, duration_s=60.0, interval_s=1.0, out_dir=tmp_path / name,
                             trajectory=Trajectory.static(np.array([0.0, 0.0, 2.0]), "world"), systems="GC",
-                            source="synthetic", scene=scene, ephemeris=eph, multipath=multipath,
+                            source="synthetic", scene=scene, ephemeris=eph, visibility={"multipath": multipath},
                             params={"profile": "ublox_m8t"}, switches={"ionosphere": "klobuchar"},
                             observer=lambda t, ecef, obs, sol: seen.append((obs, sol)), **kw)
     return run_simulation(setup), seen

@@ -59,19 +59,13 @@ class SimulationSetup:
     materials_file: str = ""
     preset: str = "balanced"
     fresnel_rays: int = -1
-    use_visuals: bool = False
-    keep_dynamic_models: bool = False
-    strict_world: bool = False
     #: RTCM3 file written next to the RINEX (None: none; "": the RINEX observation name with .rtcm3)
     rtcm_path: str | None = None
     #: with broadcast ephemeris messages (1019-1046) from the navigation records
     rtcm_ephemeris: bool = True
-    #: reflections from the scene (parameters multipath*, VisibilityOptions); "" from the preset
-    multipath: str = ""
-    multipath_range_m: float = 100.0
-    multipath_max_paths: int = 3
-    multipath_diffraction: bool = False
-    multipath_bounces: int = 2
+    #: the visibility node's other parameters (use_visuals, keep_dynamic_models, strict_world, multipath*;
+    #: parameters.py), read by VisibilityOptions.from_params; absent ones take its defaults
+    visibility: dict = field(default_factory=dict)
     #: the receiver node's other parameters (profile, noise, ionosphere, troposphere, cn0_*, write_nmea_file;
     #: parameters.py); absent ones take the receiver model's defaults
     params: dict = field(default_factory=dict)
@@ -92,6 +86,11 @@ class SimulationSetup:
     #: already opened ephemerides by source name: {"broadcast": (provider, nav_paths), "sp3": ...};
     #: used instead of opening the files again (benchmarks running one scenario many times)
     ephemeris: dict = field(default_factory=dict)
+
+
+#: the visibility node's parameters a SimulationSetup carries in ``visibility`` (the rest are its own fields)
+VISIBILITY_OWN = ("use_visuals", "keep_dynamic_models", "strict_world", "multipath", "multipath_range_m",
+                  "multipath_max_paths", "multipath_diffraction", "multipath_bounces")
 
 
 def setup_from_config(cfg, out_dir: Path, trajectory: Trajectory | None = None, **extra) -> SimulationSetup:
@@ -118,11 +117,7 @@ def setup_from_config(cfg, out_dir: Path, trajectory: Trajectory | None = None, 
         elevation_mask_deg=rcv["elevation_mask_deg"], source=eph["source"], nav_files=list(eph["nav_files"]),
         sp3_files=list(eph["sp3_files"]), clk_files=list(eph["clk_files"]), world_file=world, mesh_file=mesh,
         materials_file=vis["materials_file"], preset=rcv["preset"], fresnel_rays=vis["fresnel_rays"],
-        use_visuals=vis["use_visuals"], keep_dynamic_models=vis["keep_dynamic_models"],
-        strict_world=vis["strict_world"],
-        multipath=vis["multipath"], multipath_range_m=vis["multipath_range_m"],
-        multipath_max_paths=vis["multipath_max_paths"], multipath_diffraction=vis["multipath_diffraction"],
-        multipath_bounces=vis["multipath_bounces"],
+        visibility={k: v for k, v in vis.items() if k in VISIBILITY_OWN},
         params={k: v for k, v in rcv.items() if k in own},
         marker_name=rcv["marker_name"], seed=rcv["seed"], **extra)
 
@@ -261,14 +256,8 @@ def chain_settings(setup: SimulationSetup, interval_s: float | None = None) -> C
 
 
 def visibility_options(setup: SimulationSetup) -> VisibilityOptions:
-    return VisibilityOptions.from_params({"elevation_mask_deg": setup.elevation_mask_deg, "preset": setup.preset,
-                                          "fresnel_rays": setup.fresnel_rays, "use_visuals": setup.use_visuals,
-                                          "keep_dynamic_models": setup.keep_dynamic_models,
-                                          "strict_world": setup.strict_world,
-                                          "multipath": setup.multipath, "multipath_range_m": setup.multipath_range_m,
-                                          "multipath_max_paths": setup.multipath_max_paths,
-                                          "multipath_diffraction": setup.multipath_diffraction,
-                                          "multipath_bounces": setup.multipath_bounces},
+    return VisibilityOptions.from_params({**setup.visibility, "elevation_mask_deg": setup.elevation_mask_deg,
+                                          "preset": setup.preset, "fresnel_rays": setup.fresnel_rays},
                                          switches(setup))
 
 

@@ -279,8 +279,9 @@ def run_drive(drive: Drive, scene, provider, nav_files, real_obs, workdir, *, mu
                             out_dir=workdir / f"{multipath}_{int(diffraction)}_{bounces}",
                             trajectory=Trajectory(t_s, drive.antenna_world_m, "world"), systems=systems,
                             elevation_mask_deg=mask_deg, source="broadcast", nav_files=list(nav_files), scene=scene,
-                            ephemeris={"broadcast": (provider, list(nav_files))}, multipath=multipath,
-                            multipath_diffraction=diffraction, multipath_bounces=bounces, params={"profile": profile},
+                            ephemeris={"broadcast": (provider, list(nav_files))}, params={"profile": profile},
+                            visibility={"multipath": multipath, "multipath_diffraction": diffraction,
+                                        "multipath_bounces": bounces},
                             switches={"ionosphere": "klobuchar"})
     res = run_simulation(setup)
     times = drive.times_np
