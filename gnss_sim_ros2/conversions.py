@@ -79,3 +79,39 @@ def states_from_msg(msg) -> tuple[GnssTime, SatelliteStates]:
         source=inv.get(s[0].orbit_source, "broadcast") if n else "broadcast",
     )
     return t, states
+
+
+def reflections_to_msgs(paths, i: int) -> list:
+    """``gnss_sim_msgs/ReflectedPath`` list of satellite row ``i`` of ``paths`` (multipath.reflections.ScenePaths
+    of one antenna, arrays (N, K)); the valid slots in their order (strongest first), [] without paths."""
+    from gnss_sim_msgs.msg import ReflectedPath
+
+    if paths is None:
+        return []
+    out = []
+    for k in np.flatnonzero(np.isfinite(paths.excess_m[i])):
+        co, x = complex(paths.gamma_co[i, k]), complex(paths.gamma_cross[i, k])
+        out.append(ReflectedPath(excess_path_m=float(paths.excess_m[i, k]), gamma_co_re=co.real, gamma_co_im=co.imag,
+                                 gamma_cross_re=x.real, gamma_cross_im=x.imag,
+                                 arrival_elevation_deg=float(paths.arrival_el_deg[i, k])))
+    return out
+
+
+def paths_from_msg(vis_by_sv: dict, svs):
+    """ScenePaths (N, K) for the satellites ``svs`` (rows) from ``{sv: gnss_sim_msgs/SatelliteVisibility}``
+    (K: the most reflections of one satellite; empty slots NaN as the visibility cast leaves them), or None
+    when no satellite has a reflection (what the chain takes without multipath)."""
+    from gnss_sim_ros2.core.multipath.reflections import ScenePaths
+
+    refl = [vis_by_sv[sv].reflections if sv in vis_by_sv else [] for sv in svs]
+    k = max((len(r) for r in refl), default=0)
+    if k == 0:
+        return None
+    out = ScenePaths.empty(1, len(refl), k).take(0)
+    for i, rs in enumerate(refl):
+        for j, r in enumerate(rs):
+            out.excess_m[i, j] = r.excess_path_m
+            out.gamma_co[i, j] = complex(r.gamma_co_re, r.gamma_co_im)
+            out.gamma_cross[i, j] = complex(r.gamma_cross_re, r.gamma_cross_im)
+            out.arrival_el_deg[i, j] = r.arrival_elevation_deg
+    return out

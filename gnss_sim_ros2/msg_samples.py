@@ -12,6 +12,7 @@ import zlib
 MESSAGE_TYPES = (
     "SatelliteState",
     "SatelliteStates",
+    "ReflectedPath",
     "SatelliteVisibility",
     "Visibility",
     "SignalObservation",

@@ -28,3 +28,19 @@ def canyon_scene():
     v, t = np.vstack(verts), np.vstack(tris)
     world = WorldMesh(v, t, np.zeros(len(t), np.int16), MaterialTable())
     return Scene(world)
+
+
+def write_canyon_mesh(folder, latitude_deg: float = 22.2982, longitude_deg: float = 114.1788):
+    """The canyon of :func:`canyon_scene`, georeferenced, as an exported mesh (PLY + sidecar) that the
+    visibility node and ``gnss-sim simulate`` load (parameter mesh_file); returns the PLY path."""
+    import dataclasses
+    from pathlib import Path
+
+    from gnss_sim_ros2.core.scene.georeference import SphericalCoordinates
+    from gnss_sim_ros2.core.scene.mesh_io import write_scene
+
+    world = dataclasses.replace(canyon_scene().world,
+                                spherical_coordinates=SphericalCoordinates(latitude_deg, longitude_deg, 0.0))
+    path = Path(folder) / "canyon.ply"
+    write_scene(path, world)
+    return path

@@ -27,7 +27,7 @@ from geometry_msgs.msg import TwistWithCovarianceStamped
 from sensor_msgs.msg import NavSatFix, NavSatStatus
 from std_msgs.msg import Header, String
 
-from gnss_sim_ros2.conversions import iono_from_msg, states_from_msg
+from gnss_sim_ros2.conversions import iono_from_msg, paths_from_msg, states_from_msg
 from gnss_sim_ros2.core.vocabulary import VisibilityState
 from gnss_sim_ros2.nodes.common import GnssSimNode, run_node
 
@@ -122,7 +122,7 @@ class ReceiverNode(GnssSimNode):
         blocked = int(VisibilityState.BLOCKED)   # below the horizon: not in the visibility message
         vis_state = np.array([by_sv[sv].state if sv in by_sv else blocked for sv in states.sv], dtype=np.int64)
         att = np.array([by_sv[sv].attenuation_db if sv in by_sv else 0.0 for sv in states.sv])
-        ep = self.chain.step(t, ecef, states, vis_state, att)
+        ep = self.chain.step(t, ecef, states, vis_state, att, multipath=paths_from_msg(by_sv, states.sv))
         obs, sol = ep.obs, ep.sol
         header = Header(stamp=states_msg.header.stamp, frame_id=self.params["antenna_frame"])
         self.pubs["obs"].publish(self._observations_msg(header, t, obs))

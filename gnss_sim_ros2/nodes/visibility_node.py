@@ -21,7 +21,7 @@ from rclpy.clock import Clock, ClockType
 from sensor_msgs.msg import Image
 from std_msgs.msg import Header
 
-from gnss_sim_ros2.conversions import states_from_msg
+from gnss_sim_ros2.conversions import reflections_to_msgs, states_from_msg
 from gnss_sim_ros2.nodes.common import GnssSimNode, run_node
 from gnss_sim_ros2.nodes.tf_source import TfSource
 
@@ -125,11 +125,13 @@ class VisibilityNode(GnssSimNode):
         if len(states):
             state, att, v = self.options.cast(self.scene, antenna_world_m, states.pos_ecef_m)
             above = v.el_deg >= 0.0
+            paths = getattr(v, "paths", None)     # reflected paths (multipath nlos/full), as the offline chain
             for i in np.flatnonzero(above):
                 sats.append(SatelliteVisibility(
                     sv=str(states.sv[i]), azimuth_deg=float(v.az_deg[i]), elevation_deg=float(v.el_deg[i]),
                     state=int(state[i]), attenuation_db=float(att[i]),
-                    extra_path_m=float(v.extra_path_m[i]), fraction_blocked=float(v.fraction_blocked[i])))
+                    extra_path_m=float(v.extra_path_m[i]), fraction_blocked=float(v.fraction_blocked[i]),
+                    reflections=reflections_to_msgs(paths, i)))
         out.satellites = sats
         self.pub.publish(out)
         self.processed += 1
