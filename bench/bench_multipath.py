@@ -1,6 +1,6 @@
-"""Cost of the scene multipath model on the Hong Kong city (prints figures; no assertions).
+"""Cost of the scene multipath model on the Hong Kong city and the demo courtyard (prints figures; no assertions).
 
-    .venv/bin/python bench/bench_multipath.py [--epochs 120] [--range 50 100 200]
+    .venv/bin/python bench/bench_multipath.py [--epochs 120] [--range 50 100 200] [--demo-only]
 
 The antenna on the first epochs of the Tsim Sha Tsui drive (../shared/data/hk-tst-2019-118-urban-drive,
 truth path placed 1.8 m above the model's ground), the day's GPS + BeiDou broadcast satellites above
@@ -8,6 +8,9 @@ truth path placed 1.8 m above the model's ground), the day's GPS + BeiDou broadc
 Figures per epoch: the visibility cast with multipath off / nlos / full (ms; rays: one line-of-sight ray per
 satellite above the mask, two per reflection candidate, the diffraction edge searches; paths found) for
 several facet ranges, and the receiver chain's step with and without the paths (ms).
+Demo courtyard (``make demo``'s scenario: the demo path, the default configuration, preset balanced): the
+whole offline chain (``run_simulation``) with multipath off / nlos / full: ms per epoch, rays and paths per
+epoch, satellites tracked on reflections only, the fix's horizontal RMS.
 """
 from __future__ import annotations
 
@@ -32,11 +35,61 @@ DRIVE = DATA / "hk-tst-2019-118-urban-drive"
 CITY = DATA / "hk-tst-city-model"
 
 
+def demo_figures() -> None:
+    """The demo scenario through the whole offline chain with each multipath mode."""
+    import dataclasses
+
+    from gnss_sim_ros2.core.simulation import run_simulation, setup_from_config
+    from gnss_sim_ros2.parameters import load_config
+
+    print("demo courtyard, whole offline chain (preset balanced, the demo path, default systems):")
+    print(f"{'mode':>5} {'ms/epoch':>9} {'rays/epoch':>11} {'paths/epoch':>12} {'refl-only tracked':>18} "
+          f"{'fix H RMS m':>12}")
+    real_cast = VisibilityOptions.cast
+    for mode in ("off", "nlos", "full"):
+        count = {"rays": 0, "paths": 0, "los_rays": 0}
+
+        def cast(self, scene, antenna_world_m, sat_ecef_m, _count=count):
+            state, att, v = real_cast(self, scene, antenna_world_m, sat_ecef_m)
+            _count["los_rays"] += int(np.sum(np.asarray(v.el_deg) >= self.mask_deg))
+            p = getattr(v, "paths", None)
+            if p is not None:
+                _count["rays"] += p.rays_cast
+                _count["paths"] += int(p.valid.sum())
+            return state, att, v
+
+        refl = []
+
+        def observer(t, ecef, obs, sol, refl=refl):
+            r = set(np.asarray(obs.sat_sv)[np.asarray(obs.sat_vis_state) == 3])
+            refl.append(len(r & set(np.asarray(obs.sv))))
+
+        with tempfile.TemporaryDirectory() as tmp:
+            setup = setup_from_config(load_config(), Path(tmp), progress=False, observer=observer)
+            setup = dataclasses.replace(setup, visibility={**setup.visibility, "multipath": mode})
+            VisibilityOptions.cast = cast
+            try:
+                res = run_simulation(setup)
+            finally:
+                VisibilityOptions.cast = real_cast
+        n = res.epochs
+        err = np.asarray(res.horizontal_error_m)
+        print(f"{mode:>5} {res.wall_s / n * 1e3:9.2f} {(count['rays'] + count['los_rays']) / n:11.1f} "
+              f"{count['paths'] / n:12.1f} {np.mean(refl):18.2f} {np.sqrt(np.mean(err ** 2)):12.2f}")
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--epochs", type=int, default=120)
     ap.add_argument("--range", type=float, nargs="+", default=[50.0, 100.0, 200.0])
+    ap.add_argument("--demo-only", action="store_true", help="only the demo courtyard")
+    ap.add_argument("--quick", action="store_true", help="fewer epochs on the city (make bench)")
     args = ap.parse_args()
+    demo_figures()
+    if args.demo_only:
+        return 0
+    if args.quick:
+        args.epochs = min(args.epochs, 30)
     if not DRIVE.is_dir() or not CITY.is_dir():
         print(f"needs {DRIVE} and {CITY}")
         return 1

@@ -66,11 +66,16 @@ def correlation(tau_chips, bandwidth_chips: float = np.inf):
 
 def composite(tau_chips, amp, delay_chips, phase_rad, bandwidth_chips=np.inf):
     """R_c at ``tau_chips`` (..., K) for paths (..., P): complex (..., K)."""
+    a = np.asarray(amp, dtype=np.float64)
+    ph = np.asarray(phase_rad, dtype=np.float64)
+    return _composite(tau_chips, a * np.exp(1j * ph), delay_chips, bandwidth_chips)
+
+
+def _composite(tau_chips, phasor, delay_chips, bandwidth_chips):
+    """R_c at ``tau_chips`` (..., K) for paths (..., P) of complex amplitudes ``phasor`` = a exp(j phi)."""
     t = np.asarray(tau_chips, dtype=np.float64)[..., :, None]
-    a = np.asarray(amp, dtype=np.float64)[..., None, :]
     dl = np.asarray(delay_chips, dtype=np.float64)[..., None, :]
-    ph = np.asarray(phase_rad, dtype=np.float64)[..., None, :]
-    return np.sum(a * np.exp(1j * ph) * correlation(t - dl, bandwidth_chips), axis=-1)
+    return np.sum(phasor[..., None, :] * correlation(t - dl, bandwidth_chips), axis=-1)
 
 
 def tracking_error(amp, delay_chips, phase_rad, spacing_chips: float, bandwidth_chips: float = np.inf,
@@ -78,7 +83,8 @@ def tracking_error(amp, delay_chips, phase_rad, spacing_chips: float, bandwidth_
     """(code error [chips], carrier phase error [rad], composite amplitude) of signals (N, P paths).
 
     Path 0 is usually the line of sight (delay 0; amplitude 0 when blocked); delays are relative to it.
-    Rows whose amplitudes are all 0 give NaN (nothing to track)."""
+    Rows whose amplitudes are all 0 give NaN (nothing to track).  ``iterations`` halvings of the
+    discriminator's bracket (d / 2^32)."""
     a = np.atleast_2d(np.asarray(amp, dtype=np.float64))
     dl = np.atleast_2d(np.asarray(delay_chips, dtype=np.float64))
     ph = np.atleast_2d(np.asarray(phase_rad, dtype=np.float64))
@@ -93,16 +99,16 @@ def tracking_error(amp, delay_chips, phase_rad, spacing_chips: float, bandwidth_
     step = min(d / 4.0, 0.05)
     n_grid = int(min(np.ceil(float(np.max(hi - lo)) / step), 4000)) + 1
     grid = lo[:, None] + (hi - lo)[:, None] * np.linspace(0.0, 1.0, n_grid)[None, :]
-    mag = np.abs(composite(grid, a, dl, ph, bandwidth_chips))
+    c = a * np.exp(1j * ph)
+    mag = np.abs(_composite(grid, c, dl, bandwidth_chips))
     tau_p = grid[np.arange(n), np.argmax(mag, axis=1)]
-    theta = np.angle(composite(tau_p[:, None], a, dl, ph, bandwidth_chips)[:, 0])
-    rot = np.exp(-1j * theta)[:, None]
+    theta = np.angle(_composite(tau_p[:, None], c, dl, bandwidth_chips)[:, 0])
+    rot = np.exp(-1j * theta)
+    half = np.array([-d / 2, d / 2])
 
     def disc(eps):
-        e = eps[:, None]
-        early = composite(e - d / 2, a, dl, ph, bandwidth_chips)
-        late = composite(e + d / 2, a, dl, ph, bandwidth_chips)
-        return np.real((early - late) * rot)[:, 0]
+        el = _composite(eps[:, None] + half, c, dl, bandwidth_chips)      # early, late in one call
+        return np.real((el[:, 0] - el[:, 1]) * rot)
 
     left, right = tau_p - d / 2, tau_p + d / 2
     f_left = disc(left)
@@ -114,7 +120,7 @@ def tracking_error(amp, delay_chips, phase_rad, spacing_chips: float, bandwidth_
         f_left = np.where(same, f_mid, f_left)
         right = np.where(same, right, mid)
     eps = 0.5 * (left + right)
-    rc = composite(eps[:, None], a, dl, ph, bandwidth_chips)[:, 0]
+    rc = _composite(eps[:, None], c, dl, bandwidth_chips)[:, 0]
     dead = ~np.any(a > 0, axis=1)
     eps = np.where(dead, np.nan, eps)
     return eps, np.where(dead, np.nan, np.angle(rc)), np.where(dead, 0.0, np.abs(rc))

@@ -265,10 +265,12 @@ def city_scene(model_dir, workdir):
 
 def run_drive(drive: Drive, scene, provider, nav_files, real_obs, workdir, *, multipath: str = "nlos",
               diffraction: bool = False, bounces: int = 2, profile: str = "ublox_m8t", mask_deg: float = 15.0,
-              systems: str = "GC", real: dict | None = None) -> dict:
+              systems: str = "GC", real: dict | None = None, range_m: float = 100.0,
+              receiver: dict | None = None) -> dict:
     """The whole check (module docstring): simulate along the drive, RTKLIB on both files, the metrics.
 
-    ``real``: the real file's part from a previous call (``out["real_part"]``), to skip recomputing it."""
+    ``real``: the real file's part from a previous call (``out["real_part"]``), to skip recomputing it;
+    ``range_m``: the visibility parameter multipath_range_m; ``receiver``: ReceiverConfig overrides."""
     from ..rtklib import rtklib_solutions
     from ..simulation import SimulationSetup, run_simulation
     from ..trajectory import Trajectory
@@ -276,12 +278,13 @@ def run_drive(drive: Drive, scene, provider, nav_files, real_obs, workdir, *, mu
     workdir = Path(workdir)
     t_s = np.asarray(drive.t - drive.t[0], dtype=float)
     setup = SimulationSetup(start=drive.t[0], duration_s=float(t_s[-1]), interval_s=1.0,
-                            out_dir=workdir / f"{multipath}_{int(diffraction)}_{bounces}",
+                            out_dir=workdir / f"{multipath}_{int(diffraction)}_{bounces}_{range_m:g}",
                             trajectory=Trajectory(t_s, drive.antenna_world_m, "world"), systems=systems,
                             elevation_mask_deg=mask_deg, source="broadcast", nav_files=list(nav_files), scene=scene,
                             ephemeris={"broadcast": (provider, list(nav_files))}, params={"profile": profile},
+                            receiver=dict(receiver or {}),
                             visibility={"multipath": multipath, "multipath_diffraction": diffraction,
-                                        "multipath_bounces": bounces},
+                                        "multipath_bounces": bounces, "multipath_range_m": range_m},
                             switches={"ionosphere": "klobuchar"})
     res = run_simulation(setup)
     times = drive.times_np
