@@ -57,8 +57,9 @@ class Drive:
         return GPS_EPOCH_NP + ns.astype("timedelta64[ns]")
 
 
-def load_drive(truth_csv, scene, antenna_height_m: float = 1.8) -> Drive:
-    """Truth CSV rows ``week, tow_s, lat_deg, lon_deg, h_m`` (no header) placed in ``scene``."""
+def load_drive(truth_csv, scene, antenna_height_m: float = 1.8, offset_m=(0.0, 0.0)) -> Drive:
+    """Truth CSV rows ``week, tow_s, lat_deg, lon_deg, h_m`` (no header) placed in ``scene``; ``offset_m``:
+    (east, north) [m] added to the placement in the model (its georeference error, :func:`model_offset_m`)."""
     rows = []
     with open(truth_csv, newline="") as f:
         for n, r in enumerate(csv.reader(f), start=1):
@@ -72,6 +73,7 @@ def load_drive(truth_csv, scene, antenna_height_m: float = 1.8) -> Drive:
     t = GnssTime.from_week_tow(a[:, 0].astype(np.int64), a[:, 1])
     truth = np.array(geodetic_to_ecef(a[:, 2], a[:, 3], a[:, 4])).T.reshape(-1, 3)
     world = scene.spherical.ecef_to_world(truth)
+    world[:, :2] += np.asarray(offset_m, dtype=float).reshape(2)
     top = np.column_stack([world[:, :2], np.full(len(world), 1000.0)])
     ground = 1000.0 - scene.rays.hit_distance(top, np.tile([0.0, 0.0, -1.0], (len(top), 1)))
     world = np.column_stack([world[:, :2], ground + antenna_height_m])
@@ -219,6 +221,55 @@ def set_metrics(sim: FileView, real: FileView) -> dict:
         out[f"cn0_median_nlos_{name}"] = float(np.nanmedian(c[nl])) if nl.any() else np.nan
         out[f"cn0_median_los_{name}"] = float(np.nanmedian(c[v.tracked & ~v.blocked]))
     return out
+
+
+def model_offset_m(drive: Drive, scene, provider, real: FileView, *, strong_cn0_dbhz: float = 38.0,
+                   mask_deg: float = 15.0, span_m: float = 6.0, step_m: float = 2.0, every: int = 1):
+    """(east, north) [m] to add to the antenna's placement so that the model agrees best with the real receiver's
+    line of sight: the georeference error of the model relative to the truth path (OpenStreetMap footprints
+    traced on imagery are off by metres).  Criterion, from the real file only (never the simulated one): the
+    share of the real receiver's strong signals (C/N0 >= ``strong_cn0_dbhz``: a line of sight) that the model
+    blocks, plus the share of the satellites above the mask it does not track that the model leaves in the
+    line of sight; minimised on a grid of ``step_m`` within +-``span_m``, then of step_m / 4 within +-step_m
+    around the best, on every ``every``-th epoch.  Returns (offset (2,), criterion at 0, criterion at it)."""
+    from ..receiver.chain import VisibilityOptions
+
+    opts = VisibilityOptions(mask_deg=mask_deg)
+    col = {s: j for j, s in enumerate(real.sv)}
+    epochs = []
+    for d in range(0, len(drive.t), max(1, int(every))):
+        st = provider.states(drive.t[d], systems="".join(sorted({s[0] for s in real.sv})))
+        if len(st) == 0:
+            continue
+        j = np.array([col.get(s, -1) for s in st.sv])
+        tracked = np.where(j >= 0, real.tracked[d, np.maximum(j, 0)], False)
+        cn0 = np.where(j >= 0, real.cn0_dbhz[d, np.maximum(j, 0)], np.nan)
+        epochs.append((d, st.pos_ecef_m, tracked, np.nan_to_num(cn0) >= strong_cn0_dbhz))
+
+    def criterion(off):
+        strong_blk = strong_n = lost_los = lost_n = 0
+        for d, sat, tracked, strong in epochs:
+            a = drive.antenna_world_m[d] + np.array([off[0], off[1], 0.0])
+            state, _, v = opts.cast(scene, a, sat)
+            above = v.el_deg >= mask_deg
+            blk = state == int(VisibilityState.BLOCKED)
+            s_ = tracked & strong & above
+            lost = ~tracked & above
+            strong_blk += int(np.sum(blk & s_))
+            strong_n += int(s_.sum())
+            lost_los += int(np.sum(~blk & lost))
+            lost_n += int(lost.sum())
+        return strong_blk / max(strong_n, 1) + lost_los / max(lost_n, 1)
+
+    def search(centre, half, step):
+        ax = np.arange(-half, half + step / 2, step)
+        grid = [(centre[0] + x, centre[1] + y) for x in ax for y in ax]
+        vals = [criterion(g) for g in grid]
+        return np.array(grid[int(np.argmin(vals))]), float(min(vals))
+
+    best, _ = search((0.0, 0.0), span_m, step_m)
+    best, val = search(best, step_m, step_m / 4)
+    return best, criterion((0.0, 0.0)), val
 
 
 def write_trajectory_csv(drive: Drive, path) -> Path:
