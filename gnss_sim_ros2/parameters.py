@@ -192,6 +192,8 @@ NODE_PARAMS: dict[str, list[Param]] = {
               "walls", min=1, max=2),
         Param("multipath_diffraction", False, "with multipath on: blocked satellites diffracted over the nearest roof "
               "or wall edge (ITU-R P.526 knife edge) are received weakened"),
+        Param("multipath_scattering", False, "with multipath on: diffuse scattering from the walls (effective "
+              "roughness, Lambertian, S = 0.4) adds paths to the specular ones"),
         Param("tf_timeout_s", 5.0, "wall-clock seconds an epoch waits for the antenna's transform before it is "
               "dropped (and `gnss-sim run` fails, naming the frames)", min=0.1, max=600.0),
     ],

@@ -234,3 +234,51 @@ def test_bandlimited_correlation_closed_form_matches_the_integral():
     quad = np.array([np.trapezoid(w * np.cos(2 * np.pi * f * t), f) for t in tau])
     np.testing.assert_allclose(dll.correlation(tau, 2.0), quad / quad[0], atol=1e-5)
     np.testing.assert_allclose(dll.correlation(tau, 400.0), np.maximum(1 - np.abs(tau), 0), atol=3e-3)
+
+
+# ---------------------------------------------------------------- diffuse scattering (effective roughness)
+def _wall_scene():
+    """One 20 x 20 m wall in the plane y = 10 facing the antenna at the origin (normal -y)."""
+    from gnss_sim_ros2.core.scene.materials import MaterialTable
+    from gnss_sim_ros2.core.scene.visibility import Scene
+    from gnss_sim_ros2.core.scene.world_mesh import WorldMesh
+
+    v = np.array([[-10.0, 10.0, -10.0], [10.0, 10.0, -10.0], [10.0, 10.0, 10.0], [-10.0, 10.0, 10.0]])
+    t = np.array([[0, 1, 2], [0, 2, 3]])
+    return Scene(WorldMesh(v, t, np.zeros(2, np.int16), MaterialTable()))
+
+
+def test_a_lit_wall_scatters_s2_cos_theta_i_times_its_solid_angle_over_pi():
+    from gnss_sim_ros2.core.multipath import scattering
+
+    scene = _wall_scene()
+    el = np.radians(30.0)
+    u = np.array([[0.0, -np.cos(el), np.sin(el)]])         # behind the antenna: the wall faces the satellite
+    s_idx, power, excess, arr_el, rays = scattering.lit_tiles(scene, Facets(scene.world), np.zeros(3), u)
+    # on-axis rectangle of half-sides a = b at distance h: solid angle 4 asin(a b / sqrt((a^2+h^2)(b^2+h^2)))
+    omega = 4.0 * np.arcsin(100.0 / 200.0)
+    expected = scattering.S_WALL ** 2 * np.cos(np.radians(30.0)) * omega / np.pi
+    print(f"{len(power)} tiles, scattered power {power.sum():.5f} against {expected:.5f}, {rays} rays")
+    assert power.sum() == pytest.approx(expected, rel=0.03)
+    assert np.all(s_idx == 0) and rays == 2 * len(power)
+    # excess of each tile: |P - A| - (P - A).u >= 0; the wall's nearest point (0, 10, 0): 10 + 10 cos(30 deg)
+    assert np.all(excess > 0)
+    assert excess.min() == pytest.approx(10.0 + 10.0 * np.cos(el), abs=1.5)
+    assert np.all(np.abs(arr_el) < 45.0 + 1e-9)
+    # the satellite behind the wall lights its back only: nothing scattered to the antenna
+    _, p2, _, _, _ = scattering.lit_tiles(scene, Facets(scene.world), np.zeros(3), -u)
+    assert len(p2) == 0
+
+
+def test_scattered_paths_of_a_blocked_satellite_in_the_canyon():
+    from gnss_sim_ros2.core.multipath import scattering
+
+    scene = canyon_scene()
+    el = np.radians(40.0)
+    u = np.array([[[np.cos(el), 0.0, np.sin(el)], [-np.cos(el), 0.0, np.sin(el)]]])   # east, west
+    a = np.array([[0.0, 0.0, 2.0]])
+    paths = scattering.scatter_paths(scene, Facets(scene.world), a, u, 0.19, paths=3)
+    assert paths.valid[0].any(axis=1).all()                # both satellites light a wall the antenna sees
+    amp = np.sqrt(np.abs(paths.gamma_co) ** 2 + np.abs(paths.gamma_cross) ** 2)[paths.valid]
+    assert np.all(amp < 0.5) and np.all(paths.excess_m[paths.valid] > 0)
+    assert paths.rays_cast > 0

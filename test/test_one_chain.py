@@ -82,7 +82,8 @@ def test_run_and_simulate_give_one_answer(tmp_path):
 @pytest.mark.parametrize("multipath", ["nlos", "full"])
 def test_run_and_simulate_give_one_answer_with_reflections(tmp_path, multipath):
     """The reflected paths travel in the Visibility message: a ROS run in a street canyon tracks the same
-    signals (REFLECTED_ONLY satellites included) with the same code as the offline chain."""
+    signals (REFLECTED_ONLY satellites included) with the same code as the offline chain (full: with the
+    walls' diffuse scattering, up to twice multipath_max_paths paths per satellite)."""
     from multipath_scenes import write_canyon_mesh
 
     mesh = write_canyon_mesh(tmp_path)
@@ -93,7 +94,8 @@ def test_run_and_simulate_give_one_answer_with_reflections(tmp_path, multipath):
         cfg.write_text(yaml.safe_dump({
             "/**": {"ros__parameters": {"seed": 5, "systems": "GEC", "start_time": "2019-04-28T05:00:00"}},
             "gnss_sim_ephemeris": {"ros__parameters": {"duration_s": 30.0}},
-            "gnss_sim_visibility": {"ros__parameters": {"mesh_file": str(mesh), "multipath": mode}},
+            "gnss_sim_visibility": {"ros__parameters": {"mesh_file": str(mesh), "multipath": mode,
+                                                        "multipath_scattering": mode == "full"}},
             "gnss_sim_receiver": {"ros__parameters": {"profile": "ublox_m8t"}},
             "gnss_sim_trajectory_player": {"ros__parameters": {"waypoints": [0.0, 2.0, -20.0, 1.0,
                                                                              30.0, 2.0, 10.0, 1.0]}}}))

@@ -90,7 +90,7 @@ class SimulationSetup:
 
 #: the visibility node's parameters a SimulationSetup carries in ``visibility`` (the rest are its own fields)
 VISIBILITY_OWN = ("use_visuals", "keep_dynamic_models", "strict_world", "multipath", "multipath_range_m",
-                  "multipath_max_paths", "multipath_diffraction", "multipath_bounces")
+                  "multipath_max_paths", "multipath_diffraction", "multipath_bounces", "multipath_scattering")
 
 
 def setup_from_config(cfg, out_dir: Path, trajectory: Trajectory | None = None, **extra) -> SimulationSetup:

@@ -317,7 +317,7 @@ def city_scene(model_dir, workdir):
 def run_drive(drive: Drive, scene, provider, nav_files, real_obs, workdir, *, multipath: str = "nlos",
               diffraction: bool = False, bounces: int = 2, profile: str = "ublox_m8t", mask_deg: float = 15.0,
               systems: str = "GC", real: dict | None = None, range_m: float = 100.0,
-              receiver: dict | None = None) -> dict:
+              receiver: dict | None = None, scattering: bool = False) -> dict:
     """The whole check (module docstring): simulate along the drive, RTKLIB on both files, the metrics.
 
     ``real``: the real file's part from a previous call (``out["real_part"]``), to skip recomputing it;
@@ -329,13 +329,14 @@ def run_drive(drive: Drive, scene, provider, nav_files, real_obs, workdir, *, mu
     workdir = Path(workdir)
     t_s = np.asarray(drive.t - drive.t[0], dtype=float)
     setup = SimulationSetup(start=drive.t[0], duration_s=float(t_s[-1]), interval_s=1.0,
-                            out_dir=workdir / f"{multipath}_{int(diffraction)}_{bounces}_{range_m:g}",
+                            out_dir=workdir / f"{multipath}_{int(diffraction)}_{bounces}_{range_m:g}_{int(scattering)}",
                             trajectory=Trajectory(t_s, drive.antenna_world_m, "world"), systems=systems,
                             elevation_mask_deg=mask_deg, source="broadcast", nav_files=list(nav_files), scene=scene,
                             ephemeris={"broadcast": (provider, list(nav_files))}, params={"profile": profile},
                             receiver=dict(receiver or {}),
                             visibility={"multipath": multipath, "multipath_diffraction": diffraction,
-                                        "multipath_bounces": bounces, "multipath_range_m": range_m},
+                                        "multipath_bounces": bounces, "multipath_range_m": range_m,
+                                        "multipath_scattering": scattering},
                             switches={"ionosphere": "klobuchar"})
     res = run_simulation(setup)
     times = drive.times_np

@@ -12,6 +12,7 @@ from ..constants import C_MPS, F_L1_HZ
 from ..vocabulary import MULTIPATH_MODES, VisibilityState
 from .diffraction import MAX_LOSS_DB, edge_loss_db
 from .reflections import Facets, ScenePaths, find_paths
+from .scattering import scatter_paths
 
 L1_WAVELENGTH_M = C_MPS / F_L1_HZ
 
@@ -62,6 +63,12 @@ def cast_paths(options, scene, antenna_world_m, sat_ecef_m, v, state):
                            bounces=options.multipath_bounces)
     else:
         paths = ScenePaths.empty(st.shape[0], st.shape[1], options.multipath_max_paths)
+    if getattr(options, "multipath_scattering", False) and only.any() and len(facets):
+        sc = scatter_paths(scene, facets, a.reshape(-1, 3), dirs, L1_WAVELENGTH_M,
+                           max_range_m=options.multipath_range_m, paths=options.multipath_max_paths, only=only)
+        paths = ScenePaths(*(np.concatenate([getattr(paths, f), getattr(sc, f)], axis=-1)
+                             for f in ("excess_m", "gamma_co", "gamma_cross", "arrival_el_deg")),
+                           paths.rays_cast + sc.rays_cast)
     extra_db = np.zeros(st.shape)
     a2 = a.reshape(-1, 3)
     for i in np.flatnonzero((cast & blocked).any(axis=1) if options.multipath_diffraction else []):

@@ -54,6 +54,8 @@ class VisibilityOptions:
     multipath_diffraction: bool = False
     #: 1: single bounces; 2: also double bounces between facing walls
     multipath_bounces: int = 2
+    #: diffuse scattering from the walls (core/multipath/scattering.py) on top of the specular paths
+    multipath_scattering: bool = False
 
     @classmethod
     def from_params(cls, p: dict, switches: dict | None = None) -> VisibilityOptions:
@@ -69,7 +71,8 @@ class VisibilityOptions:
                    multipath_range_m=float(p.get("multipath_range_m", 100.0)),
                    multipath_max_paths=int(p.get("multipath_max_paths", 3)),
                    multipath_diffraction=bool(p.get("multipath_diffraction", False)),
-                   multipath_bounces=int(p.get("multipath_bounces", 2)))
+                   multipath_bounces=int(p.get("multipath_bounces", 2)),
+                   multipath_scattering=bool(p.get("multipath_scattering", False)))
 
     def cast(self, scene, antenna_world_m, sat_ecef_m):
         """(state, attenuation_db, VisibilityResult) of satellites (N, 3) or (M, N, 3) seen from the antenna(s).
