@@ -9,7 +9,8 @@ Figures per epoch: the visibility cast with multipath off / nlos / full (ms; ray
 satellite above the mask, two per reflection candidate, the diffraction edge searches; paths found) for
 several facet ranges, and the receiver chain's step with and without the paths (ms).
 Demo courtyard (``make demo``'s scenario: the demo path, the default configuration, preset balanced): the
-whole offline chain (``run_simulation``) with multipath off / nlos / full: ms per epoch, rays and paths per
+whole offline chain (``run_simulation``) with multipath off / nlos / full (and the last two with the walls'
+diffuse scattering): ms per epoch, rays and paths per
 epoch, satellites tracked on reflections only, the fix's horizontal RMS.
 """
 from __future__ import annotations
@@ -43,10 +44,10 @@ def demo_figures() -> None:
     from gnss_sim_ros2.parameters import load_config
 
     print("demo courtyard, whole offline chain (preset balanced, the demo path, default systems):")
-    print(f"{'mode':>5} {'ms/epoch':>9} {'rays/epoch':>11} {'paths/epoch':>12} {'refl-only tracked':>18} "
+    print(f"{'mode':>9} {'ms/epoch':>9} {'rays/epoch':>11} {'paths/epoch':>12} {'refl-only tracked':>18} "
           f"{'fix H RMS m':>12}")
     real_cast = VisibilityOptions.cast
-    for mode in ("off", "nlos", "full"):
+    for mode, scattering in (("off", False), ("nlos", False), ("full", False), ("nlos", True), ("full", True)):
         count = {"rays": 0, "paths": 0, "los_rays": 0}
 
         def cast(self, scene, antenna_world_m, sat_ecef_m, _count=count):
@@ -66,7 +67,8 @@ def demo_figures() -> None:
 
         with tempfile.TemporaryDirectory() as tmp:
             setup = setup_from_config(load_config(), Path(tmp), progress=False, observer=observer)
-            setup = dataclasses.replace(setup, visibility={**setup.visibility, "multipath": mode})
+            setup = dataclasses.replace(setup, visibility={**setup.visibility, "multipath": mode,
+                                                           "multipath_scattering": scattering})
             VisibilityOptions.cast = cast
             try:
                 res = run_simulation(setup)
@@ -74,7 +76,8 @@ def demo_figures() -> None:
                 VisibilityOptions.cast = real_cast
         n = res.epochs
         err = np.asarray(res.horizontal_error_m)
-        print(f"{mode:>5} {res.wall_s / n * 1e3:9.2f} {(count['rays'] + count['los_rays']) / n:11.1f} "
+        name = mode + ("+scat" if scattering else "")
+        print(f"{name:>9} {res.wall_s / n * 1e3:9.2f} {(count['rays'] + count['los_rays']) / n:11.1f} "
               f"{count['paths'] / n:12.1f} {np.mean(refl):18.2f} {np.sqrt(np.mean(err ** 2)):12.2f}")
 
 
@@ -109,11 +112,13 @@ def main() -> int:
         states = [prov.states(drive.t[i], systems="GC") for i in range(n)]
         print(f"{n} epochs, {np.mean([len(s) for s in states]):.1f} satellites served per epoch")
         print("\nvisibility cast per epoch (one antenna position per call):")
-        print(f"{'mode':>5} {'range m':>8} {'ms/epoch':>9} {'rays/epoch':>11} {'paths/epoch':>12} {'NLOS sats':>10}")
+        print(f"{'mode':>9} {'range m':>8} {'ms/epoch':>9} {'rays/epoch':>11} {'paths/epoch':>12} {'NLOS sats':>10}")
         casts = {}
-        for mode, ranges in (("off", [0.0]), ("nlos", args.range), ("full", args.range)):
+        for mode, ranges, scat in (("off", [0.0], False), ("nlos", args.range, False), ("full", args.range, False),
+                                   ("nlos", [100.0], True), ("full", [100.0], True)):
             for rng in ranges:
-                opt = VisibilityOptions(mask_deg=15.0, multipath=mode, multipath_range_m=max(rng, 1.0))
+                opt = VisibilityOptions(mask_deg=15.0, multipath=mode, multipath_range_m=max(rng, 1.0),
+                                        multipath_scattering=scat)
                 out = []
                 rays = paths = nlos = 0
                 los_rays = 0
@@ -128,19 +133,21 @@ def main() -> int:
                         nlos += int(np.sum(state == 3))
                     out.append((state, att, p))
                 ms = (time.perf_counter() - t) / n * 1e3
-                print(f"{mode:>5} {rng:8.0f} {ms:9.2f} {(rays + los_rays) / n:11.1f} {paths / n:12.1f} "
+                label = mode + ("+scat" if scat else "")
+                print(f"{label:>9} {rng:8.0f} {ms:9.2f} {(rays + los_rays) / n:11.1f} {paths / n:12.1f} "
                       f"{nlos / n:10.2f}")
-                casts[(mode, rng)] = out
+                casts[(mode, rng, scat)] = out
         print("\nreceiver chain step per epoch (ublox_m8t):")
         p = validate_node("receiver", {"profile": "ublox_m8t", "systems": "GC", "elevation_mask_deg": 15.0,
                                        "output_dir": ""}, "bench")
-        for key in (("off", 0.0), ("full", 100.0)):
+        for key in (("off", 0.0, False), ("full", 100.0, False), ("full", 100.0, True)):
             chain = ReceiverChain(ChainSettings.from_params(p, interval_s=1.0, have_ephemeris=True), prov)
             t = time.perf_counter()
             for i in range(n):
                 state, att, paths = casts[key][i]
                 chain.step(drive.t[i], drive.antenna_ecef_m[i], states[i], state, att, multipath=paths)
-            print(f"  multipath {key[0]:>4}: {(time.perf_counter() - t) / n * 1e3:.2f} ms/epoch, "
+            label = key[0] + ("+scat" if key[2] else "")
+            print(f"  multipath {label:>9}: {(time.perf_counter() - t) / n * 1e3:.2f} ms/epoch, "
                   f"{chain.fixes}/{chain.epochs} fixes")
     return 0
 
