@@ -127,6 +127,13 @@ class Facets:
         return np.flatnonzero((h > 0.05) & (h <= max_range_m) & (dist <= max_range_m))
 
 
+def search_inputs(antenna_world_m, sat_dirs_world, k: int):
+    """(antennas (M, 3), satellite directions (M, N, 3), empty ScenePaths (M, N, k)) of a path search."""
+    a = np.asarray(antenna_world_m, dtype=np.float64).reshape(-1, 3)
+    u_all = np.asarray(sat_dirs_world, dtype=np.float64)
+    return a, u_all, ScenePaths.empty(u_all.shape[0], u_all.shape[1], k)
+
+
 def find_paths(scene, facets: Facets, antenna_world_m, sat_dirs_world, *, max_range_m: float = 100.0,
                max_paths: int = 3, only=None, bounces: int = 1) -> ScenePaths:
     """Specular paths for antennas (M, 3) and satellite unit directions (M, N, 3), world frame.
@@ -135,10 +142,8 @@ def find_paths(scene, facets: Facets, antenna_world_m, sat_dirs_world, *, max_ra
     ``bounces``: 1, or 2 to add the double bounces between two facing walls (:func:`_double_paths`)."""
     if bounces not in (1, 2):
         raise ValueError(f"multipath: bounces = {bounces!r} must be 1 or 2")
-    a = np.asarray(antenna_world_m, dtype=np.float64).reshape(-1, 3)
-    u_all = np.asarray(sat_dirs_world, dtype=np.float64)
+    a, u_all, out = search_inputs(antenna_world_m, sat_dirs_world, max_paths)
     m, n = u_all.shape[:2]
-    out = ScenePaths.empty(m, n, max_paths)
     if len(facets) == 0 or n == 0:
         return out
     # candidates of every antenna, then one batch of casts for all of them

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .reflections import REACH_TOLERANCE_M, SURFACE_OFFSET_M, Facets, ScenePaths
+from .reflections import REACH_TOLERANCE_M, SURFACE_OFFSET_M, Facets, ScenePaths, search_inputs
 
 #: scattering coefficient S of building walls (Degli-Esposti et al. 2007, Lambertian fit, ~0.4)
 S_WALL = 0.4
@@ -112,10 +112,8 @@ def scatter_paths(scene, facets: Facets, antenna_world_m, sat_dirs_world, wavele
                   max_range_m: float = 100.0, paths: int = 3, only=None, s_coef: float = S_WALL) -> ScenePaths:
     """Diffusely scattered paths (module docstring) for antennas (M, 3) and satellite unit directions (M, N, 3),
     world frame; ``only``: (M, N) bool, the satellites wanted.  ScenePaths (M, N, ``paths``)."""
-    a_all = np.asarray(antenna_world_m, dtype=np.float64).reshape(-1, 3)
-    u_all = np.asarray(sat_dirs_world, dtype=np.float64)
+    a_all, u_all, out = search_inputs(antenna_world_m, sat_dirs_world, paths)
     m, n = u_all.shape[:2]
-    out = ScenePaths.empty(m, n, paths)
     if len(facets) == 0 or n == 0:
         return out
     for i in range(m):
