@@ -41,7 +41,8 @@ def world_directions(scene, antenna_world_m, sat_ecef_m) -> np.ndarray:
 
 
 def cast_paths(options, scene, antenna_world_m, sat_ecef_m, v, state):
-    """Attach ``v.paths`` (ScenePaths, (M, N, K) or (N, K) for one antenna); returns (state, extra loss dB).
+    """Attach ``v.paths`` (ScenePaths, (M, N, K) or (N, K) for one antenna: the specular paths, then with
+    ``multipath_scattering`` the scattered ones, scattering.py); returns (state, extra loss dB).
 
     Blocked satellites: knife-edge diffraction over the nearest edge (diffraction.py); below
     MAX_LOSS_DB the satellite is ATTENUATED by that loss (a weakened direct signal), else it stays
@@ -63,7 +64,7 @@ def cast_paths(options, scene, antenna_world_m, sat_ecef_m, v, state):
                            bounces=options.multipath_bounces)
     else:
         paths = ScenePaths.empty(st.shape[0], st.shape[1], options.multipath_max_paths)
-    if getattr(options, "multipath_scattering", False) and only.any() and len(facets):
+    if options.multipath_scattering and only.any() and len(facets):
         sc = scatter_paths(scene, facets, a.reshape(-1, 3), dirs, L1_WAVELENGTH_M,
                            max_range_m=options.multipath_range_m, paths=options.multipath_max_paths, only=only)
         paths = ScenePaths(*(np.concatenate([getattr(paths, f), getattr(sc, f)], axis=-1)

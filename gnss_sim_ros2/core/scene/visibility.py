@@ -12,8 +12,8 @@ Frames
   Without a geodetic origin (a bare mesh) world = local ENU everywhere.
 
 States (int8): -1 below the mask (never cast), 0 visible, 1 blocked by an
-opaque surface, 2 attenuated by penetrable volumes (foliage), 3 reserved for
-"reflected only" (not produced yet).
+opaque surface, 2 attenuated by penetrable volumes (foliage), 3 "reflected only"
+(set by VisibilityOptions.cast with multipath on, core/multipath/scene_paths.py).
 
 Queries: satellites below ``mask_deg`` are never cast; a scene without
 penetrable triangles uses only ``test_occlusions``; the penetrable path is
@@ -70,7 +70,7 @@ class VisibilityResult:
     state: np.ndarray             # int8, STATE_*
     attenuation_db: np.ndarray    # penetrable (foliage) loss along the central ray [dB]
     path_in_foliage_m: np.ndarray  # path length inside penetrable volumes [m]
-    extra_path_m: np.ndarray      # reserved for reflections: 0
+    extra_path_m: np.ndarray      # 0 here; the shortest reflected path's excess after cast_paths (multipath)
     fraction_blocked: np.ndarray  # fraction of the Fresnel disc blocked (0/1 without fresnel_rays)
     diffraction_db: np.ndarray    # knife-edge loss from fraction_blocked (0 without fresnel_rays)
     az_deg: np.ndarray            # local ENU of the antenna
