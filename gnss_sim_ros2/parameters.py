@@ -142,6 +142,32 @@ def _check_iso_time(value: str, where: str) -> str:
     return value
 
 
+#: how a static antenna position is given (parameters antenna_position_type, base_position_type)
+POSITION_TYPES = ("world", "llh", "ecef")
+#: |ECEF| of a point on the Earth's surface lies between these [m] (WGS 84 polar radius 6356752 m minus the
+#: Dead Sea shore, equatorial radius 6378137 m plus 9 km of Everest and a margin)
+EARTH_RADIUS_SPAN_M = (6_350_000.0, 6_390_000.0)
+
+
+def check_position(value: list, kind: str, name: str, where: str) -> list:
+    """A static antenna position of ``kind`` (POSITION_TYPES): 3 numbers in their range, else ValueError
+    naming ``name`` and ``where``."""
+    if len(value) != 3:
+        raise ValueError(f"{where}: parameter '{name}' needs 3 numbers ({kind}), got {value!r}")
+    if kind == "llh":
+        lat, lon, h = value
+        if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 360.0 and -500.0 <= h <= 9000.0):
+            raise ValueError(f"{where}: parameter '{name}' = {value!r} (llh) is not latitude -90..90 deg, "
+                             f"longitude -180..360 deg, height -500..9000 m")
+    elif kind == "ecef":
+        r = math.sqrt(sum(v * v for v in value))
+        if not EARTH_RADIUS_SPAN_M[0] <= r <= EARTH_RADIUS_SPAN_M[1]:
+            raise ValueError(f"{where}: parameter '{name}' = {value!r} (ecef) is {r:.0f} m from the Earth's centre, "
+                             f"not on its surface ({EARTH_RADIUS_SPAN_M[0]:.0f}..{EARTH_RADIUS_SPAN_M[1]:.0f} m); "
+                             f"latitude/longitude/height go with {name}_type: llh")
+    return value
+
+
 SHARED = [
     Param("systems", SYSTEMS, "GNSS systems simulated, RINEX letters: G GPS, R GLONASS, E Galileo, C BeiDou, "
           "J QZSS, I NavIC; a node's section may narrow it", check_value=check_systems, shared_only=False),
@@ -194,6 +220,11 @@ NODE_PARAMS: dict[str, list[Param]] = {
               "or wall edge (ITU-R P.526 knife edge) are received weakened"),
         Param("tf_timeout_s", 5.0, "wall-clock seconds an epoch waits for the antenna's transform before it is "
               "dropped (and `gnss-sim run` fails, naming the frames)", min=0.1, max=600.0),
+        Param("antenna_position", [], "a static antenna (3 numbers in antenna_position_type) instead of "
+              "antenna_frame looked up in TF, e.g. a base station; empty: from TF", item_type="double"),
+        Param("antenna_position_type", "world", "what antenna_position holds: world (x, y, z in world_frame [m]), "
+              "llh (latitude [deg], longitude [deg], ellipsoidal height [m]) or ecef (WGS 84 [m])",
+              choices=POSITION_TYPES),
     ],
     "receiver": [
         Param("profile", "geodetic", "signals tracked", choices=PROFILES),
@@ -210,6 +241,9 @@ NODE_PARAMS: dict[str, list[Param]] = {
               "(std_msgs/UInt8MultiArray), e.g. for the rtk node or an outside RTK engine"),
         Param("rtcm_msm", 7, "RTCM3 MSM type: 7 (full resolution, Doppler) or 4", choices=(4, 7)),
         Param("rtcm_station_id", 0, "RTCM3 reference station id (DF003)", min=0, max=4095),
+        Param("rtcm_tcp_port", 0, "with rtcm: also serve the RTCM3 stream on this TCP port to every client that "
+              "connects (RTKLIB tcpcli, str2str, an NTRIP server); 0: none", min=0, max=65535),
+        Param("rtcm_tcp_host", "127.0.0.1", "address the RTCM3 TCP server listens on (0.0.0.0: every interface)"),
         Param("cn0_acquire_dbhz", -1.0, "C/N0 above which a signal is acquired [dB-Hz]; -1: the profile's "
               "(geodetic 33, ublox 22)", min=-1.0, max=70.0),
         Param("cn0_lose_dbhz", -1.0, "C/N0 below which a signal is lost [dB-Hz]; -1: the profile's "
@@ -244,6 +278,18 @@ NODE_PARAMS: dict[str, list[Param]] = {
         Param("autostart", True, "start rtkrcv on activate (else through the start service)"),
         Param("time_mapping", "offset", "ROS time <-> GNSS time of the stamps: offset (ROS time 0 = start_time) or utc",
               choices=("offset", "utc")),
+        Param("base_position", [0.0, 21.0, 25.5], "the simulated base station's antenna (gnss-sim run --rtk, "
+              "rtk:=true), 3 numbers in base_position_type; default: 0.5 m above the roof of the demo courtyard's "
+              "north wing (open sky); a base sees the rover's ionosphere, troposphere and satellite errors",
+              item_type="double"),
+        Param("base_position_type", "world", "what base_position holds: world (x, y, z in world_frame [m]), llh "
+              "(latitude [deg], longitude [deg], ellipsoidal height [m]) or ecef (WGS 84 [m])",
+              choices=POSITION_TYPES),
+        Param("base_seed", -1, "seed of the base receiver's own errors (noise, clock, multipath); -1: the "
+              "receiver's seed + 1", min=-1),
+        Param("base_marker_name", "BASE", "RINEX marker name of the base station (its files go to output_dir/base)"),
+        Param("base_rtcm_tcp_port", 0, "serve the base station's RTCM3 on this TCP port; 0: none", min=0,
+              max=65535),
     ],
 }
 
@@ -304,6 +350,10 @@ def validate_node(key: str, values: dict, where: str) -> dict:
         if lose > acq:
             raise ValueError(f"{where}: parameter 'cn0_lose_dbhz' ({lose}) exceeds 'cn0_acquire_dbhz' ({acq}; -1 "
                              f"means the profile's): a signal would be lost above the level at which it is acquired")
+    if key == "visibility" and out["antenna_position"]:
+        check_position(out["antenna_position"], out["antenna_position_type"], "antenna_position", where)
+    if key == "rtk":
+        check_position(out["base_position"], out["base_position_type"], "base_position", where)
     if key == "trajectory" and len(out["antenna_offset_m"]) != 3:
         raise ValueError(f"{where}: parameter 'antenna_offset_m' needs 3 numbers (x, y, z in base_frame), "
                          f"got {out['antenna_offset_m']!r}")
@@ -398,3 +448,34 @@ def default_config_yaml() -> str:
     for key, params in NODE_PARAMS.items():
         emit(NODE_NAMES[key], params)
     return "\n".join(lines)
+
+
+#: the base station of an RTK run: a visibility and a receiver node of the rover's classes at a static antenna
+BASE_NODE_NAMES = {"visibility": "gnss_sim_base_visibility", "receiver": "gnss_sim_base_receiver"}
+BASE_ANTENNA_FRAME = "gnss_base_antenna"
+
+
+def base_station_params(cfg: Config, key: str) -> dict:
+    """Parameters of the base station's ``visibility`` or ``receiver`` node: the rover's node's (same world,
+    scene, signals and models, so the same world errors), with the antenna at ``base_position`` (rtk
+    section), its own seed, marker name and output folder, RTCM3 on."""
+    rtk = cfg.node("rtk")
+    where = f"{cfg.source}: {NODE_NAMES['rtk']}"
+    out = cfg.node(key)
+    if key == "visibility":
+        out.update(antenna_position=list(rtk["base_position"]), antenna_position_type=rtk["base_position_type"],
+                   antenna_frame=BASE_ANTENNA_FRAME)
+    elif key == "receiver":
+        seed = rtk["base_seed"] if rtk["base_seed"] >= 0 else out["seed"] + 1
+        if seed == out["seed"]:
+            raise ValueError(f"{where}: parameter 'base_seed' ({seed}) equals the receiver's seed: base and rover "
+                             f"would draw the same receiver noise and clock; give another one (or -1)")
+        out.update(seed=seed, marker_name=rtk["base_marker_name"], rtcm=True,
+                   rtcm_tcp_port=rtk["base_rtcm_tcp_port"], antenna_frame=BASE_ANTENNA_FRAME,
+                   output_dir=str(Path(out["output_dir"]) / "base") if out["output_dir"] else "")
+        if out["rtcm_tcp_port"] and out["rtcm_tcp_port"] == cfg.node("receiver")["rtcm_tcp_port"]:
+            raise ValueError(f"{where}: parameter 'base_rtcm_tcp_port' ({out['rtcm_tcp_port']}) is the rover's "
+                             f"rtcm_tcp_port: one port serves one stream")
+    else:
+        raise KeyError(f"no base station node {key!r} (one of {sorted(BASE_NODE_NAMES)})")
+    return validate_node(key, out, f"{where} (base station)")

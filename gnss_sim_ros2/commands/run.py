@@ -41,6 +41,9 @@ def add_arguments(p):
                    help="do not move the robot here: its TF comes from elsewhere (Gazebo + ros_gz_bridge)")
     p.add_argument("--domain-id", type=int, default=None, metavar="N",
                    help="ROS_DOMAIN_ID of the run's graph (default: a free one of its own, printed at the start)")
+    p.add_argument("--rtk", action="store_true",
+                   help="RTK: a base station at base_position and the rtk node (RTKLIB rtkrcv) on the rover's and "
+                        "the base's RTCM3; /gnss/rtk/fix recorded, RTK figures in the summary")
     p.add_argument("--quiet", action="store_true")
 
 
@@ -64,6 +67,8 @@ def _overrides(args) -> dict:
         out["visibility"] = {"mesh_file": str(Path(args.mesh).resolve()), "world_file": ""}
     if args.duration is not None:
         out["ephemeris"] = {"duration_s": args.duration}
+    if getattr(args, "rtk", False):
+        out["receiver"] = {"rtcm": True}      # the rover's RTCM3 for the rtk node
     return out
 
 
@@ -76,6 +81,7 @@ def run(args) -> int:
         ov = _overrides(args)
         ov["/**"]["output_dir"] = str(folder.staging)
         cfg = load_config(args.config, ov, OPTION_PARAMS)
+        rtk_sections = _rtk_sections(cfg) if args.rtk else {}
         if args.domain_id is not None and not 0 <= args.domain_id <= 232:
             raise ValueError(f"option --domain-id is {args.domain_id}; a ROS domain id is 0..232")
     except ValueError as exc:
@@ -95,7 +101,7 @@ def run(args) -> int:
     import yaml
 
     params_file = staging / "params.yaml"
-    params_file.write_text(yaml.safe_dump(cfg.ros_parameter_file_dict(), sort_keys=False))
+    params_file.write_text(yaml.safe_dump({**cfg.ros_parameter_file_dict(), **rtk_sections}, sort_keys=False))
     runner = Runner(cfg, staging, params_file, args)
     runner.domain_id = domain
     for old in folder.stale:
@@ -169,8 +175,9 @@ class Runner:
         if not self.args.no_record:
             from gnss_sim_ros2.recorder import BagRecorder
 
-            self.recorder = BagRecorder(self.driver, self.out / "bag")
-        specs = graph.nodes(not self.args.no_trajectory_player)
+            self.recorder = BagRecorder(self.driver, self.out / "bag",
+                                        graph.RECORDED + (graph.RECORDED_RTK if self.args.rtk else ()))
+        specs = self.specs()
         if self.args.processes:
             from gnss_sim_ros2.run_isolation import die_with_parent
 
@@ -188,7 +195,7 @@ class Runner:
             for spec in specs:
                 cls = getattr(importlib.import_module(spec.module), spec.cls)
                 overrides = [Parameter("use_sim_time", value=True)] + [
-                    Parameter(k, value=v) for k, v in self.cfg.node(spec.key).items()
+                    Parameter(k, value=v) for k, v in graph.node_parameters(self.cfg, spec).items()
                     if not (isinstance(v, list) and not v)]
                 node = cls(parameter_overrides=overrides, cli_args=graph.ros_args(spec, None, True)[:-2])
                 self.local.append(node)
@@ -234,6 +241,42 @@ class Runner:
                       d.create_subscription(ReceiverStatus, "/gnss/status", on_status, 100),
                       d.create_subscription(NavSatFix, "/gnss/fix", on_fix, 100),
                       d.create_subscription(Visibility, "/gnss/visibility", on_vis, 100)]
+        if self.args.rtk:
+            self._subscribe_rtk()
+
+    def specs(self):
+        """The nodes of this run (graph.nodes, and the RTK ones with --rtk)."""
+        from gnss_sim_ros2 import graph
+
+        return graph.nodes(not self.args.no_trajectory_player) + (graph.rtk_nodes() if self.args.rtk else [])
+
+    def _subscribe_rtk(self):
+        from diagnostic_msgs.msg import DiagnosticStatus
+        from sensor_msgs.msg import NavSatFix
+
+        self.rtk_fix, self.rtk_quality = {}, {}
+
+        def on_fix(m):
+            self.rtk_fix[m.header.stamp.sec + m.header.stamp.nanosec * 1e-9] = m
+
+        def on_status(m):
+            v = {kv.key: kv.value for kv in m.values}
+            if v.get("stamp"):
+                self.rtk_quality[round(float(v["stamp"]) * 1e6)] = v["quality"]   # [us]: the fix's stamp
+
+        self._subs += [self.driver.create_subscription(NavSatFix, "/gnss/rtk/fix", on_fix, 1000),
+                       self.driver.create_subscription(DiagnosticStatus, "/gnss/rtk/status", on_status, 1000)]
+
+    def wait_rtk(self, t_s: float, period: float, stop) -> None:
+        """With --rtk: until rtkrcv's solution of the epoch at t_s is back (at most RTK_WAIT_S of wall time: an
+        epoch rtkrcv does not solve gives none), so the next epoch does not overtake it."""
+        if not self.args.rtk:
+            return
+        end = time.monotonic() + RTK_WAIT_S
+        while time.monotonic() < end and not stop["flag"]:
+            if any(abs(s - t_s) < 0.5 * period for s in list(self.rtk_fix)[-3:]):
+                return
+            self.executor.spin_once(timeout_sec=0.001)
 
     def set_clock(self, t_s: float):
         from builtin_interfaces.msg import Time
@@ -307,6 +350,7 @@ class Runner:
                 break
             if not any(abs(s - t_s) < 1e-6 for s in self.status):
                 dropped += 1
+            self.wait_rtk(t_s, period, stop)
             k_done = k + 1
             self.epochs_done = k_done
             if not self.args.quiet and (k % max(1, n_epochs // 20) == 0 or k == n_epochs - 1):
@@ -326,7 +370,7 @@ class Runner:
         """{topic: nodes} of publishers on the run's topics that are not nodes of its graph."""
         from gnss_sim_ros2 import graph
 
-        ours = {s.name for s in graph.nodes()} | {"gnss_sim_run"}
+        ours = {s.name for s in graph.nodes() + graph.rtk_nodes()} | {"gnss_sim_run"}
         out = {}
         for _, topic in graph.REMAPPINGS:
             others = sorted({f"{i.node_namespace.rstrip('/')}/{i.node_name}"
@@ -391,12 +435,31 @@ class Runner:
             "pace": "realtime" if self.args.realtime else "as fast as the chain answers",
             "rinex_files": rinex,
         }
+        if self.args.rtk:
+            out.update(self.rtk_summary(n_epochs, period))
         if self.recorder is not None:
             from gnss_sim_ros2.recorder import count_messages
 
             out["bag"] = "bag"      # relative: the folder is moved into place at the end
             out["bag_messages"] = count_messages(self.out / "bag")
         return out
+
+    def rtk_summary(self, n_epochs: int, period: float) -> dict:
+        """RTK figures: epochs with a /gnss/rtk/fix, fixed / float / single shares, horizontal error against the
+        true antenna path (fixed solutions; every solution), and the time line (rtk_timeline.csv)."""
+        from gnss_sim_ros2.core.rtk.summary import rtk_figures
+
+        truth = {int(round(t / period)): x for t, x in self.truth.items()}
+        rows = []
+        for t, f in sorted(self.rtk_fix.items()):
+            k = int(round(t / period))
+            if not 0 <= k < n_epochs or k not in truth:
+                continue
+            rows.append((k * period, self.rtk_quality.get(round(t * 1e6), "unknown"), f.latitude, f.longitude, f.altitude,
+                         truth[k]))
+        figures, timeline = rtk_figures(rows, n_epochs, period)
+        (self.out / "rtk_timeline.csv").write_text(timeline)
+        return figures
 
     def sky_plot(self, sky=None):
         """skyplot.png of the last epoch; ``sky``: what the casts find (Scene.sky_grid) if known, else the scene
@@ -459,6 +522,17 @@ class Runner:
         self.driver.destroy_node()
         self.rclpy.try_shutdown()
         self.started = False
+
+
+#: wall seconds an epoch waits for rtkrcv's solution (gnss-sim run --rtk) before the next one starts
+RTK_WAIT_S = 0.5
+
+
+def _rtk_sections(cfg) -> dict:
+    """The base station's parameter file sections; ValueError (bad base_position ...) before anything starts."""
+    from gnss_sim_ros2 import graph
+
+    return graph.rtk_parameter_sections(cfg)
 
 
 def _summary_markdown(s: dict) -> str:
