@@ -455,8 +455,8 @@ class Runner:
             k = int(round(t / period))
             if not 0 <= k < n_epochs or k not in truth:
                 continue
-            rows.append((k * period, self.rtk_quality.get(round(t * 1e6), "unknown"), f.latitude, f.longitude, f.altitude,
-                         truth[k]))
+            quality = self.rtk_quality.get(round(t * 1e6), "unknown")
+            rows.append((k * period, quality, f.latitude, f.longitude, f.altitude, truth[k]))
         figures, timeline = rtk_figures(rows, n_epochs, period)
         (self.out / "rtk_timeline.csv").write_text(timeline)
         return figures
