@@ -26,9 +26,8 @@ def main(args=None) -> int:
     try:
         if not bag_dir:
             raise ValueError("node gnss_sim_recorder: parameter 'bag_dir' is empty (the bag folder to write)")
-        from gnss_sim_ros2.recorder import BagRecorder
-
         from gnss_sim_ros2.graph import RECORDED, RECORDED_RTK
+        from gnss_sim_ros2.recorder import BagRecorder
 
         recorder = BagRecorder(node, Path(bag_dir), RECORDED + (RECORDED_RTK if rtk else ()))
         node.get_logger().info(f"recording into {bag_dir}")
