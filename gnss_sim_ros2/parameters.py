@@ -178,6 +178,9 @@ SHARED = [
           min=-5.0, max=90.0),
     Param("world_frame", "world", "TF frame of the Gazebo world (ENU at spherical_coordinates)"),
     Param("antenna_frame", "gnss_antenna", "TF frame of the receiver antenna phase centre"),
+    Param("antenna2_frame", "", "TF frame of a second antenna on the robot: with gnss-sim run --rtk / rtk:=true a "
+          "second rover receiver there and rtkrcv in moving-base mode give the heading (/gnss/rtk/heading); "
+          "empty: none"),
     Param("seed", 1, "seed of every random process (noise, clock, ambiguities)", min=0, shared_only=False),
     Param("output_dir", "gnss_sim_output", "folder of the RINEX observation/navigation (and NMEA) files; "
           "empty: none written"),
@@ -255,6 +258,8 @@ NODE_PARAMS: dict[str, list[Param]] = {
               item_type="double"),
         Param("base_frame", "base_link", "robot frame the player moves"),
         Param("antenna_offset_m", [0.0, 0.0, 0.5], "antenna position in base_frame [m] (static TF)"),
+        Param("antenna2_offset_m", [-1.0, 0.0, 0.5], "with antenna2_frame: the second antenna's position in "
+              "base_frame [m] (static TF; default 1 m behind the first)"),
         Param("publish_rate_hz", 20.0, "TF publish rate [Hz]", min=0.1, max=1000.0),
         Param("loop", False, "restart the path at its end"),
     ],
@@ -354,6 +359,12 @@ def validate_node(key: str, values: dict, where: str) -> dict:
         check_position(out["antenna_position"], out["antenna_position_type"], "antenna_position", where)
     if key == "rtk":
         check_position(out["base_position"], out["base_position_type"], "base_position", where)
+    if out["antenna2_frame"] and out["antenna2_frame"] == out["antenna_frame"]:
+        raise ValueError(f"{where}: parameter 'antenna2_frame' ({out['antenna2_frame']!r}) is antenna_frame: the "
+                         f"second antenna needs a frame of its own")
+    if key == "trajectory" and len(out["antenna2_offset_m"]) != 3:
+        raise ValueError(f"{where}: parameter 'antenna2_offset_m' needs 3 numbers (x, y, z in base_frame), "
+                         f"got {out['antenna2_offset_m']!r}")
     if key == "trajectory" and len(out["antenna_offset_m"]) != 3:
         raise ValueError(f"{where}: parameter 'antenna_offset_m' needs 3 numbers (x, y, z in base_frame), "
                          f"got {out['antenna_offset_m']!r}")
@@ -450,22 +461,44 @@ def default_config_yaml() -> str:
     return "\n".join(lines)
 
 
-#: the base station of an RTK run: a visibility and a receiver node of the rover's classes at a static antenna
-BASE_NODE_NAMES = {"visibility": "gnss_sim_base_visibility", "receiver": "gnss_sim_base_receiver"}
+#: the extra nodes of an RTK run, by instance and node key: the base station (a visibility and a receiver node of
+#: the rover's classes at a static antenna), and with antenna2_frame the second antenna's receiver and the rtk
+#: node in moving-base mode (heading)
+INSTANCE_NODE_NAMES = {
+    ("base", "visibility"): "gnss_sim_base_visibility", ("base", "receiver"): "gnss_sim_base_receiver",
+    ("antenna2", "visibility"): "gnss_sim_antenna2_visibility", ("antenna2", "receiver"): "gnss_sim_antenna2_receiver",
+    ("heading", "rtk"): "gnss_sim_heading",
+}
+BASE_NODE_NAMES = {k: v for (i, k), v in INSTANCE_NODE_NAMES.items() if i == "base"}
 BASE_ANTENNA_FRAME = "gnss_base_antenna"
+#: marker name and output sub-folder of the second antenna's receiver
+ANTENNA2_MARKER = "ANT2"
 
 
 def base_station_params(cfg: Config, key: str) -> dict:
     """Parameters of the base station's ``visibility`` or ``receiver`` node: the rover's node's (same world,
     scene, signals and models, so the same world errors), with the antenna at ``base_position`` (rtk
     section), its own seed, marker name and output folder, RTCM3 on."""
+    return instance_params(cfg, "base", key)
+
+
+def instance_params(cfg: Config, instance: str, key: str) -> dict:
+    """Parameters of one extra node of an RTK run (INSTANCE_NODE_NAMES), derived from the rover's sections:
+    ``base``: the base station (``base_*`` of the rtk section); ``antenna2``: the receiver at antenna2_frame
+    (seed + 2, marker ANT2, output_dir/antenna2); ``heading``: the rtk node in moving-base mode."""
+    if (instance, key) not in INSTANCE_NODE_NAMES:
+        raise KeyError(f"no node {key!r} of {instance!r} (one of {sorted(INSTANCE_NODE_NAMES)})")
     rtk = cfg.node("rtk")
     where = f"{cfg.source}: {NODE_NAMES['rtk']}"
     out = cfg.node(key)
-    if key == "visibility":
+    rover_rx = cfg.node("receiver")
+    antenna2 = out["antenna2_frame"]
+    if instance != "base" and not antenna2:
+        raise ValueError(f"{where}: the moving baseline needs parameter 'antenna2_frame' (empty)")
+    if instance == "base" and key == "visibility":
         out.update(antenna_position=list(rtk["base_position"]), antenna_position_type=rtk["base_position_type"],
                    antenna_frame=BASE_ANTENNA_FRAME)
-    elif key == "receiver":
+    elif instance == "base":
         seed = rtk["base_seed"] if rtk["base_seed"] >= 0 else out["seed"] + 1
         if seed == out["seed"]:
             raise ValueError(f"{where}: parameter 'base_seed' ({seed}) equals the receiver's seed: base and rover "
@@ -473,9 +506,17 @@ def base_station_params(cfg: Config, key: str) -> dict:
         out.update(seed=seed, marker_name=rtk["base_marker_name"], rtcm=True,
                    rtcm_tcp_port=rtk["base_rtcm_tcp_port"], antenna_frame=BASE_ANTENNA_FRAME,
                    output_dir=str(Path(out["output_dir"]) / "base") if out["output_dir"] else "")
-        if out["rtcm_tcp_port"] and out["rtcm_tcp_port"] == cfg.node("receiver")["rtcm_tcp_port"]:
+        if out["rtcm_tcp_port"] and out["rtcm_tcp_port"] == rover_rx["rtcm_tcp_port"]:
             raise ValueError(f"{where}: parameter 'base_rtcm_tcp_port' ({out['rtcm_tcp_port']}) is the rover's "
                              f"rtcm_tcp_port: one port serves one stream")
-    else:
-        raise KeyError(f"no base station node {key!r} (one of {sorted(BASE_NODE_NAMES)})")
-    return validate_node(key, out, f"{where} (base station)")
+    elif instance == "antenna2" and key == "visibility":
+        out.update(antenna_frame=antenna2, antenna2_frame="")      # this node is the second antenna
+    elif instance == "antenna2":
+        base_seed = rtk["base_seed"] if rtk["base_seed"] >= 0 else out["seed"] + 1
+        seed = max(out["seed"], base_seed) + 1           # neither the rover's nor the base's
+        out.update(seed=seed, marker_name=ANTENNA2_MARKER, rtcm=True, rtcm_tcp_port=0,
+                   antenna_frame=antenna2, antenna2_frame="",
+                   output_dir=str(Path(out["output_dir"]) / "antenna2") if out["output_dir"] else "")
+    else:                                                 # the heading: rtkrcv in moving-base mode
+        out.update(rtk_mode="movingbase")
+    return validate_node(key, out, f"{where} ({instance})")

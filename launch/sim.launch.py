@@ -107,7 +107,7 @@ def _setup(context):
     params = {**cfg.ros_parameter_file_dict(), **(graph.rtk_parameter_sections(cfg) if rtk else {})}
     params["/**"] = {"ros__parameters": {"use_sim_time": sim_time}}  # every node, composed or not
     params_file = _write_params(params, "params.yaml")
-    specs = graph.nodes(_true(a["trajectory_player"])) + (graph.rtk_nodes() if rtk else [])
+    specs = graph.nodes(_true(a["trajectory_player"])) + (graph.rtk_nodes(cfg) if rtk else [])
     node_params = [params_file, {"use_sim_time": sim_time}]
     # launch_ros turns a composable node's parameter file into Parameter messages and rejects empty
     # lists; every list parameter whose value is empty has the empty list as its default: leave them out

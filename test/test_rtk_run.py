@@ -9,6 +9,7 @@
   solutions <= 0.05 m, >= 90 % of the epochs with a solution, >= 80 % fixed after the first quarter.
 - The base station: same world errors, its own noise (RINEX of its own in output_dir/base).
 - Bad base_position: a clear error naming the parameter, nothing started.
+- Moving baseline (antenna2_frame): heading from rtkrcv in moving-base mode against the true baseline.
 - EpochSync: a rover epoch never reaches rtkrcv before the base epoch of the same time.
 """
 from __future__ import annotations
@@ -85,6 +86,46 @@ def test_run_rtk_open_ground_accuracy(tmp_path):
     assert s["rtk_solution_ratio"] >= 0.9
     assert s["rtk_fixed_ratio_after_first_quarter"] >= 0.8
     assert s["rtk_horizontal_error_rms_m"] <= 0.05
+
+
+def test_run_rtk_moving_baseline_heading(tmp_path):
+    """antenna2_frame: a second antenna 1 m behind the first (antenna2_offset_m), its receiver and rtkrcv in
+    moving-base mode; the heading against the true baseline while the robot drives east, then turns north."""
+    _needs_rtkrcv()
+    pytest.importorskip("rclpy", reason="rclpy is not installed (run make test)")
+    cfg = tmp_path / "mb.yaml"
+    cfg.write_text(yaml.safe_dump({"/**": {"ros__parameters": {"antenna2_frame": "gnss_antenna2"}},
+                                   "gnss_sim_trajectory_player": {"ros__parameters": {"waypoints": [
+                                       0.0, -40.0, -80.0, 0.0, 60.0, 0.0, -80.0, 0.0, 120.0, 0.0, -40.0, 0.0]}}}))
+    out = tmp_path / "mb"
+    r = _run(out, "--rtk", "--duration", "120", "--config", str(cfg))
+    assert r.returncode == 0, r.stderr[-3000:]
+    s = _summary(out)
+    print(f"\nmoving baseline: " + ", ".join(f"{k} {v}" for k, v in s.items() if k.startswith("heading")))
+    assert s["heading_ratio"] >= 0.9 and s["heading_fixed_ratio"] >= 0.8
+    assert s["heading_error_rms_deg"] <= 0.5
+    assert 0 < s["heading_sd_median_deg"] < 1.0
+    assert s["bag_messages"]["/gnss/rtk/heading"] == s["heading_epochs"]
+    assert list((out / "antenna2").glob("ANT2*_MO.rnx"))
+    assert s["rtk_solution_ratio"] >= 0.9          # the rover's RTK against the base runs beside it
+
+
+def test_moving_baseline_parameters():
+    from gnss_sim_ros2 import graph
+    from gnss_sim_ros2.parameters import instance_params, load_config
+
+    assert [s.name for s in graph.rtk_nodes(load_config())] == ["gnss_sim_base_visibility", "gnss_sim_base_receiver",
+                                                                "gnss_sim_rtk"]
+    cfg = load_config(None, {"/**": {"antenna2_frame": "gnss_antenna2"}})
+    assert [s.name for s in graph.rtk_nodes(cfg)][3:] == ["gnss_sim_antenna2_visibility",
+                                                          "gnss_sim_antenna2_receiver", "gnss_sim_heading"]
+    rx = instance_params(cfg, "antenna2", "receiver")
+    assert rx["antenna_frame"] == "gnss_antenna2" and rx["seed"] not in (1, 2) and rx["marker_name"] == "ANT2"
+    assert instance_params(cfg, "heading", "rtk")["rtk_mode"] == "movingbase"
+    heading = dict(graph.remappings_of(graph.HEADING_NODES[2]))
+    assert heading["base/rtcm"] == "/gnss/rtcm" and heading["rtcm"] == "/gnss/antenna2/rtcm"
+    with pytest.raises(ValueError, match="parameter 'antenna2_frame' \\('gnss_antenna'\\) is antenna_frame"):
+        load_config(None, {"/**": {"antenna2_frame": "gnss_antenna"}})
 
 
 @pytest.mark.parametrize("position, kind, words", [

@@ -248,7 +248,7 @@ class Runner:
         """The nodes of this run (graph.nodes, and the RTK ones with --rtk)."""
         from gnss_sim_ros2 import graph
 
-        return graph.nodes(not self.args.no_trajectory_player) + (graph.rtk_nodes() if self.args.rtk else [])
+        return graph.nodes(not self.args.no_trajectory_player) + (graph.rtk_nodes(self.cfg) if self.args.rtk else [])
 
     def _subscribe_rtk(self):
         from diagnostic_msgs.msg import DiagnosticStatus
@@ -266,6 +266,35 @@ class Runner:
 
         self._subs += [self.driver.create_subscription(NavSatFix, "/gnss/rtk/fix", on_fix, 1000),
                        self.driver.create_subscription(DiagnosticStatus, "/gnss/rtk/status", on_status, 1000)]
+        if self.cfg.node("receiver")["antenna2_frame"]:
+            self._subscribe_heading()
+
+    def _subscribe_heading(self):
+        """The moving baseline: rtkrcv's headings, their quality, and the second antenna's true position."""
+        from diagnostic_msgs.msg import DiagnosticStatus
+        from gnss_sim_msgs.msg import Visibility
+        from sensor_msgs.msg import Imu
+
+        self.heading, self.heading_quality, self.truth2 = {}, {}, {}
+
+        def stamp(m):
+            return m.header.stamp.sec + m.header.stamp.nanosec * 1e-9
+
+        def on_heading(m):
+            self.heading[stamp(m)] = m
+
+        def on_status(m):
+            v = {kv.key: kv.value for kv in m.values}
+            if v.get("stamp"):
+                self.heading_quality[round(float(v["stamp"]) * 1e6)] = v["quality"]
+
+        def on_vis(m):
+            self.truth2[stamp(m)] = np.array([m.antenna_ecef_m.x, m.antenna_ecef_m.y, m.antenna_ecef_m.z])
+
+        d = self.driver
+        self._subs += [d.create_subscription(Imu, "/gnss/rtk/heading", on_heading, 1000),
+                       d.create_subscription(DiagnosticStatus, "/gnss/heading/status", on_status, 1000),
+                       d.create_subscription(Visibility, "/gnss/antenna2/visibility", on_vis, 1000)]
 
     def wait_rtk(self, t_s: float, period: float, stop) -> None:
         """With --rtk: until rtkrcv's solution of the epoch at t_s is back (at most RTK_WAIT_S of wall time: an
@@ -370,7 +399,7 @@ class Runner:
         """{topic: nodes} of publishers on the run's topics that are not nodes of its graph."""
         from gnss_sim_ros2 import graph
 
-        ours = {s.name for s in graph.nodes() + graph.rtk_nodes()} | {"gnss_sim_run"}
+        ours = {s.name for s in graph.nodes() + graph.rtk_nodes(self.cfg)} | {"gnss_sim_run"}
         out = {}
         for _, topic in graph.REMAPPINGS:
             others = sorted({f"{i.node_namespace.rstrip('/')}/{i.node_name}"
@@ -459,7 +488,25 @@ class Runner:
             rows.append((k * period, quality, f.latitude, f.longitude, f.altitude, truth[k]))
         figures, timeline = rtk_figures(rows, n_epochs, period)
         (self.out / "rtk_timeline.csv").write_text(timeline)
+        if self.cfg.node("receiver")["antenna2_frame"]:
+            figures.update(self.heading_summary(n_epochs, period, truth))
         return figures
+
+    def heading_summary(self, n_epochs: int, period: float, truth: dict) -> dict:
+        """Moving baseline: headings against the true baseline first -> second antenna."""
+        from gnss_sim_ros2.core.rtk.summary import heading_figures
+
+        truth2 = {int(round(t / period)): x for t, x in self.truth2.items()}
+        rows = []
+        for t, m in sorted(self.heading.items()):
+            k = int(round(t / period))
+            if not 0 <= k < n_epochs or k not in truth or k not in truth2:
+                continue
+            yaw_enu_deg = float(np.degrees(2.0 * np.arctan2(m.orientation.z, m.orientation.w)))
+            sd_deg = float(np.degrees(np.sqrt(max(m.orientation_covariance[8], 0.0))))
+            rows.append((k * period, self.heading_quality.get(round(t * 1e6), "unknown"), 90.0 - yaw_enu_deg,
+                         sd_deg, truth[k], truth2[k]))
+        return heading_figures(rows, n_epochs)
 
     def sky_plot(self, sky=None):
         """skyplot.png of the last epoch; ``sky``: what the casts find (Scene.sky_grid) if known, else the scene

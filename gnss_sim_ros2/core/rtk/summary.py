@@ -7,6 +7,10 @@
   first quarter of the run (the time to the first fix left out);
 - ``rtk_horizontal_error_rms_m``: RMS of the horizontal distance from the true antenna position of the
   fixed solutions; ``rtk_horizontal_error_rms_all_m`` of every solution; ``..._p95_m`` their 95th percentiles.
+
+Moving baseline (:func:`heading_figures`): ``heading_ratio`` (epochs with a heading), ``heading_fixed_ratio``,
+``heading_error_rms_deg`` (fixed headings against the true baseline first -> second antenna) and
+``heading_sd_median_deg`` (the standard deviation rtkrcv gives).
 """
 from __future__ import annotations
 
@@ -62,3 +66,28 @@ def rtk_figures(rows, n_epochs: int, period_s: float) -> tuple[dict, str]:
     for ti, qi, ei in zip(t, q, err):
         buf.write(f"{ti:.3f},{qi},{ei:.4f}\n")
     return out, buf.getvalue()
+
+
+def true_heading_deg(antenna1_ecef_m, antenna2_ecef_m) -> float:
+    """Compass heading [deg, 0 north, 90 east] of the baseline antenna 1 -> antenna 2, in antenna 1's ENU."""
+    a1 = np.asarray(antenna1_ecef_m, dtype=float)
+    lat, lon, h = ecef_to_geodetic(*a1)
+    d = ecef_to_enu(np.asarray(antenna2_ecef_m, dtype=float), lat, lon, h)
+    return float(np.degrees(np.arctan2(d[0], d[1])) % 360.0)
+
+
+def heading_figures(rows, n_epochs: int) -> dict:
+    """Figures of ``rows`` = (t_s, quality, heading_deg, sd_deg, antenna1_ecef_m, antenna2_ecef_m)."""
+    n = max(int(n_epochs), 1)
+    q = np.array([r[1] for r in rows], dtype=object)
+    err = np.array([(r[2] - true_heading_deg(r[4], r[5]) + 180.0) % 360.0 - 180.0 for r in rows], dtype=float)
+    sd = np.array([r[3] for r in rows], dtype=float)
+    fixed = q == "fixed"
+    return {
+        "heading_epochs": int(len(rows)),
+        "heading_ratio": round(len(rows) / n, 4),
+        "heading_fixed_ratio": round(int(fixed.sum()) / n, 4),
+        "heading_error_rms_deg": _rms(err[fixed]),
+        "heading_error_p95_deg": _p95(np.abs(err[fixed])),
+        "heading_sd_median_deg": round(float(np.median(sd[fixed])), 4) if fixed.any() else None,
+    }
