@@ -101,7 +101,7 @@ def test_run_rtk_moving_baseline_heading(tmp_path):
     r = _run(out, "--rtk", "--duration", "120", "--config", str(cfg))
     assert r.returncode == 0, r.stderr[-3000:]
     s = _summary(out)
-    print(f"\nmoving baseline: " + ", ".join(f"{k} {v}" for k, v in s.items() if k.startswith("heading")))
+    print("\nmoving baseline: " + ", ".join(f"{k} {v}" for k, v in s.items() if k.startswith("heading")))
     assert s["heading_ratio"] >= 0.9 and s["heading_fixed_ratio"] >= 0.8
     assert s["heading_error_rms_deg"] <= 0.5
     assert 0 < s["heading_sd_median_deg"] < 1.0
