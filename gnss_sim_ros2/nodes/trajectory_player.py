@@ -2,10 +2,11 @@
 
 Publishes ``/tf`` (world_frame -> base_frame) at ``publish_rate_hz`` of the ROS
 clock and ``/tf_static`` (base_frame -> antenna_frame, the lever arm
-``antenna_offset_m``; with ``antenna2_frame`` also base_frame -> antenna2_frame at ``antenna2_offset_m``).  With simulated time a clock that jumps forward gets a
-sample for every tick it skipped, so a TF lookup at any epoch in between is
-interpolated between true samples.  The path comes from ``trajectory_file``
-(CSV), ``waypoints`` or the demo path through worlds/courtyard.sdf.
+``antenna_offset_m``; with ``antenna2_frame`` also base_frame -> antenna2_frame at
+``antenna2_offset_m``).  With simulated time a clock that jumps forward gets a sample
+for every tick it skipped, so a TF lookup at any epoch in between is interpolated
+between true samples.  The path comes from ``trajectory_file`` (CSV), ``waypoints``
+or the demo path through worlds/courtyard.sdf.
 """
 from __future__ import annotations
 
