@@ -144,6 +144,16 @@ def test_bad_base_position_is_a_clear_error(tmp_path, position, kind, words):
     assert not out.exists()
 
 
+def test_run_rtk_without_rtkrcv_is_a_clear_error(tmp_path):
+    pytest.importorskip("rclpy", reason="rclpy is not installed (run make test)")
+    cfg = tmp_path / "nortk.yaml"
+    cfg.write_text(yaml.safe_dump({"gnss_sim_rtk": {"ros__parameters": {"rtkrcv_path": "/no/such/rtkrcv"}}}))
+    r = _run(tmp_path / "out", "--rtk", "--config", str(cfg), "--duration", "3", "--no-record", timeout=120)
+    assert r.returncode == 3, r.stderr[-2000:]
+    assert "rtkrcv not found '/no/such/rtkrcv' (parameter rtkrcv_path)" in r.stderr
+    assert "apt-get install rtklib" in r.stderr and "Traceback" not in r.stderr
+
+
 def test_base_seed_equal_to_the_rover_seed_is_refused():
     from gnss_sim_ros2.parameters import base_station_params, load_config
 
