@@ -469,7 +469,6 @@ INSTANCE_NODE_NAMES = {
     ("antenna2", "visibility"): "gnss_sim_antenna2_visibility", ("antenna2", "receiver"): "gnss_sim_antenna2_receiver",
     ("heading", "rtk"): "gnss_sim_heading",
 }
-BASE_NODE_NAMES = {k: v for (i, k), v in INSTANCE_NODE_NAMES.items() if i == "base"}
 BASE_ANTENNA_FRAME = "gnss_base_antenna"
 #: marker name and output sub-folder of the second antenna's receiver
 ANTENNA2_MARKER = "ANT2"

@@ -73,6 +73,7 @@ def _overrides(args) -> dict:
 
 
 def run(args) -> int:
+    from gnss_sim_ros2 import graph
     from gnss_sim_ros2.parameters import load_config
     from gnss_sim_ros2.run_isolation import OutputBusy, OutputFolder, choose_domain_id
 
@@ -81,7 +82,8 @@ def run(args) -> int:
         ov = _overrides(args)
         ov["/**"]["output_dir"] = str(folder.staging)
         cfg = load_config(args.config, ov, OPTION_PARAMS)
-        rtk_sections = _rtk_sections(cfg) if args.rtk else {}
+        # the base station's (and moving baseline's) sections: a bad base_position stops here, before any start
+        rtk_sections = graph.rtk_parameter_sections(cfg) if args.rtk else {}
         if args.domain_id is not None and not 0 <= args.domain_id <= 232:
             raise ValueError(f"option --domain-id is {args.domain_id}; a ROS domain id is 0..232")
     except ValueError as exc:
@@ -573,13 +575,6 @@ class Runner:
 
 #: wall seconds an epoch waits for rtkrcv's solution (gnss-sim run --rtk) before the next one starts
 RTK_WAIT_S = 0.5
-
-
-def _rtk_sections(cfg) -> dict:
-    """The base station's parameter file sections; ValueError (bad base_position ...) before anything starts."""
-    from gnss_sim_ros2 import graph
-
-    return graph.rtk_parameter_sections(cfg)
 
 
 def _summary_markdown(s: dict) -> str:

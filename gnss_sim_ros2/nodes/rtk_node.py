@@ -270,7 +270,8 @@ class RtkNode(GnssSimNode):
                   **({"heading_deg": f"{sol.heading_deg:.3f}", "heading_sd_deg": f"{sol.heading_sd_deg:.3f}",
                       "baseline_m": f"{sol.length_m:.4f}"} if isinstance(sol, RtkBaseline) else {}),
                   **{f"epochs_{QUALITY_NAMES[q]}": str(n) for q, n in self.counts.items() if n},
-                  "rover_bytes": str(self.bytes_in["rover"]), "base_bytes": str(self.bytes_in["base"])}
+                  "rover_bytes": str(self.bytes_in["rover"]), "base_bytes": str(self.bytes_in["base"]),
+                  "rover_epochs_without_base": str(self.sync.released_unpaired if self.sync else 0)}
         return DiagnosticStatus(level=level, name=f"{self.get_name()}: rtkrcv", message=text, hardware_id="rtkrcv",
                                 values=[KeyValue(key=k, value=v) for k, v in values.items()])
 
