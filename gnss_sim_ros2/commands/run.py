@@ -257,6 +257,7 @@ class Runner:
         from sensor_msgs.msg import NavSatFix
 
         self.rtk_fix, self.rtk_quality = {}, {}
+        self.rtk_latency_s: list[float] = []       # wall time from the rover's status to its RTK solution
 
         def on_fix(m):
             self.rtk_fix[m.header.stamp.sec + m.header.stamp.nanosec * 1e-9] = m
@@ -299,13 +300,18 @@ class Runner:
                        d.create_subscription(Visibility, "/gnss/antenna2/visibility", on_vis, 1000)]
 
     def wait_rtk(self, t_s: float, period: float, stop) -> None:
-        """With --rtk: until rtkrcv's solution of the epoch at t_s is back (at most RTK_WAIT_S of wall time: an
-        epoch rtkrcv does not solve gives none), so the next epoch does not overtake it."""
+        """With --rtk: until rtkrcv's solution of the epoch at t_s is back, so the next epoch does not overtake
+        it; an epoch rtkrcv does not solve gives none, so the wait ends after RTK_WAIT_FACTOR times the median
+        latency so far (from the rover's status to its RTK solution), within RTK_WAIT_S."""
         if not self.args.rtk:
             return
-        end = time.monotonic() + RTK_WAIT_S
-        while time.monotonic() < end and not stop["flag"]:
+        t0 = time.monotonic()
+        lat = self.rtk_latency_s
+        limit = RTK_WAIT_S[1] if len(lat) < 5 else min(max(RTK_WAIT_FACTOR * float(np.median(lat)), RTK_WAIT_S[0]),
+                                                        RTK_WAIT_S[1])
+        while time.monotonic() - t0 < limit and not stop["flag"]:
             if any(abs(s - t_s) < 0.5 * period for s in list(self.rtk_fix)[-3:]):
+                lat.append(time.monotonic() - t0)
                 return
             self.executor.spin_once(timeout_sec=0.001)
 
@@ -489,6 +495,9 @@ class Runner:
             quality = self.rtk_quality.get(round(t * 1e6), "unknown")
             rows.append((k * period, quality, f.latitude, f.longitude, f.altitude, truth[k]))
         figures, timeline = rtk_figures(rows, n_epochs, period)
+        lat = self.rtk_latency_s
+        figures["rtk_latency_ms_median"] = round(1e3 * float(np.median(lat)), 2) if lat else None
+        figures["rtk_latency_ms_p95"] = round(1e3 * float(np.percentile(lat, 95)), 2) if lat else None
         (self.out / "rtk_timeline.csv").write_text(timeline)
         if self.cfg.node("receiver")["antenna2_frame"]:
             figures.update(self.heading_summary(n_epochs, period, truth))
@@ -573,8 +582,10 @@ class Runner:
         self.started = False
 
 
-#: wall seconds an epoch waits for rtkrcv's solution (gnss-sim run --rtk) before the next one starts
-RTK_WAIT_S = 0.5
+#: wall seconds an epoch waits for rtkrcv's solution (gnss-sim run --rtk) before the next one starts: at least,
+#: at most (the first epochs: at most), and the multiple of the median latency so far in between
+RTK_WAIT_S = (0.05, 0.5)
+RTK_WAIT_FACTOR = 4.0
 
 
 def _summary_markdown(s: dict) -> str:
