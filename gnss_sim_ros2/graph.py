@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from gnss_sim_ros2.parameters import NODE_NAMES
+from gnss_sim_ros2.parameters import INSTANCE_NODE_NAMES, NODE_NAMES
 
 #: the ROS package, and the scheme of Python classes in its component index (nodes/components.py)
 PACKAGE = "gnss_sim"
@@ -21,10 +21,13 @@ class NodeSpec:
     executable: str   # console script (setup.py) = `ros2 run gnss_sim <executable>`
     module: str       # python module (``python -m``)
     cls: str          # node class (composition in one process)
+    #: "" for the rover's chain and the rtk node; "base", "antenna2", "heading": an RTK run's other instances
+    #: of the class (parameters.INSTANCE_NODE_NAMES)
+    instance: str = ""
 
     @property
     def name(self) -> str:
-        return NODE_NAMES[self.key]
+        return INSTANCE_NODE_NAMES[(self.instance, self.key)] if self.instance else NODE_NAMES[self.key]
 
     @property
     def plugin(self) -> str:
@@ -83,9 +86,107 @@ def nodes(with_trajectory_player: bool = True) -> list[NodeSpec]:
 def ros_args(spec: NodeSpec, params_file: str | None, use_sim_time: bool) -> list[str]:
     """``--ros-args`` of one node run as its own process."""
     args = ["--ros-args", "-r", f"__node:={spec.name}"]
-    for a, b in REMAPPINGS:
+    for a, b in remappings_of(spec):
         args += ["-r", f"{a}:={b}"]
     if params_file:
         args += ["--params-file", params_file]
     args += ["-p", f"use_sim_time:={'true' if use_sim_time else 'false'}"]
     return args
+
+
+# ---------------------------------------------------------------------------- RTK (gnss-sim run --rtk, rtk:=true)
+#: the base station (the rover's visibility and receiver classes at a static antenna, parameters.base_station_params)
+#: and the rtk node (rtkrcv on the rover's and the base's RTCM3), started after the rover's chain
+RTK_NODES = (
+    NodeSpec("visibility", "visibility_node", "gnss_sim_ros2.nodes.visibility_node", "VisibilityNode", "base"),
+    NodeSpec("receiver", "receiver_node", "gnss_sim_ros2.nodes.receiver_node", "ReceiverNode", "base"),
+    NodeSpec("rtk", "rtk_node", "gnss_sim_ros2.nodes.rtk_node", "RtkNode"),
+)
+#: with antenna2_frame: the second antenna's receiver and rtkrcv in moving-base mode (antenna 1 the moving base)
+HEADING_NODES = (
+    NodeSpec("visibility", "visibility_node", "gnss_sim_ros2.nodes.visibility_node", "VisibilityNode", "antenna2"),
+    NodeSpec("receiver", "receiver_node", "gnss_sim_ros2.nodes.receiver_node", "ReceiverNode", "antenna2"),
+    NodeSpec("rtk", "rtk_node", "gnss_sim_ros2.nodes.rtk_node", "RtkNode", "heading"),
+)
+#: one line per class in the component index (nodes/components.py)
+COMPONENT_NODES = NODES + (RTK_NODES[2],)
+BASE_NAMESPACE = f"{TOPIC_NAMESPACE}/base"
+BASE_REMAPPINGS = (("satellite_states", f"{TOPIC_NAMESPACE}/satellite_states"),) + tuple(
+    (a, f"{BASE_NAMESPACE}/{a}") for a, _ in REMAPPINGS if a != "satellite_states")
+RTK_TOPICS = ("rtk/fix", "rtk/vel", "rtk/nmea", "rtk/status", "rtk/heading")
+RTK_REMAPPINGS = (("rtcm", f"{TOPIC_NAMESPACE}/rtcm"), ("base/rtcm", f"{BASE_NAMESPACE}/rtcm")) + tuple(
+    (a, f"{TOPIC_NAMESPACE}/{a}") for a in RTK_TOPICS)
+ANTENNA2_NAMESPACE = f"{TOPIC_NAMESPACE}/antenna2"
+ANTENNA2_REMAPPINGS = (("satellite_states", f"{TOPIC_NAMESPACE}/satellite_states"),) + tuple(
+    (a, f"{ANTENNA2_NAMESPACE}/{a}") for a, _ in REMAPPINGS if a != "satellite_states")
+#: moving base: the "base" stream is the first antenna's, the "rover" stream the second's
+HEADING_REMAPPINGS = (("rtcm", f"{ANTENNA2_NAMESPACE}/rtcm"), ("base/rtcm", f"{TOPIC_NAMESPACE}/rtcm"),
+                      ("rtk/heading", f"{TOPIC_NAMESPACE}/rtk/heading"),
+                      ("rtk/status", f"{TOPIC_NAMESPACE}/heading/status"),
+                      ("rtk/nmea", f"{TOPIC_NAMESPACE}/heading/nmea"))
+#: what an RTK run records on top of RECORDED
+RECORDED_RTK = (
+    (f"{TOPIC_NAMESPACE}/rtk/fix", "sensor_msgs/msg/NavSatFix"),
+    (f"{TOPIC_NAMESPACE}/rtk/vel", "geometry_msgs/msg/TwistWithCovarianceStamped"),
+    (f"{TOPIC_NAMESPACE}/rtk/status", "diagnostic_msgs/msg/DiagnosticStatus"),
+    (f"{TOPIC_NAMESPACE}/rtk/nmea", "std_msgs/msg/String"),
+    (f"{TOPIC_NAMESPACE}/rtcm", "std_msgs/msg/UInt8MultiArray"),
+    (f"{BASE_NAMESPACE}/rtcm", "std_msgs/msg/UInt8MultiArray"),
+    (f"{BASE_NAMESPACE}/fix", "sensor_msgs/msg/NavSatFix"),
+    (f"{TOPIC_NAMESPACE}/rtk/heading", "sensor_msgs/msg/Imu"),
+    (f"{TOPIC_NAMESPACE}/heading/status", "diagnostic_msgs/msg/DiagnosticStatus"),
+)
+
+
+def remappings_of(spec: NodeSpec) -> tuple:
+    """The topic remappings of one node: the rover's chain under /gnss, the base station's under /gnss/base."""
+    if spec.instance == "base":
+        return BASE_REMAPPINGS
+    if spec.instance == "antenna2":
+        return ANTENNA2_REMAPPINGS
+    if spec.instance == "heading":
+        return HEADING_REMAPPINGS
+    if spec.key == "rtk":
+        return RTK_REMAPPINGS
+    return REMAPPINGS
+
+
+def rtk_nodes(cfg=None) -> list[NodeSpec]:
+    """The nodes an RTK run adds to :func:`nodes`; with ``cfg`` (parameters.Config) naming an antenna2_frame,
+    the moving baseline's too."""
+    heading = cfg is not None and bool(cfg.node("receiver")["antenna2_frame"])
+    return list(RTK_NODES) + (list(HEADING_NODES) if heading else [])
+
+
+def node_parameters(cfg, spec: NodeSpec) -> dict:
+    """The parameters of one node of the graph from the configuration (parameters.Config)."""
+    from gnss_sim_ros2.parameters import instance_params
+
+    out = instance_params(cfg, spec.instance, spec.key) if spec.instance else cfg.node(spec.key)
+    if spec.key == "rtk" and not out["nav_files"]:
+        out["nav_files"] = [str(run_navigation_file(cfg))]
+    return out
+
+
+def run_navigation_file(cfg):
+    """The RINEX navigation file the ephemeris node writes on configure: the ephemerides the rtk node sends
+    rtkrcv (the simulated receivers' RTCM3 carry observations only: a node has no navigation records)."""
+    from pathlib import Path
+
+    from gnss_sim_ros2.core.receiver.outputs import rinex_name
+    from gnss_sim_ros2.core.time import GnssTime
+
+    eph = cfg.node("ephemeris")
+    if not eph["output_dir"]:
+        raise ValueError(f"{cfg.source}: an RTK run needs output_dir (parameter output_dir is empty): the rtk node "
+                         f"sends rtkrcv the ephemerides of the run's navigation file written there (or give the "
+                         f"rtk node nav_files)")
+    name = rinex_name(eph["marker_name"], GnssTime.from_iso(eph["start_time"]), eph["duration_s"],
+                      1.0 / eph["rate_hz"], "MN")
+    return Path(eph["output_dir"]) / name
+
+
+def rtk_parameter_sections(cfg) -> dict:
+    """The RTK nodes' sections of a ROS parameter file ({node name: {"ros__parameters": ...}}): the base
+    station's, and the rtk node's with the run's navigation file."""
+    return {s.name: {"ros__parameters": node_parameters(cfg, s)} for s in rtk_nodes(cfg)}

@@ -142,6 +142,32 @@ def _check_iso_time(value: str, where: str) -> str:
     return value
 
 
+#: how a static antenna position is given (parameters antenna_position_type, base_position_type)
+POSITION_TYPES = ("world", "llh", "ecef")
+#: |ECEF| of a point on the Earth's surface lies between these [m] (WGS 84 polar radius 6356752 m minus the
+#: Dead Sea shore, equatorial radius 6378137 m plus 9 km of Everest and a margin)
+EARTH_RADIUS_SPAN_M = (6_350_000.0, 6_390_000.0)
+
+
+def check_position(value: list, kind: str, name: str, where: str) -> list:
+    """A static antenna position of ``kind`` (POSITION_TYPES): 3 numbers in their range, else ValueError
+    naming ``name`` and ``where``."""
+    if len(value) != 3:
+        raise ValueError(f"{where}: parameter '{name}' needs 3 numbers ({kind}), got {value!r}")
+    if kind == "llh":
+        lat, lon, h = value
+        if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 360.0 and -500.0 <= h <= 9000.0):
+            raise ValueError(f"{where}: parameter '{name}' = {value!r} (llh) is not latitude -90..90 deg, "
+                             f"longitude -180..360 deg, height -500..9000 m")
+    elif kind == "ecef":
+        r = math.sqrt(sum(v * v for v in value))
+        if not EARTH_RADIUS_SPAN_M[0] <= r <= EARTH_RADIUS_SPAN_M[1]:
+            raise ValueError(f"{where}: parameter '{name}' = {value!r} (ecef) is {r:.0f} m from the Earth's centre, "
+                             f"not on its surface ({EARTH_RADIUS_SPAN_M[0]:.0f}..{EARTH_RADIUS_SPAN_M[1]:.0f} m); "
+                             f"latitude/longitude/height go with {name}_type: llh")
+    return value
+
+
 SHARED = [
     Param("systems", SYSTEMS, "GNSS systems simulated, RINEX letters: G GPS, R GLONASS, E Galileo, C BeiDou, "
           "J QZSS, I NavIC; a node's section may narrow it", check_value=check_systems, shared_only=False),
@@ -152,6 +178,9 @@ SHARED = [
           min=-5.0, max=90.0),
     Param("world_frame", "world", "TF frame of the Gazebo world (ENU at spherical_coordinates)"),
     Param("antenna_frame", "gnss_antenna", "TF frame of the receiver antenna phase centre"),
+    Param("antenna2_frame", "", "TF frame of a second antenna on the robot: with gnss-sim run --rtk / rtk:=true a "
+          "second rover receiver there and rtkrcv in moving-base mode give the heading (/gnss/rtk/heading); "
+          "empty: none"),
     Param("seed", 1, "seed of every random process (noise, clock, ambiguities)", min=0, shared_only=False),
     Param("output_dir", "gnss_sim_output", "folder of the RINEX observation/navigation (and NMEA) files; "
           "empty: none written"),
@@ -196,6 +225,11 @@ NODE_PARAMS: dict[str, list[Param]] = {
               "roughness, Lambertian, S = 0.4) adds paths to the specular ones"),
         Param("tf_timeout_s", 5.0, "wall-clock seconds an epoch waits for the antenna's transform before it is "
               "dropped (and `gnss-sim run` fails, naming the frames)", min=0.1, max=600.0),
+        Param("antenna_position", [], "a static antenna (3 numbers in antenna_position_type) instead of "
+              "antenna_frame looked up in TF, e.g. a base station; empty: from TF", item_type="double"),
+        Param("antenna_position_type", "world", "what antenna_position holds: world (x, y, z in world_frame [m]), "
+              "llh (latitude [deg], longitude [deg], ellipsoidal height [m]) or ecef (WGS 84 [m])",
+              choices=POSITION_TYPES),
     ],
     "receiver": [
         Param("profile", "geodetic", "signals tracked", choices=PROFILES),
@@ -212,6 +246,9 @@ NODE_PARAMS: dict[str, list[Param]] = {
               "(std_msgs/UInt8MultiArray), e.g. for the rtk node or an outside RTK engine"),
         Param("rtcm_msm", 7, "RTCM3 MSM type: 7 (full resolution, Doppler) or 4", choices=(4, 7)),
         Param("rtcm_station_id", 0, "RTCM3 reference station id (DF003)", min=0, max=4095),
+        Param("rtcm_tcp_port", 0, "with rtcm: also serve the RTCM3 stream on this TCP port to every client that "
+              "connects (RTKLIB tcpcli, str2str, an NTRIP server); 0: none", min=0, max=65535),
+        Param("rtcm_tcp_host", "127.0.0.1", "address the RTCM3 TCP server listens on (0.0.0.0: every interface)"),
         Param("cn0_acquire_dbhz", -1.0, "C/N0 above which a signal is acquired [dB-Hz]; -1: the profile's "
               "(geodetic 33, ublox 22)", min=-1.0, max=70.0),
         Param("cn0_lose_dbhz", -1.0, "C/N0 below which a signal is lost [dB-Hz]; -1: the profile's "
@@ -223,6 +260,8 @@ NODE_PARAMS: dict[str, list[Param]] = {
               item_type="double"),
         Param("base_frame", "base_link", "robot frame the player moves"),
         Param("antenna_offset_m", [0.0, 0.0, 0.5], "antenna position in base_frame [m] (static TF)"),
+        Param("antenna2_offset_m", [-1.0, 0.0, 0.5], "with antenna2_frame: the second antenna's position in "
+              "base_frame [m] (static TF; default 1 m behind the first)"),
         Param("publish_rate_hz", 20.0, "TF publish rate [Hz]", min=0.1, max=1000.0),
         Param("loop", False, "restart the path at its end"),
     ],
@@ -246,6 +285,18 @@ NODE_PARAMS: dict[str, list[Param]] = {
         Param("autostart", True, "start rtkrcv on activate (else through the start service)"),
         Param("time_mapping", "offset", "ROS time <-> GNSS time of the stamps: offset (ROS time 0 = start_time) or utc",
               choices=("offset", "utc")),
+        Param("base_position", [0.0, 21.0, 25.5], "the simulated base station's antenna (gnss-sim run --rtk, "
+              "rtk:=true), 3 numbers in base_position_type; default: 0.5 m above the roof of the demo courtyard's "
+              "north wing (open sky); a base sees the rover's ionosphere, troposphere and satellite errors",
+              item_type="double"),
+        Param("base_position_type", "world", "what base_position holds: world (x, y, z in world_frame [m]), llh "
+              "(latitude [deg], longitude [deg], ellipsoidal height [m]) or ecef (WGS 84 [m])",
+              choices=POSITION_TYPES),
+        Param("base_seed", -1, "seed of the base receiver's own errors (noise, clock, multipath); -1: the "
+              "receiver's seed + 1", min=-1),
+        Param("base_marker_name", "BASE", "RINEX marker name of the base station (its files go to output_dir/base)"),
+        Param("base_rtcm_tcp_port", 0, "serve the base station's RTCM3 on this TCP port; 0: none", min=0,
+              max=65535),
     ],
 }
 
@@ -306,6 +357,16 @@ def validate_node(key: str, values: dict, where: str) -> dict:
         if lose > acq:
             raise ValueError(f"{where}: parameter 'cn0_lose_dbhz' ({lose}) exceeds 'cn0_acquire_dbhz' ({acq}; -1 "
                              f"means the profile's): a signal would be lost above the level at which it is acquired")
+    if key == "visibility" and out["antenna_position"]:
+        check_position(out["antenna_position"], out["antenna_position_type"], "antenna_position", where)
+    if key == "rtk":
+        check_position(out["base_position"], out["base_position_type"], "base_position", where)
+    if out["antenna2_frame"] and out["antenna2_frame"] == out["antenna_frame"]:
+        raise ValueError(f"{where}: parameter 'antenna2_frame' ({out['antenna2_frame']!r}) is antenna_frame: the "
+                         f"second antenna needs a frame of its own")
+    if key == "trajectory" and len(out["antenna2_offset_m"]) != 3:
+        raise ValueError(f"{where}: parameter 'antenna2_offset_m' needs 3 numbers (x, y, z in base_frame), "
+                         f"got {out['antenna2_offset_m']!r}")
     if key == "trajectory" and len(out["antenna_offset_m"]) != 3:
         raise ValueError(f"{where}: parameter 'antenna_offset_m' needs 3 numbers (x, y, z in base_frame), "
                          f"got {out['antenna_offset_m']!r}")
@@ -400,3 +461,63 @@ def default_config_yaml() -> str:
     for key, params in NODE_PARAMS.items():
         emit(NODE_NAMES[key], params)
     return "\n".join(lines)
+
+
+#: the extra nodes of an RTK run, by instance and node key: the base station (a visibility and a receiver node of
+#: the rover's classes at a static antenna), and with antenna2_frame the second antenna's receiver and the rtk
+#: node in moving-base mode (heading)
+INSTANCE_NODE_NAMES = {
+    ("base", "visibility"): "gnss_sim_base_visibility", ("base", "receiver"): "gnss_sim_base_receiver",
+    ("antenna2", "visibility"): "gnss_sim_antenna2_visibility", ("antenna2", "receiver"): "gnss_sim_antenna2_receiver",
+    ("heading", "rtk"): "gnss_sim_heading",
+}
+BASE_ANTENNA_FRAME = "gnss_base_antenna"
+#: marker name and output sub-folder of the second antenna's receiver
+ANTENNA2_MARKER = "ANT2"
+
+
+def base_station_params(cfg: Config, key: str) -> dict:
+    """Parameters of the base station's ``visibility`` or ``receiver`` node: the rover's node's (same world,
+    scene, signals and models, so the same world errors), with the antenna at ``base_position`` (rtk
+    section), its own seed, marker name and output folder, RTCM3 on."""
+    return instance_params(cfg, "base", key)
+
+
+def instance_params(cfg: Config, instance: str, key: str) -> dict:
+    """Parameters of one extra node of an RTK run (INSTANCE_NODE_NAMES), derived from the rover's sections:
+    ``base``: the base station (``base_*`` of the rtk section); ``antenna2``: the receiver at antenna2_frame
+    (seed + 2, marker ANT2, output_dir/antenna2); ``heading``: the rtk node in moving-base mode."""
+    if (instance, key) not in INSTANCE_NODE_NAMES:
+        raise KeyError(f"no node {key!r} of {instance!r} (one of {sorted(INSTANCE_NODE_NAMES)})")
+    rtk = cfg.node("rtk")
+    where = f"{cfg.source}: {NODE_NAMES['rtk']}"
+    out = cfg.node(key)
+    rover_rx = cfg.node("receiver")
+    antenna2 = out["antenna2_frame"]
+    if instance != "base" and not antenna2:
+        raise ValueError(f"{where}: the moving baseline needs parameter 'antenna2_frame' (empty)")
+    if instance == "base" and key == "visibility":
+        out.update(antenna_position=list(rtk["base_position"]), antenna_position_type=rtk["base_position_type"],
+                   antenna_frame=BASE_ANTENNA_FRAME)
+    elif instance == "base":
+        seed = rtk["base_seed"] if rtk["base_seed"] >= 0 else out["seed"] + 1
+        if seed == out["seed"]:
+            raise ValueError(f"{where}: parameter 'base_seed' ({seed}) equals the receiver's seed: base and rover "
+                             f"would draw the same receiver noise and clock; give another one (or -1)")
+        out.update(seed=seed, marker_name=rtk["base_marker_name"], rtcm=True,
+                   rtcm_tcp_port=rtk["base_rtcm_tcp_port"], antenna_frame=BASE_ANTENNA_FRAME,
+                   output_dir=str(Path(out["output_dir"]) / "base") if out["output_dir"] else "")
+        if out["rtcm_tcp_port"] and out["rtcm_tcp_port"] == rover_rx["rtcm_tcp_port"]:
+            raise ValueError(f"{where}: parameter 'base_rtcm_tcp_port' ({out['rtcm_tcp_port']}) is the rover's "
+                             f"rtcm_tcp_port: one port serves one stream")
+    elif instance == "antenna2" and key == "visibility":
+        out.update(antenna_frame=antenna2, antenna2_frame="")      # this node is the second antenna
+    elif instance == "antenna2":
+        base_seed = rtk["base_seed"] if rtk["base_seed"] >= 0 else out["seed"] + 1
+        seed = max(out["seed"], base_seed) + 1           # neither the rover's nor the base's
+        out.update(seed=seed, marker_name=ANTENNA2_MARKER, rtcm=True, rtcm_tcp_port=0,
+                   antenna_frame=antenna2, antenna2_frame="",
+                   output_dir=str(Path(out["output_dir"]) / "antenna2") if out["output_dir"] else "")
+    else:                                                 # the heading: rtkrcv in moving-base mode
+        out.update(rtk_mode="movingbase")
+    return validate_node(key, out, f"{where} ({instance})")

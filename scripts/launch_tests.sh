@@ -39,4 +39,6 @@ ROS_DOMAIN_ID=$(domain 0) "$LAYER/bin/python" -m pytest -q -p no:cacheprovider \
   test/test_component_container.py test/test_launch_cli.py
 log "launch_test test/test_launch_sim.py on ROS_DOMAIN_ID=$(domain 1)"
 ROS_DOMAIN_ID=$(domain 1) "$LAYER/bin/launch_test" test/test_launch_sim.py
+log "launch_test test/test_launch_rtk.py on ROS_DOMAIN_ID=$(domain 2)"
+ROS_DOMAIN_ID=$(domain 2) "$LAYER/bin/launch_test" test/test_launch_rtk.py
 log "passed in $((SECONDS - t0)) s"

@@ -22,7 +22,7 @@ def _register_module():
 
 def test_resource_file_lists_every_node_of_the_graph():
     text = (REPO / "resource" / "rclcpp_components" / "gnss_sim").read_text()
-    assert text == components.index_lines(graph.NODES)  # regenerate with index_lines() when graph.NODES changes
+    assert text == components.index_lines(graph.COMPONENT_NODES)  # regenerate with index_lines() when they change
     parsed = components.parse_index(text, "resource")
     assert parsed["gnss_sim::ReceiverNode"] == "python:gnss_sim_ros2.nodes.receiver_node:ReceiverNode"
 
@@ -58,7 +58,7 @@ def index(tmp_path, monkeypatch):
 
 
 def test_components_resolve_through_the_index(index):
-    assert set(components.registered("gnss_sim")) == {s.plugin for s in graph.NODES}
+    assert set(components.registered("gnss_sim")) == {s.plugin for s in graph.COMPONENT_NODES}
     cls = components.load_class("gnss_sim", "gnss_sim::VisibilityNode")
     assert cls.__name__ == "VisibilityNode" and cls.__module__ == "gnss_sim_ros2.nodes.visibility_node"
 

@@ -41,6 +41,9 @@ def add_arguments(p):
                    help="do not move the robot here: its TF comes from elsewhere (Gazebo + ros_gz_bridge)")
     p.add_argument("--domain-id", type=int, default=None, metavar="N",
                    help="ROS_DOMAIN_ID of the run's graph (default: a free one of its own, printed at the start)")
+    p.add_argument("--rtk", action="store_true",
+                   help="RTK: a base station at base_position and the rtk node (RTKLIB rtkrcv) on the rover's and "
+                        "the base's RTCM3; /gnss/rtk/fix recorded, RTK figures in the summary")
     p.add_argument("--quiet", action="store_true")
 
 
@@ -64,10 +67,13 @@ def _overrides(args) -> dict:
         out["visibility"] = {"mesh_file": str(Path(args.mesh).resolve()), "world_file": ""}
     if args.duration is not None:
         out["ephemeris"] = {"duration_s": args.duration}
+    if getattr(args, "rtk", False):
+        out["receiver"] = {"rtcm": True}      # the rover's RTCM3 for the rtk node
     return out
 
 
 def run(args) -> int:
+    from gnss_sim_ros2 import graph
     from gnss_sim_ros2.parameters import load_config
     from gnss_sim_ros2.run_isolation import OutputBusy, OutputFolder, choose_domain_id
 
@@ -76,6 +82,8 @@ def run(args) -> int:
         ov = _overrides(args)
         ov["/**"]["output_dir"] = str(folder.staging)
         cfg = load_config(args.config, ov, OPTION_PARAMS)
+        # the base station's (and moving baseline's) sections: a bad base_position stops here, before any start
+        rtk_sections = graph.rtk_parameter_sections(cfg) if args.rtk else {}
         if args.domain_id is not None and not 0 <= args.domain_id <= 232:
             raise ValueError(f"option --domain-id is {args.domain_id}; a ROS domain id is 0..232")
     except ValueError as exc:
@@ -95,7 +103,7 @@ def run(args) -> int:
     import yaml
 
     params_file = staging / "params.yaml"
-    params_file.write_text(yaml.safe_dump(cfg.ros_parameter_file_dict(), sort_keys=False))
+    params_file.write_text(yaml.safe_dump({**cfg.ros_parameter_file_dict(), **rtk_sections}, sort_keys=False))
     runner = Runner(cfg, staging, params_file, args)
     runner.domain_id = domain
     for old in folder.stale:
@@ -169,8 +177,9 @@ class Runner:
         if not self.args.no_record:
             from gnss_sim_ros2.recorder import BagRecorder
 
-            self.recorder = BagRecorder(self.driver, self.out / "bag")
-        specs = graph.nodes(not self.args.no_trajectory_player)
+            self.recorder = BagRecorder(self.driver, self.out / "bag",
+                                        graph.RECORDED + (graph.RECORDED_RTK if self.args.rtk else ()))
+        specs = self.specs()
         if self.args.processes:
             from gnss_sim_ros2.run_isolation import die_with_parent
 
@@ -188,7 +197,7 @@ class Runner:
             for spec in specs:
                 cls = getattr(importlib.import_module(spec.module), spec.cls)
                 overrides = [Parameter("use_sim_time", value=True)] + [
-                    Parameter(k, value=v) for k, v in self.cfg.node(spec.key).items()
+                    Parameter(k, value=v) for k, v in graph.node_parameters(self.cfg, spec).items()
                     if not (isinstance(v, list) and not v)]
                 node = cls(parameter_overrides=overrides, cli_args=graph.ros_args(spec, None, True)[:-2])
                 self.local.append(node)
@@ -234,6 +243,77 @@ class Runner:
                       d.create_subscription(ReceiverStatus, "/gnss/status", on_status, 100),
                       d.create_subscription(NavSatFix, "/gnss/fix", on_fix, 100),
                       d.create_subscription(Visibility, "/gnss/visibility", on_vis, 100)]
+        if self.args.rtk:
+            self._subscribe_rtk()
+
+    def specs(self):
+        """The nodes of this run (graph.nodes, and the RTK ones with --rtk)."""
+        from gnss_sim_ros2 import graph
+
+        return graph.nodes(not self.args.no_trajectory_player) + (graph.rtk_nodes(self.cfg) if self.args.rtk else [])
+
+    def _subscribe_rtk(self):
+        from diagnostic_msgs.msg import DiagnosticStatus
+        from sensor_msgs.msg import NavSatFix
+
+        self.rtk_fix, self.rtk_quality = {}, {}
+        self.rtk_latency_s: list[float] = []       # wall time from the rover's status to its RTK solution
+
+        def on_fix(m):
+            self.rtk_fix[m.header.stamp.sec + m.header.stamp.nanosec * 1e-9] = m
+
+        def on_status(m):
+            v = {kv.key: kv.value for kv in m.values}
+            if v.get("stamp"):
+                self.rtk_quality[round(float(v["stamp"]) * 1e6)] = v["quality"]   # [us]: the fix's stamp
+
+        self._subs += [self.driver.create_subscription(NavSatFix, "/gnss/rtk/fix", on_fix, 1000),
+                       self.driver.create_subscription(DiagnosticStatus, "/gnss/rtk/status", on_status, 1000)]
+        if self.cfg.node("receiver")["antenna2_frame"]:
+            self._subscribe_heading()
+
+    def _subscribe_heading(self):
+        """The moving baseline: rtkrcv's headings, their quality, and the second antenna's true position."""
+        from diagnostic_msgs.msg import DiagnosticStatus
+        from gnss_sim_msgs.msg import Visibility
+        from sensor_msgs.msg import Imu
+
+        self.heading, self.heading_quality, self.truth2 = {}, {}, {}
+
+        def stamp(m):
+            return m.header.stamp.sec + m.header.stamp.nanosec * 1e-9
+
+        def on_heading(m):
+            self.heading[stamp(m)] = m
+
+        def on_status(m):
+            v = {kv.key: kv.value for kv in m.values}
+            if v.get("stamp"):
+                self.heading_quality[round(float(v["stamp"]) * 1e6)] = v["quality"]
+
+        def on_vis(m):
+            self.truth2[stamp(m)] = np.array([m.antenna_ecef_m.x, m.antenna_ecef_m.y, m.antenna_ecef_m.z])
+
+        d = self.driver
+        self._subs += [d.create_subscription(Imu, "/gnss/rtk/heading", on_heading, 1000),
+                       d.create_subscription(DiagnosticStatus, "/gnss/heading/status", on_status, 1000),
+                       d.create_subscription(Visibility, "/gnss/antenna2/visibility", on_vis, 1000)]
+
+    def wait_rtk(self, t_s: float, period: float, stop) -> None:
+        """With --rtk: until rtkrcv's solution of the epoch at t_s is back, so the next epoch does not overtake
+        it; an epoch rtkrcv does not solve gives none, so the wait ends after RTK_WAIT_FACTOR times the median
+        latency so far (from the rover's status to its RTK solution), within RTK_WAIT_S."""
+        if not self.args.rtk:
+            return
+        t0 = time.monotonic()
+        lat = self.rtk_latency_s
+        limit = RTK_WAIT_S[1] if len(lat) < 5 else min(max(RTK_WAIT_FACTOR * float(np.median(lat)), RTK_WAIT_S[0]),
+                                                        RTK_WAIT_S[1])
+        while time.monotonic() - t0 < limit and not stop["flag"]:
+            if any(abs(s - t_s) < 0.5 * period for s in list(self.rtk_fix)[-3:]):
+                lat.append(time.monotonic() - t0)
+                return
+            self.executor.spin_once(timeout_sec=0.001)
 
     def set_clock(self, t_s: float):
         from builtin_interfaces.msg import Time
@@ -307,6 +387,7 @@ class Runner:
                 break
             if not any(abs(s - t_s) < 1e-6 for s in self.status):
                 dropped += 1
+            self.wait_rtk(t_s, period, stop)
             k_done = k + 1
             self.epochs_done = k_done
             if not self.args.quiet and (k % max(1, n_epochs // 20) == 0 or k == n_epochs - 1):
@@ -326,7 +407,7 @@ class Runner:
         """{topic: nodes} of publishers on the run's topics that are not nodes of its graph."""
         from gnss_sim_ros2 import graph
 
-        ours = {s.name for s in graph.nodes()} | {"gnss_sim_run"}
+        ours = {s.name for s in graph.nodes() + graph.rtk_nodes(self.cfg)} | {"gnss_sim_run"}
         out = {}
         for _, topic in graph.REMAPPINGS:
             others = sorted({f"{i.node_namespace.rstrip('/')}/{i.node_name}"
@@ -391,12 +472,52 @@ class Runner:
             "pace": "realtime" if self.args.realtime else "as fast as the chain answers",
             "rinex_files": rinex,
         }
+        if self.args.rtk:
+            out.update(self.rtk_summary(n_epochs, period))
         if self.recorder is not None:
             from gnss_sim_ros2.recorder import count_messages
 
             out["bag"] = "bag"      # relative: the folder is moved into place at the end
             out["bag_messages"] = count_messages(self.out / "bag")
         return out
+
+    def rtk_summary(self, n_epochs: int, period: float) -> dict:
+        """RTK figures: epochs with a /gnss/rtk/fix, fixed / float / single shares, horizontal error against the
+        true antenna path (fixed solutions; every solution), and the time line (rtk_timeline.csv)."""
+        from gnss_sim_ros2.core.rtk.summary import rtk_figures
+
+        truth = {int(round(t / period)): x for t, x in self.truth.items()}
+        rows = []
+        for t, f in sorted(self.rtk_fix.items()):
+            k = int(round(t / period))
+            if not 0 <= k < n_epochs or k not in truth:
+                continue
+            quality = self.rtk_quality.get(round(t * 1e6), "unknown")
+            rows.append((k * period, quality, f.latitude, f.longitude, f.altitude, truth[k]))
+        figures, timeline = rtk_figures(rows, n_epochs, period)
+        lat = self.rtk_latency_s
+        figures["rtk_latency_ms_median"] = round(1e3 * float(np.median(lat)), 2) if lat else None
+        figures["rtk_latency_ms_p95"] = round(1e3 * float(np.percentile(lat, 95)), 2) if lat else None
+        (self.out / "rtk_timeline.csv").write_text(timeline)
+        if self.cfg.node("receiver")["antenna2_frame"]:
+            figures.update(self.heading_summary(n_epochs, period, truth))
+        return figures
+
+    def heading_summary(self, n_epochs: int, period: float, truth: dict) -> dict:
+        """Moving baseline: headings against the true baseline first -> second antenna."""
+        from gnss_sim_ros2.core.rtk.summary import heading_figures
+
+        truth2 = {int(round(t / period)): x for t, x in self.truth2.items()}
+        rows = []
+        for t, m in sorted(self.heading.items()):
+            k = int(round(t / period))
+            if not 0 <= k < n_epochs or k not in truth or k not in truth2:
+                continue
+            yaw_enu_deg = float(np.degrees(2.0 * np.arctan2(m.orientation.z, m.orientation.w)))
+            sd_deg = float(np.degrees(np.sqrt(max(m.orientation_covariance[8], 0.0))))
+            rows.append((k * period, self.heading_quality.get(round(t * 1e6), "unknown"), 90.0 - yaw_enu_deg,
+                         sd_deg, truth[k], truth2[k]))
+        return heading_figures(rows, n_epochs)
 
     def sky_plot(self, sky=None):
         """skyplot.png of the last epoch; ``sky``: what the casts find (Scene.sky_grid) if known, else the scene
@@ -459,6 +580,12 @@ class Runner:
         self.driver.destroy_node()
         self.rclpy.try_shutdown()
         self.started = False
+
+
+#: wall seconds an epoch waits for rtkrcv's solution (gnss-sim run --rtk) before the next one starts: at least,
+#: at most (the first epochs: at most), and the multiple of the median latency so far in between
+RTK_WAIT_S = (0.05, 0.5)
+RTK_WAIT_FACTOR = 4.0
 
 
 def _summary_markdown(s: dict) -> str:

@@ -9,7 +9,7 @@ lists them, with a second field naming a Python class instead of a library:
 
     gnss_sim::ReceiverNode;python:gnss_sim_ros2.nodes.receiver_node:ReceiverNode
 
-(``resource/rclcpp_components/gnss_sim``, written from ``graph.NODES``).  The
+(``resource/rclcpp_components/gnss_sim``, written from ``graph.COMPONENT_NODES``).  The
 gnss_sim container (nodes/container.py) loads such lines; a C++ line (a library
 path) is refused with a message naming rclcpp's container.
 """
@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import importlib
 
-from gnss_sim_ros2.graph import NODES, PYTHON_TARGET_PREFIX
+from gnss_sim_ros2.graph import COMPONENT_NODES, PYTHON_TARGET_PREFIX
 
 RESOURCE_TYPE = "rclcpp_components"
 
@@ -26,7 +26,7 @@ class ComponentError(ValueError):
     """A component that cannot be found or loaded (the message says which and why)."""
 
 
-def index_lines(specs=NODES) -> str:
+def index_lines(specs=COMPONENT_NODES) -> str:
     """Content of gnss_sim's resource file: one ``plugin;python:module:Class`` line per node."""
     return "".join(f"{s.plugin};{s.target}\n" for s in specs)
 

@@ -9,7 +9,9 @@ ENU covariance from the solution scaled by its a-posteriori variance),
 ``vel`` (geometry_msgs/TwistWithCovarianceStamped, ENU), ``status``
 (gnss_sim_msgs/ReceiverStatus), ``nmea`` (std_msgs/String, one epoch's
 sentences; nmea_msgs is not available on PyPI) and diagnostics; and writes
-the RINEX observation file epoch by epoch into ``output_dir``.
+the RINEX observation file epoch by epoch into ``output_dir``.  With ``rtcm``:
+``rtcm`` (std_msgs/UInt8MultiArray, one epoch's RTCM3 messages), also served
+on TCP port ``rtcm_tcp_port`` (core/rtcm/tcp_server.py) for outside tools.
 
 The epoch's work is core/receiver/chain.py's ReceiverChain, the same object
 ``gnss-sim simulate`` steps: this node only converts messages.  The node has
@@ -45,6 +47,7 @@ class ReceiverNode(GnssSimNode):
         self.states: dict[tuple, object] = {}
         self.vis: dict[tuple, object] = {}
         self.last_stamp = None
+        self.tcp = None                # core.rtcm.tcp_server.RtcmTcpServer (configure .. cleanup)
 
     def configure(self, p):
         from gnss_sim_msgs.msg import Observations, ReceiverStatus
@@ -70,6 +73,14 @@ class ReceiverNode(GnssSimNode):
             from std_msgs.msg import UInt8MultiArray
 
             self.pubs["rtcm"] = self.lifecycle_publisher(UInt8MultiArray, "rtcm", 100)
+            if p["rtcm_tcp_port"]:
+                from gnss_sim_ros2.core.rtcm.tcp_server import RtcmTcpServer
+
+                try:
+                    self.tcp = RtcmTcpServer(p["rtcm_tcp_port"], p["rtcm_tcp_host"])
+                except ValueError as exc:
+                    raise ValueError(f"node {self.get_name()}: {exc}") from None
+                self.get_logger().info(f"RTCM3 served on tcp://{self.tcp.host}:{self.tcp.port}")
 
     def activate(self):
         from gnss_sim_msgs.msg import SatelliteStates, Visibility
@@ -83,6 +94,9 @@ class ReceiverNode(GnssSimNode):
 
     def cleanup(self):
         self.pubs = {}
+        if self.tcp is not None:
+            self.tcp.close()
+            self.tcp = None
         if self.chain is not None:
             self.chain.close()       # RINEX closed with its last epoch
             self.chain = None
@@ -134,6 +148,8 @@ class ReceiverNode(GnssSimNode):
             from std_msgs.msg import UInt8MultiArray
 
             self.pubs["rtcm"].publish(UInt8MultiArray(data=ep.rtcm))
+            if self.tcp is not None:
+                self.tcp.write(ep.rtcm)
         if self.chain.epochs % 10 == 1:
             self._diagnose(obs, sol)
 

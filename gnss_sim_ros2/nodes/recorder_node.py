@@ -19,15 +19,17 @@ def main(args=None) -> int:
     stop = init_ros(args)
     node = rclpy.create_node("gnss_sim_recorder")
     bag_dir = node.declare_parameter("bag_dir", "").value
+    rtk = node.declare_parameter("rtk", False).value        # also the RTK topics (graph.RECORDED_RTK)
     executor = SingleThreadedExecutor()
     executor.add_node(node)
     recorder = None
     try:
         if not bag_dir:
             raise ValueError("node gnss_sim_recorder: parameter 'bag_dir' is empty (the bag folder to write)")
+        from gnss_sim_ros2.graph import RECORDED, RECORDED_RTK
         from gnss_sim_ros2.recorder import BagRecorder
 
-        recorder = BagRecorder(node, Path(bag_dir))
+        recorder = BagRecorder(node, Path(bag_dir), RECORDED + (RECORDED_RTK if rtk else ()))
         node.get_logger().info(f"recording into {bag_dir}")
         spin_until_stopped(executor, stop)
     except ValueError as exc:

@@ -3,9 +3,10 @@
 Subscribes ``rtcm`` (rover) and ``base/rtcm`` (base station): std_msgs/UInt8MultiArray,
 the raw RTCM3 bytes of one epoch or any run of whole frames (rtcm_msgs and
 mavros_msgs are not available as Kilted wheels on PyPI; UInt8MultiArray is
-the standard raw-bytes message).  Each message goes to rtkrcv at once
-through its TCP input (core/rtk/process.py); rtkrcv synchronises rover and
-base by epoch time itself.
+the standard raw-bytes message).  The messages go to rtkrcv through its TCP
+inputs (core/rtk/process.py) synchronised by epoch (core/rtk/sync.py): a
+rover epoch waits until the base epoch of the same time has been sent, so
+rtkrcv pairs them even when the simulation runs many epochs per rtkrcv cycle.
 
 Publishes (relative names: under the ``/gnss`` namespace they are
 ``/gnss/rtk/...``): ``rtk/fix`` (sensor_msgs/NavSatFix, status from the RTKLIB
@@ -65,6 +66,7 @@ class RtkNode(GnssSimNode):
         self.counts = {q: 0 for q in QUALITY_NAMES}
         self.last: RtkSolution | None = None
         self.bytes_in = {"rover": 0, "base": 0}
+        self.sync = None
 
     # ----------------------------------------------------------------------------- lifecycle
     def configure(self, p):
@@ -115,7 +117,10 @@ class RtkNode(GnssSimNode):
                          for name in ("start", "stop", "restart")]
 
     def activate(self):
+        from gnss_sim_ros2.core.rtk.sync import EpochSync
+
         self.mapping.origin_ns = run_origin_ns(self)
+        self.sync = EpochSync()
         self.active_subscription(UInt8MultiArray, "rtcm", lambda m: self._feed("rover", m), 1000)
         self.active_subscription(UInt8MultiArray, "base/rtcm", lambda m: self._feed("base", m), 1000)
         # rtkrcv's output is drained on the steady clock: a simulated /clock may stand still
@@ -205,8 +210,9 @@ class RtkNode(GnssSimNode):
     def _feed(self, which: str, msg) -> None:
         data = bytes(msg.data)
         self.bytes_in[which] += len(data)
-        if self.proc is not None:
-            (self.proc.feed_rover if which == "rover" else self.proc.feed_base)(data)
+        for to, chunk in self.sync.push(which, data):
+            if self.proc is not None:
+                (self.proc.feed_rover if to == "rover" else self.proc.feed_base)(chunk)
 
     def _send_ephemerides(self) -> None:
         """The ephemerides of nav_files due at the current simulated time, to rtkrcv's input stream 3."""
@@ -256,13 +262,16 @@ class RtkNode(GnssSimNode):
             text = f"{sol.quality}, ratio {sol.ratio:.1f}, {sol.ns} satellites, age {sol.age_s:.1f} s"
             if isinstance(sol, RtkBaseline):
                 text += f", heading {sol.heading_deg:.2f} +- {sol.heading_sd_deg:.2f} deg"
+        stamp = self.mapping.to_ros(sol.t) if sol is not None else None
         values = {"running": str(running).lower(), "quality": sol.quality if sol else "none",
+                  "stamp": f"{stamp.sec}.{stamp.nanosec:09d}" if stamp is not None else "",
                   "ratio": f"{sol.ratio:.1f}" if sol else "", "satellites": str(sol.ns) if sol else "",
                   "age_s": f"{sol.age_s:.2f}" if sol else "",
                   **({"heading_deg": f"{sol.heading_deg:.3f}", "heading_sd_deg": f"{sol.heading_sd_deg:.3f}",
                       "baseline_m": f"{sol.length_m:.4f}"} if isinstance(sol, RtkBaseline) else {}),
                   **{f"epochs_{QUALITY_NAMES[q]}": str(n) for q, n in self.counts.items() if n},
-                  "rover_bytes": str(self.bytes_in["rover"]), "base_bytes": str(self.bytes_in["base"])}
+                  "rover_bytes": str(self.bytes_in["rover"]), "base_bytes": str(self.bytes_in["base"]),
+                  "rover_epochs_without_base": str(self.sync.released_unpaired if self.sync else 0)}
         return DiagnosticStatus(level=level, name=f"{self.get_name()}: rtkrcv", message=text, hardware_id="rtkrcv",
                                 values=[KeyValue(key=k, value=v) for k, v in values.items()])
 

@@ -2,10 +2,11 @@
 
 Publishes ``/tf`` (world_frame -> base_frame) at ``publish_rate_hz`` of the ROS
 clock and ``/tf_static`` (base_frame -> antenna_frame, the lever arm
-``antenna_offset_m``).  With simulated time a clock that jumps forward gets a
-sample for every tick it skipped, so a TF lookup at any epoch in between is
-interpolated between true samples.  The path comes from ``trajectory_file``
-(CSV), ``waypoints`` or the demo path through worlds/courtyard.sdf.
+``antenna_offset_m``; with ``antenna2_frame`` also base_frame -> antenna2_frame at
+``antenna2_offset_m``).  With simulated time a clock that jumps forward gets a sample
+for every tick it skipped, so a TF lookup at any epoch in between is interpolated
+between true samples.  The path comes from ``trajectory_file`` (CSV), ``waypoints``
+or the demo path through worlds/courtyard.sdf.
 """
 from __future__ import annotations
 
@@ -80,8 +81,11 @@ class TrajectoryPlayer(GnssSimNode):
         p = self.params
         now_ns = self.get_clock().now().nanoseconds
         if self._static_pending:
-            self.static_pub.publish(TFMessage(transforms=[transform(
-                p["base_frame"], p["antenna_frame"], Time(nanoseconds=now_ns).to_msg(), p["antenna_offset_m"])]))
+            stamp = Time(nanoseconds=now_ns).to_msg()
+            static = [transform(p["base_frame"], p["antenna_frame"], stamp, p["antenna_offset_m"])]
+            if p["antenna2_frame"]:          # the second antenna of a moving baseline (heading)
+                static.append(transform(p["base_frame"], p["antenna2_frame"], stamp, p["antenna2_offset_m"]))
+            self.static_pub.publish(TFMessage(transforms=static))
             self._static_pending = False
         ticks = []
         while self.next_tick <= now_ns:

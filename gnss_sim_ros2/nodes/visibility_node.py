@@ -7,6 +7,8 @@ pose (antenna_frame in world_frame) at that epoch's stamp, then casts one
 batch of rays and publishes ``visibility`` (same stamp) and, once per second
 of ROS time, ``sky_view`` (sensor_msgs/Image, a polar sky plot for RViz);
 diagnostics count the epochs processed and dropped (no TF in time).
+With ``antenna_position`` the antenna stands still there (a base station):
+no TF lookup.
 """
 from __future__ import annotations
 
@@ -37,6 +39,7 @@ class VisibilityNode(GnssSimNode):
         self.scene = None             # core.scene.visibility.Scene (configure .. cleanup)
         self.options = None           # core.receiver.chain.VisibilityOptions
         self.tf = None
+        self.fixed_world_m = None     # antenna_position in the world frame, or None: the antenna from TF
         self.pub = self.image_pub = self.diag_pub = None
         self.queue: collections.deque = collections.deque()
         self.processed = 0
@@ -58,6 +61,7 @@ class VisibilityNode(GnssSimNode):
         if self.scene.spherical is None:
             raise ValueError(f"node {self.get_name()}: the world has no spherical_coordinates: it cannot be placed "
                              f"on the Earth (parameter world_file/mesh_file)")
+        self.fixed_world_m = self._fixed_antenna(p) if p["antenna_position"] else None
         self.processed = self.dropped = 0
         self._last_image_s = -1e9
         self._sky = None
@@ -67,6 +71,22 @@ class VisibilityNode(GnssSimNode):
         self.image_pub = self.lifecycle_publisher(Image, "sky_view", 2)
         self.diag_pub = self.lifecycle_publisher(DiagnosticArray, "/diagnostics", 10)
         self.tf = TfSource(self)
+
+    def _fixed_antenna(self, p) -> np.ndarray:
+        """The static antenna of parameter antenna_position in the world frame."""
+        from gnss_sim_ros2.core.frames import geodetic_to_ecef
+
+        pos, kind = p["antenna_position"], p["antenna_position_type"]
+        if kind == "world":
+            world = np.array(pos, dtype=float)
+        else:
+            ecef = np.array(geodetic_to_ecef(*pos) if kind == "llh" else pos, dtype=float)
+            world = self.scene.spherical.ecef_to_world(ecef)
+        if np.hypot(world[0], world[1]) > 100e3:
+            raise ValueError(f"node {self.get_name()}: parameter 'antenna_position' = {pos!r} ({kind}) is "
+                             f"{np.hypot(world[0], world[1]) / 1e3:.0f} km from the world's origin; the world frame "
+                             f"is a tangent plane, good to 100 km")
+        return world
 
     def activate(self):
         from gnss_sim_msgs.msg import SatelliteStates
@@ -97,6 +117,10 @@ class VisibilityNode(GnssSimNode):
         p = self.params
         while self.queue:
             msg, arrived = self.queue[0]
+            if self.fixed_world_m is not None:
+                self.queue.popleft()
+                self.process(msg, self.fixed_world_m)
+                continue
             try:
                 tr, _ = self.tf.lookup(p["world_frame"], p["antenna_frame"], msg.header.stamp)
             except LookupError:

@@ -121,3 +121,30 @@ def epochs_of(data: bytes) -> list[bytes]:
     if cur:
         out.append(b"".join(cur))
     return out
+
+
+#: MSM message number tens -> system (RTCM 10403.3 table 3.5-78; msm.MSM_BASE)
+_MSM_SYSTEM = {107: "G", 108: "R", 109: "E", 111: "J", 112: "C", 113: "I"}
+_WEEK_MS = 604_800_000
+
+
+def msm_epoch_gps_ms(frame_bytes: bytes) -> int | None:
+    """GPS time of week [ms] of an MSM frame's epoch (DF004/DF248/DF427/DF428, payload bits 24-53), or None
+    for a GLONASS MSM (its epoch is a GLONASS time of day) or another message.  BeiDou time is GPS - 14 s
+    (BDS-SIS-ICD 3.3): its epoch is moved back onto GPS time."""
+    if not is_msm(frame_bytes):
+        return None
+    system = _MSM_SYSTEM.get(message_number(frame_bytes) // 10)
+    if system in (None, "R"):
+        return None
+    ms = (int.from_bytes(frame_bytes[3:10], "big") >> (56 - 54)) & ((1 << 30) - 1)
+    return (ms + 14_000) % _WEEK_MS if system == "C" else ms
+
+
+def epoch_gps_ms(data: bytes) -> int | None:
+    """The GPS time of week [ms] of the first non-GLONASS MSM in ``data`` (one epoch's messages), or None."""
+    for f in split_frames(data)[0]:
+        ms = msm_epoch_gps_ms(f)
+        if ms is not None:
+            return ms
+    return None
