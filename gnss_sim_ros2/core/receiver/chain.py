@@ -242,6 +242,30 @@ class ReceiverChain:
             self.rx = self._receiver(states)
         obs = self.rx.epoch(t, ecef, states, vis_state, attenuation_db, antenna_vel_ecef_mps=antenna_vel_ecef_mps,
                             multipath=multipath)
+        return self._products(t, ecef, states, obs)
+
+    def step_block(self, ts, antenna_ecef_m, states, epoch_of_row, vis_state=None, attenuation_db=None,
+                   multipath=None) -> list[EpochProducts]:
+        """K consecutive epochs at once (offline): :meth:`step` K times, with the observables of the block
+        computed together (Receiver.epochs).  ``ts``: K epoch tags; ``antenna_ecef_m``: (K, 3); ``states``:
+        the rows of all epochs, epoch by epoch, ``epoch_of_row`` the epoch of each; ``vis_state``,
+        ``attenuation_db``: per row or None; ``multipath``: K path sets (rows of their epoch) or None."""
+        ecef = np.asarray(antenna_ecef_m, dtype=float).reshape(len(ts), 3)
+        vel = []
+        for t, p in zip(ts, ecef):
+            v = None
+            if self._pos_prev is not None:
+                dt = float(t - self._pos_prev[0])
+                v = (p - self._pos_prev[1]) / dt if dt > 0 else None
+            vel.append(v)
+            self._pos_prev = (t, p)
+        if self.rx is None:
+            self.rx = self._receiver(states)
+        obs = self.rx.epochs(ts, ecef, states, epoch_of_row, vis_state, attenuation_db, vel, multipath)
+        return [self._products(t, p, states, o) for t, p, o in zip(ts, ecef, obs)]
+
+    def _products(self, t, ecef, states, obs) -> EpochProducts:
+        """The fix, NMEA, files and RTCM of one epoch's observables."""
         fix_obs = self._smoothed(obs) if self.settings.smoothing_s > 0 else obs
         sol = position_fix(fix_obs, self.settings.receiver.profile, self.prior_ecef_m, self.settings.solver)
         self.epochs += 1
