@@ -31,7 +31,7 @@ from ..solver import PvtSolution, SolverConfig
 from ..time import GnssTime
 from ..vocabulary import VisibilityState
 from .engine import EpochObservations, Receiver, ReceiverConfig
-from .outputs import epoch_arrays, header, obs_types_for, position_fix, rinex_name, spp_rows
+from .outputs import epoch_arrays, header, obs_types_for, position_fix, position_fixes, rinex_name, spp_rows
 from .tracking import TrackingConfig
 
 
@@ -262,12 +262,17 @@ class ReceiverChain:
         if self.rx is None:
             self.rx = self._receiver(states)
         obs = self.rx.epochs(ts, ecef, states, epoch_of_row, vis_state, attenuation_db, vel, multipath)
-        return [self._products(t, p, states, o) for t, p, o in zip(ts, ecef, obs)]
+        # the fixes of the block in one solve, each started at the last fix before the block (the same
+        # solutions as starting at the previous epoch's, to the solver's convergence of 0.1 mm)
+        fix_obs = [self._smoothed(o) for o in obs] if self.settings.smoothing_s > 0 else obs
+        sols = position_fixes(fix_obs, self.settings.receiver.profile, self.prior_ecef_m, self.settings.solver)
+        return [self._products(t, p, states, o, sol) for t, p, o, sol in zip(ts, ecef, obs, sols)]
 
-    def _products(self, t, ecef, states, obs) -> EpochProducts:
-        """The fix, NMEA, files and RTCM of one epoch's observables."""
-        fix_obs = self._smoothed(obs) if self.settings.smoothing_s > 0 else obs
-        sol = position_fix(fix_obs, self.settings.receiver.profile, self.prior_ecef_m, self.settings.solver)
+    def _products(self, t, ecef, states, obs, sol=None) -> EpochProducts:
+        """The fix (unless given), NMEA, files and RTCM of one epoch's observables."""
+        if sol is None:
+            fix_obs = self._smoothed(obs) if self.settings.smoothing_s > 0 else obs
+            sol = position_fix(fix_obs, self.settings.receiver.profile, self.prior_ecef_m, self.settings.solver)
         self.epochs += 1
         if sol.is_fix:
             self.fixes += 1

@@ -11,7 +11,7 @@ import numpy as np
 
 from .. import constants as k
 from ..rinex.obs_write import EpochArrays, RinexObsHeader, ssi_from_cn0
-from ..solver import PvtSolution, SolverConfig, solve_pvt
+from ..solver import PvtSolution, SolverConfig, solve_pvt_many
 from ..time import GnssTime
 from .engine import EpochObservations
 
@@ -128,15 +128,25 @@ def position_fix(obs: EpochObservations, profile: dict[str, list[str]], prior_ec
                  config: SolverConfig | None = None) -> PvtSolution:
     """Single point position and velocity from the observables, as a receiver computes it:
     broadcast satellite clock (with group delay), broadcast ionosphere, troposphere model."""
+    return position_fixes([obs], profile, prior_ecef_m, config)[0]
+
+
+def position_fixes(obs_list, profile: dict[str, list[str]], prior_ecef_m=None,
+                   config: SolverConfig | None = None) -> list[PvtSolution]:
+    """:func:`position_fix` of several epochs in one solve (solver.solve_pvt_many), each started at
+    ``prior_ecef_m``."""
+    return solve_pvt_many([_fix_inputs(obs, profile, prior_ecef_m) for obs in obs_list], config)
+
+
+def _fix_inputs(obs: EpochObservations, profile, prior_ecef_m) -> dict:
     rows = spp_rows(obs, profile)
     lam = k.C_MPS / obs.frequency_hz[rows]
-    return solve_pvt(
-        obs.sv[rows], obs.sat_pos_ecef_m[rows], obs.pseudorange_m[rows],
+    return dict(
+        sv=obs.sv[rows], sat_pos_ecef_m=obs.sat_pos_ecef_m[rows], pseudorange_m=obs.pseudorange_m[rows],
         sat_clock_bias_s=obs.sat_clock_s[rows], iono_delay_m=obs.iono_model_m[rows],
         tropo_delay_m=obs.tropo_model_m[rows], cn0_dbhz=obs.cn0_dbhz[rows], prior_ecef_m=prior_ecef_m,
         sat_vel_ecef_mps=obs.sat_vel_ecef_mps[rows], range_rate_mps=-obs.doppler_hz[rows] * lam,
-        sat_clock_drift_sps=obs.sat_clock_drift_sps[rows], config=config,
-    )
+        sat_clock_drift_sps=obs.sat_clock_drift_sps[rows])
 
 
 def write_navigation(path: Path, provider, systems: str) -> Path | None:
