@@ -191,6 +191,26 @@ def _as_array(name, x, n, shape_tail=()):
     return a
 
 
+def _condition_number(a: np.ndarray) -> float:
+    """2-norm condition number (largest / smallest singular value, as np.linalg.cond) of a small square
+    matrix; inf when singular.  LAPACK dgesdd directly: np.linalg.cond's Python overhead is larger than
+    the decomposition of a 4x4..9x9 normal matrix."""
+    out = _lapack.dgesdd(a, compute_uv=0)        # (u, s, vt, info); u, vt empty
+    s, info = out[1], out[-1]
+    if info != 0:
+        raise np.linalg.LinAlgError("SVD did not converge")
+    return math.inf if s[-1] == 0.0 else float(s[0] / s[-1])
+
+
+def _spd_inverses(a: np.ndarray) -> np.ndarray:
+    """Inverses of symmetric positive definite matrices (K, U, U): one by LAPACK Cholesky (less overhead),
+    several by numpy's batched inverse (symmetrised)."""
+    if len(a) == 1:
+        return _spd_inverse(a[0])[None]
+    inv = np.linalg.inv(a)
+    return 0.5 * (inv + np.swapaxes(inv, 1, 2))
+
+
 def _spd_inverse(a: np.ndarray) -> np.ndarray:
     """Inverse of a symmetric positive definite matrix (LAPACK Cholesky dpotrf + dpotri); LinAlgError when
     it is not positive definite (singular normal matrix)."""
@@ -400,6 +420,17 @@ class _Layout:
             self.onehot[np.arange(k_n)[:, None], np.arange(n_max)[None, :], col] = 1.0
 
 
+class _Final:
+    """The arrays of each epoch's last Gauss-Newton iteration (_solve_positions)."""
+
+    def __init__(self, k_n, n_max, u_n):
+        self.h, self.cov, self.sol = np.zeros((k_n, n_max, u_n)), np.zeros((k_n, u_n, u_n)), np.zeros((k_n, u_n))
+        self.use = np.zeros((k_n, n_max), dtype=bool)
+        self.el, self.enu, self.var, self.w = (np.zeros((k_n, n_max)), np.zeros((k_n, n_max, 3)),
+                                               np.ones((k_n, n_max)), np.zeros((k_n, n_max)))
+        self.present = np.zeros((k_n, u_n - 3), dtype=bool)
+
+
 def _no_fix(n, reason="", it=0) -> dict:
     return {"status": "no_fix", "reason": reason, "pos": np.full(3, np.nan), "clk": {}, "clock_systems": [],
             "used": np.zeros(n, bool), "v": np.full(n, np.nan), "el": np.full(n, np.nan), "az": np.full(n, np.nan),
@@ -418,10 +449,22 @@ def _rotations(lat_deg, lon_deg) -> np.ndarray:
     return r
 
 
+def _rotations_at(x: np.ndarray) -> np.ndarray:
+    """ENU rotations (K, 3, 3) at the geodetic positions of ECEF points (K, 3) (one point: the scalar path
+    of frames.ecef_to_geodetic, cheaper)."""
+    if len(x) == 1:
+        lat, lon, _ = ecef_to_geodetic(x[0, 0], x[0, 1], x[0, 2])
+        return _rotations(np.atleast_1d(lat), np.atleast_1d(lon))
+    lat, lon, _ = ecef_to_geodetic(x[:, 0], x[:, 1], x[:, 2])
+    return _rotations(lat, lon)
+
+
 def _filled(nmat: np.ndarray, present: np.ndarray) -> np.ndarray:
     """Normal matrices (K, U, U) with the rows/columns of clocks absent from an epoch (all zero) given a
     diagonal element equal to the first one (a value between the present block's extreme eigenvalues, so
     neither its inverse nor its condition number changes)."""
+    if present.all():
+        return nmat
     absent = np.flatnonzero(~present.ravel())
     if absent.size:
         k, g = np.divmod(absent, present.shape[1])
@@ -448,7 +491,10 @@ def _solve_positions(lay: _Layout, rows: np.ndarray, valid: np.ndarray, x0: np.n
     active = valid.any(axis=1)
     for i in np.flatnonzero(~active).tolist():
         out[i] = _no_fix(n_of[i], "no satellite with a finite pseudorange and position")
-    fin = {}          # the last iteration of each epoch: design matrix, covariance, solution, rows used
+    # the last iteration of each epoch: design matrix, covariance, solution, rows used, elevation, ENU, variance,
+    # weight, clocks present
+    u_n = 3 + len(lay.clock_sys)
+    fin = _Final(k_n, n_max, u_n)
     mask_deg = cfg.elevation_mask_deg
     it_of = np.zeros(k_n, dtype=np.int64)
     for it in range(1, cfg.max_iterations + 1):
@@ -463,9 +509,11 @@ def _solve_positions(lay: _Layout, rows: np.ndarray, valid: np.ndarray, x0: np.n
         placed = (np.sqrt(np.einsum("ki,ki->k", xa, xa)) > _NEAR_CENTRE_M) & (last_step[a] < _PLACED_STEP_M)
         el = np.full(rho.shape, 90.0)
         enu = np.zeros(d.shape)
-        if placed.any():
-            lat_x, lon_x, _ = ecef_to_geodetic(xa[placed, 0], xa[placed, 1], xa[placed, 2])
-            enu[placed] = np.einsum("kni,kji->knj", d[placed], _rotations(lat_x, lon_x))
+        if placed.all():
+            enu = np.einsum("kni,kji->knj", d, _rotations_at(xa))
+            el = np.degrees(np.arcsin(np.minimum(np.maximum(enu[..., 2] / rho_safe, -1.0), 1.0)))
+        elif placed.any():
+            enu[placed] = np.einsum("kni,kji->knj", d[placed], _rotations_at(xa[placed]))
             el[placed] = np.degrees(np.arcsin(np.minimum(np.maximum(enu[placed, :, 2] / rho_safe[placed], -1.0),
                                                          1.0)))
         use = valid[a] & (~placed[:, None] | (el >= mask_deg))
@@ -485,11 +533,16 @@ def _solve_positions(lay: _Layout, rows: np.ndarray, valid: np.ndarray, x0: np.n
             active[i] = False
         h = np.concatenate([-e, onehot[a]], axis=2) * use[..., None]
         ai = a
-        var = np.ones(rho.shape)
         sig_rows = has_sig[ai]
+        model = ~sig_rows
+        if not sig_rows.any() and cfg.weighting == "elevation":     # the usual case, without masks
+            sin_el = np.sin(np.radians(np.minimum(np.maximum(el, 1.0), 90.0)))
+            var = (cfg.sigma_a_m**2 + cfg.sigma_b_m**2 / sin_el**2) * fac2[ai]
+            model = sig_rows
+        else:
+            var = np.ones(rho.shape)
         if sig_rows.any():
             var[sig_rows] = lay.sig[rows[ai[sig_rows]]] ** 2
-        model = ~sig_rows
         if model.any():
             if cfg.weighting == "elevation":   # pseudorange_sigma_m, inline, system factors looked up once
                 sin_el = np.sin(np.radians(np.minimum(np.maximum(el[model], 1.0), 90.0)))
@@ -504,7 +557,9 @@ def _solve_positions(lay: _Layout, rows: np.ndarray, valid: np.ndarray, x0: np.n
         ok = ~few
         cond = np.full(a.size, np.nan)
         finite = ok & np.all(np.isfinite(nmat), axis=(1, 2))
-        if finite.any():
+        if finite.all() and a.size == 1:     # one epoch (a node): LAPACK directly, less overhead
+            cond[0] = _condition_number(nmat[0])
+        elif finite.any():
             cond[finite] = np.linalg.cond(nmat[finite])
         bad = ok & ~(cond <= 1e14)                              # also NaN
         for j in np.flatnonzero(bad).tolist():
@@ -516,8 +571,14 @@ def _solve_positions(lay: _Layout, rows: np.ndarray, valid: np.ndarray, x0: np.n
         if good.size == 0:
             continue
         gi = a[good]
-        cov = np.linalg.inv(nmat[good])
-        cov = 0.5 * (cov + np.swapaxes(cov, 1, 2))
+        try:
+            cov = _spd_inverses(nmat[good])
+        except np.linalg.LinAlgError:       # one epoch whose matrix is not positive definite after all
+            for i in gi.tolist():
+                out[i] = _no_fix(n_of[i], f"singular geometry with {int(n_use[good][0])} satellites (normal "
+                                          f"matrix not invertible)", it)
+                active[i] = False
+            continue
         sol = np.einsum("kij,kj->ki", cov, np.einsum("kni,kn->ki", hw[good], resid[good]))
         dx = sol[:, :3]
         x[gi] = x[gi] + dx
@@ -527,14 +588,15 @@ def _solve_positions(lay: _Layout, rows: np.ndarray, valid: np.ndarray, x0: np.n
         same_g = same[good]
         have_prev[gi] = True
         it_of[gi] = it
-        for q, (j, i) in enumerate(zip(good.tolist(), gi.tolist())):
-            fin[i] = (h[j], cov[q], sol[q], use[j], el[j], enu[j], var[j], w[j], present[j])
+        fin.h[gi], fin.cov[gi], fin.sol[gi], fin.use[gi] = h[good], cov, sol, use[good]
+        fin.el[gi], fin.enu[gi], fin.var[gi], fin.w[gi], fin.present[gi] = el[good], enu[good], var[good], \
+            w[good], present[good]
         conv = (step < cfg.convergence_m) & (same_g | ~placed[good] | (it == 1)) & placed[good]
         active[gi[conv]] = False
         for i in gi[conv].tolist():
             out[i] = "converged"
         still = gi[~conv]
-        div = ~(np.sqrt(np.einsum("ki,ki->k", x[still], x[still])) <= 1e9)
+        div = ~(np.sqrt(np.einsum("ki,ki->k", x[still], x[still])) <= 1e9) if still.size else conv[:0]
         for i in still[div].tolist():
             out[i] = _no_fix(n_of[i], "the iteration diverged", it)
             active[i] = False
@@ -551,26 +613,22 @@ def _final_quantities(lay, rows, done, x, fin, it_of, n_of, out, cfg):
     """Residuals, DOPs, chi-square, w-test and covariance of the converged epochs ``done`` (into ``out``)."""
     d_idx = np.array(done, dtype=np.int64)
     g_rows = rows[d_idx]
-    h = np.stack([fin[i][0] for i in done])
-    cov = np.stack([fin[i][1] for i in done])
-    sol = np.stack([fin[i][2] for i in done])
-    use = np.stack([fin[i][3] for i in done])
-    el = np.stack([fin[i][4] for i in done])
-    enu = np.stack([fin[i][5] for i in done])
-    var = np.stack([fin[i][6] for i in done])
-    w = np.stack([fin[i][7] for i in done])
-    present = np.stack([fin[i][8] for i in done])
+    h, cov, sol, use, el, enu, var, w, present = (a[d_idx] for a in (
+        fin.h, fin.cov, fin.sol, fin.use, fin.el, fin.enu, fin.var, fin.w, fin.present))
     xs = x[d_idx]
     sat, y, col = lay.sat[g_rows], lay.y[g_rows], lay.col[g_rows]
     clk = sol[:, 3:]
     d = sat - xs[:, None, :]
     rho = np.sqrt(np.einsum("kni,kni->kn", d, d))
     e_final = d / np.where(rho > 0, rho, 1.0)[..., None]     # line of sight at the solution (for the velocity)
-    v = np.where(use, y - rho - np.take_along_axis(clk, col, axis=1), np.nan)
-    lat, lon, hgt = ecef_to_geodetic(xs[:, 0], xs[:, 1], xs[:, 2])
+    v = np.where(use, y - rho - clk[np.arange(len(done))[:, None], col], np.nan)
+    if len(xs) == 1:
+        lat, lon, hgt = (np.atleast_1d(v) for v in ecef_to_geodetic(xs[0, 0], xs[0, 1], xs[0, 2]))
+    else:
+        lat, lon, hgt = ecef_to_geodetic(xs[:, 0], xs[:, 1], xs[:, 2])
     rot = _rotations(lat, lon)
     # DOPs from the unweighted design matrix (columns x, y, z, clocks) of the last iteration
-    q = np.linalg.inv(_filled(np.einsum("kni,knj->kij", h, h), present))
+    q = _spd_inverses(_filled(np.einsum("kni,knj->kij", h, h), present))
     q3 = q[:, :3, :3]
     q_enu = rot @ q3 @ np.swapaxes(rot, 1, 2)
     hdop = np.sqrt(np.maximum(q_enu[:, 0, 0] + q_enu[:, 1, 1], 0.0))
@@ -607,7 +665,7 @@ def _final_quantities(lay, rows, done, x, fin, it_of, n_of, out, cfg):
         out[i] = {"status": "fix", "reason": "", "pos": xs[q_i].copy(),
                   "clk": {s: float(clk[q_i, g]) for s, g in zip(cs, cols.tolist())}, "clock_systems": cs,
                   "used": use[q_i, :n].copy(), "v": v[q_i, :n], "el": el[q_i, :n], "az": _azimuth(enu[q_i, :n], n),
-                  "cov": c[np.ix_(keep, keep)], "dops": dops, "gdop": dops[0], "chi2": float(chi2[q_i]),
+                  "cov": c[keep][:, keep], "dops": dops, "gdop": dops[0], "chi2": float(chi2[q_i]),
                   "chi2_threshold": thr, "dof": k_dof, "iter": int(it_of[i]),
                   "worst": int(worst[q_i]) if k_dof > 0 else None, "rot": rot[q_i],
                   "lla": (float(lat[q_i]), float(lon[q_i]), float(hgt[q_i])), "e_final": e_final[q_i, :n]}
