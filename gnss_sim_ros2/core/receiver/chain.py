@@ -197,6 +197,7 @@ class ReceiverChain:
         self._writer = None
         self._fix_file = None
         self._fix_csv = None
+        self._rinex_pending = None
         self._nmea_file = None
         if settings.output_dir is not None:
             settings.output_dir.mkdir(parents=True, exist_ok=True)   # an unwritable folder fails the start
@@ -266,7 +267,13 @@ class ReceiverChain:
         # solutions as starting at the previous epoch's, to the solver's convergence of 0.1 mm)
         fix_obs = [self._smoothed(o) for o in obs] if self.settings.smoothing_s > 0 else obs
         sols = position_fixes(fix_obs, self.settings.receiver.profile, self.prior_ecef_m, self.settings.solver)
-        return [self._products(t, p, states, o, sol) for t, p, o, sol in zip(ts, ecef, obs, sols)]
+        self._rinex_pending = []          # the block's RINEX epochs, formatted and written together
+        try:
+            return [self._products(t, p, states, o, sol) for t, p, o, sol in zip(ts, ecef, obs, sols)]
+        finally:
+            pending, self._rinex_pending = self._rinex_pending, None
+            if pending:
+                self._writer.write_epochs([t for t, _ in pending], [a for _, a in pending])
 
     def _products(self, t, ecef, states, obs, sol=None) -> EpochProducts:
         """The fix (unless given), NMEA, files and RTCM of one epoch's observables."""
@@ -390,7 +397,10 @@ class ReceiverChain:
         else:
             self._fix_csv.writerow([stamp, "", "", "", sol.n_used, "no_fix"])
         if arrays is not None:
-            self._writer.write_epoch(t, arrays)
+            if self._rinex_pending is not None:
+                self._rinex_pending.append((t, arrays))
+            else:
+                self._writer.write_epoch(t, arrays)
         if self._nmea_file is not None:
             self._nmea_file.write(nmea_text)
 

@@ -399,7 +399,7 @@ class RinexObsWriter:
             raise ValueError(f"{where}: satellite {sv!r} is not an id like 'G05' of a system in the header "
                              f"obs_types ({list(self.header.obs_types)})")
 
-    def _dict_lines(self, observations: Mapping) -> list[bytes]:
+    def _dict_flat(self, observations: Mapping):
         flat_v, flat_l, flat_s = [], [], []
         svs = list(observations)
         nan = math.nan
@@ -431,9 +431,10 @@ class RinexObsWriter:
             v = np.array(flat_v, dtype=np.float64)
         except (TypeError, ValueError) as exc:
             raise ValueError(f"observations: values must be numbers or None ({exc})") from exc
-        return self._format_rows(svs, v, flat_l, flat_s)
+        return svs, v, flat_l, flat_s
 
-    def _array_lines(self, ep: EpochArrays) -> list[bytes]:
+    def _array_flat(self, ep: EpochArrays):
+        """(satellites, flat values, LLI, SSI) of an EpochArrays, checked against the header."""
         value = np.asarray(ep.value, dtype=np.float64)
         per_sys = isinstance(ep.codes, Mapping)
         svs = list(ep.sv)
@@ -481,7 +482,7 @@ class RinexObsWriter:
         fv[pos] = value[known]
         fl[pos] = lli[known]
         fs[pos] = ssi[known]
-        return self._format_rows(svs, fv, fl, fs)
+        return svs, fv, fl, fs
 
     def write_epoch(self, t: GnssTime, observations, clock_offset_s: float | None = None, flag: int = 0) -> None:
         """Append one epoch (time ``t`` in GPS time) and hand it to the OS at once.
@@ -492,40 +493,58 @@ class RinexObsWriter:
         ``clock_offset_s``: receiver clock offset (F15.12) or None; ``flag``:
         epoch flag 0 (OK) or 1 (power failure since the previous epoch).
         """
+        self.write_epochs([t], [observations], None if clock_offset_s is None else [clock_offset_s], flag)
+
+    def write_epochs(self, ts, observations, clock_offsets_s=None, flag: int = 0) -> None:
+        """Append several epochs (:meth:`write_epoch` each, in order) and hand them to the OS at once: the
+        values of all of them formatted in one vectorised pass.  Nothing is written when one is invalid."""
         if self._fd is None:
             raise ValueError(f"{self.path}: write_epoch() after close()")
-        if np.ndim(t.sec) != 0:
-            raise ValueError("write_epoch: t must be a scalar GnssTime")
         if flag not in (0, 1):
             raise ValueError(f"write_epoch: flag={flag!r}; only 0 (OK) and 1 (power failure) carry observations")
-        if self.t_last is not None and not (t - self.t_last) > 0:
-            raise ValueError(f"write_epoch: t={t!r} is not after the previous epoch {self.t_last!r}")
-        if isinstance(observations, EpochArrays):
-            sv_lines = self._array_lines(observations)
-        elif isinstance(observations, Mapping):
-            sv_lines = self._dict_lines(observations)
-        else:
-            raise ValueError(f"write_epoch: observations must be a dict or EpochArrays, not "
-                             f"{type(observations).__name__}")
-        if len(sv_lines) > 999:
-            raise ValueError(f"write_epoch: {len(sv_lines)} satellites; the epoch record holds at most 999")
-        # Epoch record: A1,1X,I4,4(1X,I2.2),F11.7,2X,I1,I3,6X,F15.12 (RINEX 3.04 table A13)
-        y, mo, d, h, mi, s, q = _time_fields(t)
-        head = f"> {y:04d} {mo:02d} {d:02d} {h:02d} {mi:02d} {s:02d}.{q:07d}  {flag:1d}{len(sv_lines):3d}"
-        if clock_offset_s is not None:
-            c = float(clock_offset_s)
-            if not (math.isfinite(c) and abs(c) < 1000.0):
-                raise ValueError(f"write_epoch: clock_offset_s={clock_offset_s!r} does not fit F15.12")
-            head += f"      {c:15.12f}"
-        block = (head + "\n").encode("ascii") + b"".join(ln + b"\n" for ln in sv_lines)
+        t_prev = self.t_last
+        flats = []
+        for t, obs in zip(ts, observations):
+            if np.ndim(t.sec) != 0:
+                raise ValueError("write_epoch: t must be a scalar GnssTime")
+            if t_prev is not None and not (t - t_prev) > 0:
+                raise ValueError(f"write_epoch: t={t!r} is not after the previous epoch {t_prev!r}")
+            t_prev = t
+            if isinstance(obs, EpochArrays):
+                flats.append(self._array_flat(obs))
+            elif isinstance(obs, Mapping):
+                flats.append(self._dict_flat(obs))
+            else:
+                raise ValueError(f"write_epoch: observations must be a dict or EpochArrays, not "
+                                 f"{type(obs).__name__}")
+            if len(flats[-1][0]) > 999:
+                raise ValueError(f"write_epoch: {len(flats[-1][0])} satellites; the epoch record holds at most 999")
+        if not flats:
+            return
+        lines = self._format_rows([sv for f in flats for sv in f[0]], *(np.concatenate([f[k] for f in flats])
+                                                                       for k in (1, 2, 3)))
+        parts, pos = [], 0
+        for k, (t, f) in enumerate(zip(ts, flats)):
+            n = len(f[0])
+            # Epoch record: A1,1X,I4,4(1X,I2.2),F11.7,2X,I1,I3,6X,F15.12 (RINEX 3.04 table A13)
+            y, mo, d, h, mi, s, q = _time_fields(t)
+            head = f"> {y:04d} {mo:02d} {d:02d} {h:02d} {mi:02d} {s:02d}.{q:07d}  {flag:1d}{n:3d}"
+            if clock_offsets_s is not None and clock_offsets_s[k] is not None:
+                c = float(clock_offsets_s[k])
+                if not (math.isfinite(c) and abs(c) < 1000.0):
+                    raise ValueError(f"write_epoch: clock_offset_s={clock_offsets_s[k]!r} does not fit F15.12")
+                head += f"      {c:15.12f}"
+            parts.append((head + "\n").encode("ascii"))
+            parts.extend(ln + b"\n" for ln in lines[pos:pos + n])
+            pos += n
         if not self._header_written:
-            text, self._last_obs_offset = self._header_text(t)
+            text, self._last_obs_offset = self._header_text(ts[0])
             self._write_all(text.encode("ascii"))
             self._header_written = True
-            self.t_first = t
-        self._write_all(block)
-        self.t_last = t
-        self.epochs_written += 1
+            self.t_first = ts[0]
+        self._write_all(b"".join(parts))
+        self.t_last = ts[len(flats) - 1]
+        self.epochs_written += len(flats)
 
     def close(self) -> None:
         """Fill in TIME OF LAST OBS (over the reserved COMMENT line) and close the file.
