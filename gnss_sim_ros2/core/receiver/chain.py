@@ -209,7 +209,7 @@ class ReceiverChain:
         self.close()
         self.rx = None
         self._header = None
-        self._smooth: dict = {}        # (sv, code) -> (smoothed code [m], phase [m], epochs in the window)
+        self._smooth = _SmoothingState()
         self.prior_ecef_m = None
         self._pos_prev = None
         self.epochs = 0
@@ -316,17 +316,15 @@ class ReceiverChain:
         # divergence, DO-229 2.1.4.1.1 note); what the model misses still diverges, as in a real receiver
         phase_m = np.asarray(obs.carrier_phase_cyc, dtype=float) * lam + 2.0 * np.asarray(obs.iono_model_m, float)
         pr = np.asarray(obs.pseudorange_m, dtype=float)
-        out = pr.copy()
-        prev, cur = self._smooth, {}
-        for j, key in enumerate(zip(obs.sv.tolist(), obs.code.tolist())):
-            old = prev.get(key)
-            if old is None or int(obs.lli[j]) & 1 or not np.isfinite(phase_m[j]):
-                cur[key] = (pr[j], phase_m[j], 1)
-                continue
-            m = min(old[2] + 1, n_max)
-            out[j] = pr[j] / m + (m - 1) / m * (old[0] + phase_m[j] - old[1])
-            cur[key] = (out[j], phase_m[j], m)
-        self._smooth = cur                 # a signal not tracked this epoch starts again
+        st = self._smooth
+        idx = st.slots(obs.sv, obs.code)
+        # the window goes on for a signal also tracked at the previous call, without a loss of lock;
+        # a signal not tracked at the previous epoch starts again
+        go_on = (st.last[idx] == st.calls - 1) & ((np.asarray(obs.lli, dtype=np.int64) & 1) == 0) & np.isfinite(phase_m)
+        m = np.where(go_on, np.minimum(st.count[idx] + 1, n_max), 1)
+        out = np.where(go_on, pr / m + (m - 1) / m * (st.code[idx] + phase_m - st.phase[idx]), pr)
+        st.code[idx], st.phase[idx], st.count[idx], st.last[idx] = out, phase_m, m, st.calls
+        st.calls += 1
         return replace(obs, pseudorange_m=out)
 
     # ------------------------------------------------------------------ files
@@ -416,6 +414,42 @@ class ReceiverChain:
             if f is not None:
                 f.close()
         self._fix_file = self._fix_csv = self._nmea_file = None
+
+
+class _SmoothingState:
+    """Hatch filter state per signal (sv, code): smoothed code [m], phase [m], epochs in the window, and
+    the call that last saw it (ReceiverChain._smoothed)."""
+
+    def __init__(self):
+        self.index: dict = {}
+        self._cache: dict = {}
+        self.calls = 0
+        self._grow(64)
+
+    def _grow(self, cap):
+        def more(old, fill, dtype):
+            new = np.full(cap, fill, dtype=dtype)
+            if old is not None:
+                new[: len(old)] = old
+            return new
+
+        g = self.__dict__.get
+        self.code, self.phase = more(g("code"), np.nan, float), more(g("phase"), np.nan, float)
+        self.count, self.last = more(g("count"), 0, np.int64), more(g("last"), -2, np.int64)
+
+    def slots(self, sv, code) -> np.ndarray:
+        sv, code = np.asarray(sv), np.asarray(code)
+        key = (sv.dtype.str, code.dtype.str, sv.tobytes(), code.tobytes())
+        hit = self._cache.get(key)
+        if hit is None:
+            hit = np.array([self.index.setdefault(k, len(self.index)) for k in zip(sv.tolist(), code.tolist())],
+                           dtype=np.int64)
+            if len(self.index) > len(self.code):
+                self._grow(2 * len(self.index))
+            if len(self._cache) > 64:
+                self._cache.clear()
+            self._cache[key] = hit
+        return hit
 
 
 class _Discard:
