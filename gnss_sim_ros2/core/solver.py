@@ -402,9 +402,9 @@ def solve_pvt_many(epochs, config: SolverConfig | None = None) -> list[PvtSoluti
             res["reason"] = f"GDOP {res['gdop']:.1f} exceeds max_gdop {cfg.max_gdop}"
         reason = res["reason"] if res["status"] != "fix" else "; ".join(notes[i])
         sol = _make_solution(p.sv, res, excluded[i], reason, p.n)
-        if p.rate is not None:
-            _solve_velocity_into(sol, p.sat, p.vel, p.rate, p.drift, cfg, los=res.get("e_final"), rot=res.get("rot"))
         sols.append(sol)
+    _solve_velocities([(sol, p.sat, p.vel, p.rate, p.drift, res.get("e_final"), res.get("rot"))
+                       for p, res, sol in zip(ep, results, sols) if p.rate is not None], cfg)
     return sols
 
 
@@ -708,51 +708,81 @@ def _make_solution(sv, res, excluded, reason, n) -> PvtSolution:
 def _solve_velocity_into(sol: PvtSolution, sat, sat_vel, rate, sat_drift, cfg, los=None, rot=None) -> None:
     """Velocity and drift into ``sol``; ``los``: unit vectors receiver -> satellite (N, 3) at sol.pos_ecef_m
     and ``rot``: ENU rotation there, when the position solution has them already."""
-    if not sol.is_fix:
-        sol.vel_status, sol.vel_reason = "no_fix", "no position fix"
-        return
-    ok = sol.used & np.isfinite(rate) & np.all(np.isfinite(sat_vel), axis=1)
-    if sat_drift is not None:
-        ok &= np.isfinite(sat_drift)
-    idx = np.flatnonzero(ok)
-    if idx.size < 4:
-        sol.vel_status = "no_fix"
-        sol.vel_reason = f"too few range rates: {idx.size} of the used satellites, need 4 (3 velocity + 1 drift)"
-        return
-    if los is None:
-        d = sat[idx] - sol.pos_ecef_m
-        e = d / np.sqrt(np.einsum("ij,ij->i", d, d))[:, None]
-    else:
-        e = los[idx]
-    # rate = e.(v_sat - v_rx) + drift_rx - c ddt_sat  ->  rate - e.v_sat + c ddt_sat = -e.v_rx + drift_rx
-    yv = rate[idx] - np.einsum("ij,ij->i", e, sat_vel[idx])
-    if sat_drift is not None:
-        yv = yv + C_MPS * sat_drift[idx]
-    h = np.empty((idx.size, 4))
-    h[:, :3] = -e
-    h[:, 3] = 1.0
-    s = np.sin(np.radians(np.minimum(np.maximum(sol.el_deg[idx], 1.0), 90.0)))
-    w = 1.0 / (cfg.rate_sigma_a_mps**2 + cfg.rate_sigma_b_mps**2 / s**2)
-    hwt = h.T * w
-    nmat = hwt @ h
+    _solve_velocities([(sol, sat, sat_vel, rate, sat_drift, los, rot)], cfg)
+
+
+def _solve_velocities(items, cfg) -> None:
+    """Velocity and clock drift of several epochs (``items``: (solution, sat, sat_vel, rate, sat_drift,
+    los, rot) each, as _solve_velocity_into takes them), the least squares of all of them at once:
+    rate = e.(v_sat - v_rx) + drift_rx - c ddt_sat, weights from the elevation model of the rates."""
+    todo = []
+    for sol, sat, sat_vel, rate, sat_drift, los, rot in items:
+        if not sol.is_fix:
+            sol.vel_status, sol.vel_reason = "no_fix", "no position fix"
+            continue
+        ok = sol.used & np.isfinite(rate) & np.all(np.isfinite(sat_vel), axis=1)
+        if sat_drift is not None:
+            ok &= np.isfinite(sat_drift)
+        n_ok = int(ok.sum())
+        if n_ok < 4:
+            sol.vel_status = "no_fix"
+            sol.vel_reason = f"too few range rates: {n_ok} of the used satellites, need 4 (3 velocity + 1 drift)"
+            continue
+        if los is None:
+            d = sat - sol.pos_ecef_m
+            los = d / np.sqrt(np.einsum("ij,ij->i", d, d))[:, None]
+        # rate - e.v_sat + c ddt_sat = -e.v_rx + drift_rx
+        yv = rate - np.einsum("ij,ij->i", los, np.where(np.isfinite(sat_vel), sat_vel, 0.0))
+        if sat_drift is not None:
+            yv = yv + C_MPS * sat_drift
+        todo.append((sol, ok, los, np.where(ok, yv, 0.0), rot))
+    if todo:
+        _velocity_lsq(todo, cfg)
+
+
+def _velocity_lsq(todo, cfg) -> None:
+    """The velocity least squares of prepared epochs (_solve_velocities), stacked."""
+    k_n, n_max = len(todo), max(len(t[1]) for t in todo)
+    ok = np.zeros((k_n, n_max), dtype=bool)
+    h = np.zeros((k_n, n_max, 4))
+    yv = np.zeros((k_n, n_max))
+    el = np.full((k_n, n_max), 90.0)
+    for i, (sol, ok_i, los, y_i, _) in enumerate(todo):
+        n = len(ok_i)
+        ok[i, :n] = ok_i
+        h[i, :n, :3] = -np.where(ok_i[:, None], los, 0.0)
+        h[i, :n, 3] = 1.0
+        yv[i, :n] = y_i
+        el[i, :n] = np.where(ok_i, sol.el_deg, 90.0)
+    s = np.sin(np.radians(np.minimum(np.maximum(el, 1.0), 90.0)))
+    w = np.where(ok, 1.0 / (cfg.rate_sigma_a_mps**2 + cfg.rate_sigma_b_mps**2 / s**2), 0.0)
+    hw = h * w[..., None]
+    nmat = np.einsum("kni,knj->kij", hw, h)
     try:
-        cov = _spd_inverse(nmat)
-        xv = cov @ (hwt @ yv)
+        cov = _spd_inverses(nmat)
+        if not np.all(np.isfinite(cov)):
+            raise np.linalg.LinAlgError
     except np.linalg.LinAlgError:
-        sol.vel_status, sol.vel_reason = "no_fix", "singular geometry for the velocity"
+        if k_n > 1:                      # one of them is singular: each on its own
+            for t in todo:
+                _velocity_lsq([t], cfg)
+            return
+        todo[0][0].vel_status, todo[0][0].vel_reason = "no_fix", "singular geometry for the velocity"
         return
-    if rot is None:
-        rot = enu_rotation(sol.lat_deg, sol.lon_deg)
-    resid = np.full(sol.sv.size, np.nan)
-    resid[idx] = yv - h @ xv
-    sol.vel_ecef_mps = xv[:3]
-    sol.vel_enu_mps = rot @ xv[:3]
-    sol.clock_drift_mps = float(xv[3])
-    sol.clock_drift_sps = float(xv[3] / C_MPS)
-    sol.cov_vel_ecef_m2ps2 = cov[:3, :3]
-    sol.cov_vel_enu_m2ps2 = rot @ cov[:3, :3] @ rot.T
-    sol.vel_residuals_mps = resid
-    sol.vel_status, sol.vel_reason = "fix", ""
+    xv = np.einsum("kij,kj->ki", cov, np.einsum("kni,kn->ki", hw, yv))
+    resid = np.where(ok, yv - np.einsum("kni,ki->kn", h, xv), np.nan)
+    for i, (sol, ok_i, _, _, rot) in enumerate(todo):
+        if rot is None:
+            rot = enu_rotation(sol.lat_deg, sol.lon_deg)
+        c3 = cov[i, :3, :3]
+        sol.vel_ecef_mps = xv[i, :3]
+        sol.vel_enu_mps = rot @ xv[i, :3]
+        sol.clock_drift_mps = float(xv[i, 3])
+        sol.clock_drift_sps = float(xv[i, 3] / C_MPS)
+        sol.cov_vel_ecef_m2ps2 = c3
+        sol.cov_vel_enu_m2ps2 = rot @ c3 @ rot.T
+        sol.vel_residuals_mps = resid[i, :len(ok_i)]
+        sol.vel_status, sol.vel_reason = "fix", ""
 
 
 def solve_velocity(sol: PvtSolution, sat_pos_ecef_m, sat_vel_ecef_mps, range_rate_mps, sat_clock_drift_sps=None,
