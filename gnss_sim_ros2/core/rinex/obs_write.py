@@ -256,6 +256,7 @@ class RinexObsWriter:
         self._code_index = {s: {c: i for i, c in enumerate(codes)} for s, codes in self.header.obs_types.items()}
         self._n_codes = {s: len(codes) for s, codes in self.header.obs_types.items()}
         self._array_maps: dict[tuple, list] = {}
+        self._flat_cache: dict = {}
         self._fd: int | None = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
         self._header_written = False
         self._last_obs_offset: int | None = None
@@ -449,6 +450,31 @@ class RinexObsWriter:
         for name, arr in (("lli", lli), ("ssi", ssi)):
             if arr.shape != (n, m):
                 raise ValueError(f"observations.{name}: shape {arr.shape}, expected ({n}, {m})")
+        key = (tuple(svs), tuple((s, tuple(c)) for s, c in ep.codes.items()) if per_sys else tuple(ep.codes))
+        hit = self._flat_cache.get(key)
+        if hit is None:
+            hit = self._flat_layout(ep, svs, per_sys, n, m)
+            if len(self._flat_cache) > 256:
+                self._flat_cache.clear()
+            self._flat_cache[key] = hit
+        known, pos, total = hit
+        unknown = ~known & ~np.isnan(value)
+        if unknown.any():
+            sys_rows = [sv[0] for sv in svs]
+            r, j = np.argwhere(unknown)[0]
+            code = ep.codes[sys_rows[r]][j] if per_sys else ep.codes[j]
+            raise ValueError(f"observations: {svs[r]} has a value for {code!r}, not in the header obs_types for "
+                             f"{sys_rows[r]}: {list(self.header.obs_types[sys_rows[r]])}")
+        fv = np.full(total, np.nan)
+        fl = np.full(total, -1, np.int64)
+        fs = np.full(total, -1, np.int64)
+        fv[pos] = value[known]
+        fl[pos] = lli[known]
+        fs[pos] = ssi[known]
+        return svs, fv, fl, fs
+
+    def _flat_layout(self, ep: EpochArrays, svs, per_sys: bool, n: int, m: int):
+        """(cells with a header code (n, m), their flat positions, flat length) of an epoch's layout."""
         for r, sv in enumerate(svs):
             self._check_sv(sv, f"observations.sv[{r}]")
         sys_rows = [sv[0] for sv in svs]
@@ -468,21 +494,7 @@ class RinexObsWriter:
                 self._array_maps[key] = cmap
             cm[sys_arr == s] = cmap
         known = cm >= 0
-        unknown = ~known & ~np.isnan(value)
-        if unknown.any():
-            r, j = np.argwhere(unknown)[0]
-            code = ep.codes[sys_rows[r]][j] if per_sys else ep.codes[j]
-            raise ValueError(f"observations: {svs[r]} has a value for {code!r}, not in the header obs_types for "
-                             f"{sys_rows[r]}: {list(self.header.obs_types[sys_rows[r]])}")
-        total = int(counts.sum())
-        pos = (offsets[:, None] + cm)[known]
-        fv = np.full(total, np.nan)
-        fl = np.full(total, -1, np.int64)
-        fs = np.full(total, -1, np.int64)
-        fv[pos] = value[known]
-        fl[pos] = lli[known]
-        fs[pos] = ssi[known]
-        return svs, fv, fl, fs
+        return known, (offsets[:, None] + cm)[known], int(counts.sum())
 
     def write_epoch(self, t: GnssTime, observations, clock_offset_s: float | None = None, flag: int = 0) -> None:
         """Append one epoch (time ``t`` in GPS time) and hand it to the OS at once.
