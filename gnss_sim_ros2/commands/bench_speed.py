@@ -34,11 +34,11 @@ GPS_STATION_ECEF_M = (3149785.9652, 598260.8822, 5495348.4927)
 PEER_SCRIPT = Path(__file__).resolve().parents[2] / "bench" / "peer_gnss_lib_py.py"
 
 
-def _timed(cmd, env=None) -> dict:
+def _timed(cmd, env=None, cwd=None) -> dict:
     """Wall and CPU time [s] of a child process; its standard output."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
-    p = subprocess.run(cmd, capture_output=True, text=True, env=env)
+    p = subprocess.run(cmd, capture_output=True, text=True, env=env, cwd=cwd)
     wall = time.perf_counter() - t0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if p.returncode != 0:
@@ -90,7 +90,9 @@ def run_speed(duration_s: float = 3600.0, repeats: int = 3, peer: str | None = N
         for name, cmd, e in (("demo", demo_cmd, env), ("gps", gps_cmd, env), ("peer", peer_cmd, None)):
             if cmd is None:
                 continue
-            got = _timed(cmd, e)
+            # in the repository: `python -m` puts the working folder first on the path (another checkout there
+            # would be run instead)
+            got = _timed(cmd, e, repo if e is not None else str(work))
             if name == "peer":
                 got["peer"] = json.loads(got["stdout"].strip().splitlines()[-1])
             got.pop("stdout")
@@ -99,7 +101,7 @@ def run_speed(duration_s: float = 3600.0, repeats: int = 3, peer: str | None = N
     best = {k: min(v, key=lambda x: x["wall_s"]) for k, v in runs.items() if v}
     epochs = int(duration_s) + 1
     rep = {"duration_s": duration_s, "epochs": epochs, "repeats": repeats, "machine": _machine(), "runs": runs,
-           "demo": {"command": " ".join(demo_cmd[1:4] + demo_cmd[4:]), "wall_s": best["demo"]["wall_s"],
+           "demo": {"command": "gnss-sim " + " ".join(demo_cmd[3:]), "wall_s": best["demo"]["wall_s"],
                     "cpu_s": best["demo"]["cpu_s"], "realtime_factor": duration_s / best["demo"]["wall_s"],
                     "cpu_realtime_factor": duration_s / max(best["demo"]["cpu_s"], 1e-9),
                     "target_realtime_factor": DEMO_TARGET_RTF},
