@@ -350,23 +350,20 @@ class Receiver:
                 bias_ep[b], drift_ep[b] = self.clock.bias_s, self.clock.steered_drift_sps
             dt_ep[b] = dt_s
             self._t_prev = t
-        if k_n == 1:      # one epoch (a node): scalars, the receiver's cached geodetic position
+        if k_n == 1:      # one epoch (a node)
             t_true = ts[0] - bias_ep[0]
-            lat_ep, lon_ep, h_ep = (np.atleast_1d(v) for v in self._geodetic(rx_ep[0]))
         else:
             t_true = GnssTime(np.array([np.asarray(t.sec) for t in ts], dtype=np.int64),
                               np.array([np.asarray(t.frac) for t in ts], dtype=float)) - bias_ep
-            lat_ep, lon_ep, h_ep = ecef_to_geodetic(rx_ep[:, 0], rx_ep[:, 1], rx_ep[:, 2])
-        static = k_n == 1 or bool(np.all(rx_ep == rx_ep[0]))
+        # the antenna's geodetic position epoch by epoch (cached while it stands still), then every row's
+        # geometry with the same array arithmetic whatever the block size: a block gives the epochs' values
+        lat_ep, lon_ep, h_ep = np.array([self._geodetic(p) for p in rx_ep], dtype=float).T
 
         e_all = np.asarray(epoch_of_row, dtype=np.int64)
         n_all = len(states)
         vis = np.zeros(n_all, dtype=np.int64) if vis_state is None else np.asarray(vis_state, dtype=np.int64)
         att = np.zeros(n_all) if attenuation_db is None else np.asarray(attenuation_db, dtype=float)
-        if static:
-            az, el, _ = az_el_at(rx_ep[0], lat_ep[0], lon_ep[0], states.pos_ecef_m)
-        else:
-            az, el, _ = az_el_at(rx_ep[e_all], lat_ep[e_all], lon_ep[e_all], states.pos_ecef_m)
+        az, el, _ = az_el_at(rx_ep[e_all], lat_ep[e_all], lon_ep[e_all], states.pos_ecef_m)
         keep = self._keep_mask(np.asarray(states.sv)) & (el > 0.0)
         seg_all = np.searchsorted(e_all, np.arange(k_n + 1))
         kidx = np.flatnonzero(keep)
@@ -407,7 +404,7 @@ class Receiver:
         ddts = st.clock_drift_sps[sat_i]
 
         # atmosphere (per satellite; the ionosphere scaled to each signal's frequency)
-        lat, lon, h = (v[0] for v in (lat_ep, lon_ep, h_ep)) if static else (lat_ep[e_sat], lon_ep[e_sat], h_ep[e_sat])
+        lat, lon, h = lat_ep[e_sat], lon_ep[e_sat], h_ep[e_sat]
         if self.iono_truth != "none":
             l1_delay = prop.klobuchar_l1_delay_s(t_true_sat, lat, lon, az, el, self.iono_alpha, self.iono_beta)
             iono_model = prop.iono_code_delay_m(l1_delay[sat_i], freq)
