@@ -331,6 +331,7 @@ def run_simulation(setup: SimulationSetup) -> SimulationResult:
     cpu0 = time.process_time()
     res.setup_s = wall0 - t_setup0
     mask = setup.elevation_mask_deg
+    visible, blocked, attenuated = int(VISIBLE), int(BLOCKED), int(ATTENUATED)
     try:
         for i0 in range(0, n_epochs, int(setup.batch_epochs)):
             t_rel = np.arange(i0, min(i0 + int(setup.batch_epochs), n_epochs)) * interval_s
@@ -350,9 +351,10 @@ def run_simulation(setup: SimulationSetup) -> SimulationResult:
                     setup.observer(t, ecef, obs, sol)
                 above = obs.sat_el_deg >= mask
                 res.tracked_per_epoch.append(obs.n_tracked_sats)
-                res.visible_per_epoch.append(int(np.sum(above & (obs.sat_vis_state == VISIBLE))))
-                res.blocked_per_epoch.append(int(np.sum(above & (obs.sat_vis_state == BLOCKED))))
-                res.attenuated_per_epoch.append(int(np.sum(above & (obs.sat_vis_state == ATTENUATED))))
+                state = obs.sat_vis_state[above]
+                res.visible_per_epoch.append(int(np.count_nonzero(state == visible)))
+                res.blocked_per_epoch.append(int(np.count_nonzero(state == blocked)))
+                res.attenuated_per_epoch.append(int(np.count_nonzero(state == attenuated)))
                 if setup.progress and (i % max(1, n_epochs // 20) == 0 or i == n_epochs - 1):
                     el = time.perf_counter() - wall0
                     print(f"\r[simulate] epoch {i + 1}/{n_epochs}  {obs.n_tracked_sats} sats tracked  "
@@ -407,7 +409,8 @@ class _EpochBlock:
         """(epoch tags, antenna ECEF (K, 3), states of every epoch one after another, epoch of each row,
         visibility state per row or None, attenuation per row or None, K path sets or None): the block
         as ReceiverChain.step_block takes it (the rows of :meth:`epoch` for each epoch, in order)."""
-        ts = [self.t[b] for b in range(self.k)]
+        ts = [GnssTime(sec, frac) for sec, frac in zip(np.atleast_1d(self.t.sec).tolist(),
+                                                       np.atleast_1d(self.t.frac).tolist())]
         if self.states is None:
             return ts, self.ecef, SatelliteStates.empty(self.t[0], "none"), np.zeros(0, np.int64), None, None, None
         kk, jj = np.nonzero(self.use)

@@ -19,6 +19,7 @@ epochs, in both front ends, so that one configuration gives one answer.
 """
 from __future__ import annotations
 
+import copy
 import csv
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -325,7 +326,9 @@ class ReceiverChain:
         out = np.where(go_on, pr / m + (m - 1) / m * (st.code[idx] + phase_m - st.phase[idx]), pr)
         st.code[idx], st.phase[idx], st.count[idx], st.last[idx] = out, phase_m, m, st.calls
         st.calls += 1
-        return replace(obs, pseudorange_m=out)
+        smoothed = copy.copy(obs)          # dataclasses.replace, without its field-by-field __init__
+        smoothed.pseudorange_m = out
+        return smoothed
 
     # ------------------------------------------------------------------ files
     def _make_header(self, ecef, states):
