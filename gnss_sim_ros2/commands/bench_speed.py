@@ -8,10 +8,9 @@
   gnss_lib_py's ``simulate_measures`` (bench/peer_gnss_lib_py.py: its RinexNav parsing the synthetic
   GPS navigation file of the span, one call per epoch), both child processes timed the same way;
   the ratio is gnss_lib_py's wall time over gnss_sim's (target >= 20).  gnss_lib_py pins other
-  pandas/xarray/georinex versions than gnss_sim, so it runs in the interpreter given by (a venv of its
-  own: requirements/bench-peer.txt)
-  ``--peer-python`` (or GNSS_SIM_PEER_PYTHON); without one that imports it the ratio is reported
-  as skipped, with the reason.
+  pandas/xarray/georinex versions than gnss_sim, so it runs in the interpreter given by
+  ``--peer-python`` (or GNSS_SIM_PEER_PYTHON), a venv of its own (requirements/bench-peer.txt);
+  without one that imports it the ratio is reported as skipped, with the reason.
 
 Each child is run ``repeats`` times, alternating, the shortest wall time kept (other processes on a
 shared machine only ever add time); CPU time (user + system of the child) is reported beside it.
