@@ -420,17 +420,6 @@ class _Layout:
             self.onehot[np.arange(k_n)[:, None], np.arange(n_max)[None, :], col] = 1.0
 
 
-class _Final:
-    """The arrays of each epoch's last Gauss-Newton iteration (_solve_positions)."""
-
-    def __init__(self, k_n, n_max, u_n):
-        self.h, self.cov, self.sol = np.zeros((k_n, n_max, u_n)), np.zeros((k_n, u_n, u_n)), np.zeros((k_n, u_n))
-        self.use = np.zeros((k_n, n_max), dtype=bool)
-        self.el, self.enu, self.var, self.w = (np.zeros((k_n, n_max)), np.zeros((k_n, n_max, 3)),
-                                               np.ones((k_n, n_max)), np.zeros((k_n, n_max)))
-        self.present = np.zeros((k_n, u_n - 3), dtype=bool)
-
-
 def _no_fix(n, reason="", it=0) -> dict:
     return {"status": "no_fix", "reason": reason, "pos": np.full(3, np.nan), "clk": {}, "clock_systems": [],
             "used": np.zeros(n, bool), "v": np.full(n, np.nan), "el": np.full(n, np.nan), "az": np.full(n, np.nan),
@@ -454,7 +443,7 @@ def _rotations_at(x: np.ndarray) -> np.ndarray:
     of frames.ecef_to_geodetic, cheaper)."""
     if len(x) == 1:
         lat, lon, _ = ecef_to_geodetic(x[0, 0], x[0, 1], x[0, 2])
-        return _rotations(np.atleast_1d(lat), np.atleast_1d(lon))
+        return enu_rotation(lat, lon)[None]
     lat, lon, _ = ecef_to_geodetic(x[:, 0], x[:, 1], x[:, 2])
     return _rotations(lat, lon)
 
@@ -491,10 +480,9 @@ def _solve_positions(lay: _Layout, rows: np.ndarray, valid: np.ndarray, x0: np.n
     active = valid.any(axis=1)
     for i in np.flatnonzero(~active).tolist():
         out[i] = _no_fix(n_of[i], "no satellite with a finite pseudorange and position")
-    # the last iteration of each epoch: design matrix, covariance, solution, rows used, elevation, ENU, variance,
-    # weight, clocks present
-    u_n = 3 + len(lay.clock_sys)
-    fin = _Final(k_n, n_max, u_n)
+    # each iteration's arrays (design matrix, covariance, solution, rows used, elevation, ENU, variance, weight,
+    # clocks present) of the epochs it solved; an epoch's final quantities come from its last one
+    fin: dict = {}
     mask_deg = cfg.elevation_mask_deg
     it_of = np.zeros(k_n, dtype=np.int64)
     for it in range(1, cfg.max_iterations + 1):
@@ -588,9 +576,7 @@ def _solve_positions(lay: _Layout, rows: np.ndarray, valid: np.ndarray, x0: np.n
         same_g = same[good]
         have_prev[gi] = True
         it_of[gi] = it
-        fin.h[gi], fin.cov[gi], fin.sol[gi], fin.use[gi] = h[good], cov, sol, use[good]
-        fin.el[gi], fin.enu[gi], fin.var[gi], fin.w[gi], fin.present[gi] = el[good], enu[good], var[good], \
-            w[good], present[good]
+        fin[it] = (gi, good, h, cov, sol, use, el, enu, var, w, present)
         conv = (step < cfg.convergence_m) & (same_g | ~placed[good] | (it == 1)) & placed[good]
         active[gi[conv]] = False
         for i in gi[conv].tolist():
@@ -613,8 +599,19 @@ def _final_quantities(lay, rows, done, x, fin, it_of, n_of, out, cfg):
     """Residuals, DOPs, chi-square, w-test and covariance of the converged epochs ``done`` (into ``out``)."""
     d_idx = np.array(done, dtype=np.int64)
     g_rows = rows[d_idx]
-    h, cov, sol, use, el, enu, var, w, present = (a[d_idx] for a in (
-        fin.h, fin.cov, fin.sol, fin.use, fin.el, fin.enu, fin.var, fin.w, fin.present))
+    parts = []
+    for it in np.unique(it_of[d_idx]).tolist():      # the epochs that ended at iteration it
+        gi, good, h, cov, sol, use, el, enu, var, w, present = fin[it]
+        sel = np.flatnonzero(it_of[d_idx] == it)
+        q = np.searchsorted(gi, d_idx[sel])            # gi is sorted: their places in that iteration
+        j = good[q]
+        parts.append((sel, (h[j], cov[q], sol[q], use[j], el[j], enu[j], var[j], w[j], present[j])))
+    if len(parts) == 1:
+        h, cov, sol, use, el, enu, var, w, present = parts[0][1]
+    else:
+        order = np.argsort(np.concatenate([p[0] for p in parts]))
+        h, cov, sol, use, el, enu, var, w, present = (np.concatenate([p[1][k] for p in parts])[order]
+                                                      for k in range(9))
     xs = x[d_idx]
     sat, y, col = lay.sat[g_rows], lay.y[g_rows], lay.col[g_rows]
     clk = sol[:, 3:]
