@@ -495,22 +495,23 @@ def _solve_positions(lay: _Layout, rows: np.ndarray, valid: np.ndarray, x0: np.n
         rho_safe = np.where(rho > 0, rho, 1.0)
         e = d / rho_safe[..., None]
         placed = (np.sqrt(np.einsum("ki,ki->k", xa, xa)) > _NEAR_CENTRE_M) & (last_step[a] < _PLACED_STEP_M)
-        el = np.full(rho.shape, 90.0)
-        enu = np.zeros(d.shape)
         if placed.all():
             enu = np.einsum("kni,kji->knj", d, _rotations_at(xa))
             el = np.degrees(np.arcsin(np.minimum(np.maximum(enu[..., 2] / rho_safe, -1.0), 1.0)))
-        elif placed.any():
-            enu[placed] = np.einsum("kni,kji->knj", d[placed], _rotations_at(xa[placed]))
-            el[placed] = np.degrees(np.arcsin(np.minimum(np.maximum(enu[placed, :, 2] / rho_safe[placed], -1.0),
-                                                         1.0)))
+        else:
+            el = np.full(rho.shape, 90.0)
+            enu = np.zeros(d.shape)
+            if placed.any():
+                enu[placed] = np.einsum("kni,kji->knj", d[placed], _rotations_at(xa[placed]))
+                el[placed] = np.degrees(np.arcsin(np.minimum(np.maximum(enu[placed, :, 2] / rho_safe[placed],
+                                                                        -1.0), 1.0)))
         use = valid[a] & (~placed[:, None] | (el >= mask_deg))
         same = have_prev[a] & np.all(use == prev_use[a], axis=1)
         present = np.einsum("kn,kng->kg", use.astype(float), onehot[a]) > 0
         n_unk = 3 + present.sum(axis=1)
         n_use = use.sum(axis=1)
         few = n_use < n_unk
-        for j in np.flatnonzero(few).tolist():
+        for j in (np.flatnonzero(few).tolist() if few.any() else ()):
             i = int(a[j])
             n_valid = int(valid[i].sum())
             cs = [lay.clock_sys[g] for g in np.flatnonzero(present[j])]
@@ -550,7 +551,7 @@ def _solve_positions(lay: _Layout, rows: np.ndarray, valid: np.ndarray, x0: np.n
         elif finite.any():
             cond[finite] = np.linalg.cond(nmat[finite])
         bad = ok & ~(cond <= 1e14)                              # also NaN
-        for j in np.flatnonzero(bad).tolist():
+        for j in (np.flatnonzero(bad).tolist() if bad.any() else ()):
             i = int(a[j])
             out[i] = _no_fix(n_of[i], f"singular geometry with {n_use[j]} satellites (normal matrix not "
                                       f"invertible)", it)
@@ -621,9 +622,10 @@ def _final_quantities(lay, rows, done, x, fin, it_of, n_of, out, cfg):
     v = np.where(use, y - rho - clk[np.arange(len(done))[:, None], col], np.nan)
     if len(xs) == 1:
         lat, lon, hgt = (np.atleast_1d(v) for v in ecef_to_geodetic(xs[0, 0], xs[0, 1], xs[0, 2]))
+        rot = enu_rotation(lat[0], lon[0])[None]
     else:
         lat, lon, hgt = ecef_to_geodetic(xs[:, 0], xs[:, 1], xs[:, 2])
-    rot = _rotations(lat, lon)
+        rot = _rotations(lat, lon)
     # DOPs from the unweighted design matrix (columns x, y, z, clocks) of the last iteration
     q = _spd_inverses(_filled(np.einsum("kni,knj->kij", h, h), present))
     q3 = q[:, :3, :3]
