@@ -76,3 +76,25 @@ def test_batched_chain_equals_epoch_by_epoch(tmp_path):
         return Path(next(d.glob("*_MO.rnx"))).read_bytes().split(b"END OF HEADER", 1)[1]
 
     assert body(tmp_path / "a") == body(tmp_path / "b")
+
+
+def test_bench_speed_json_contract(tmp_path, capsys):
+    """`bench --speed` on a 20 s span: the demo and GPS-static runs are timed (child processes, start-up
+    included) and the real-time factor follows from the wall time; without gnss_lib_py the ratio is
+    reported as skipped with the reason, never as a number."""
+    out = tmp_path / "speed.json"
+    assert main(["bench", "--speed", "--speed-duration", "20", "--repeats", "1", "--peer-python",
+                 str(tmp_path / "no-such-python"), "--json", str(out)]) == 0
+    rep = json.loads(out.read_text())
+    d, g = rep["demo"], rep["gps_static"]
+    assert d["wall_s"] > 0 and d["cpu_s"] > 0
+    assert d["realtime_factor"] == pytest.approx(20.0 / d["wall_s"], rel=1e-12)
+    assert g["gnss_sim_epochs_per_s"] == pytest.approx(21 / g["gnss_sim_wall_s"], rel=1e-12)
+    assert "ratio" not in g and "no-such-python" in g["skipped"]
+    text = capsys.readouterr().out
+    assert "x real time" in text and "gnss_lib_py: skipped" in text
+
+
+def test_bench_speed_rejects_bad_duration(capsys):
+    assert main(["bench", "--speed", "--speed-duration", "0", "--peer-python", "none"]) == 2
+    assert "duration" in capsys.readouterr().err

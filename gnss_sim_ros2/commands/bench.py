@@ -91,6 +91,15 @@ def add_arguments(p):
                    "rate (commands/bench_scaling.py); --plot draws them, --json writes them")
     p.add_argument("--scaling-max-hours", type=float, default=1.0, metavar="H",
                    help="with --scaling: spans up to H hours are run, longer ones (to 24 h) extrapolated (1)")
+    p.add_argument("--speed", action="store_true",
+                   help="instead of the presets: the offline speed targets (commands/bench_speed.py): the demo "
+                   "hour's real-time factor and the ratio to gnss_lib_py's simulate_measures on a static GPS hour, "
+                   "start-up included")
+    p.add_argument("--peer-python", metavar="PYTHON",
+                   help="with --speed: an interpreter that imports gnss_lib_py (default: GNSS_SIM_PEER_PYTHON, "
+                   "then this one)")
+    p.add_argument("--speed-duration", type=float, default=3600.0, metavar="S",
+                   help="with --speed: simulated span of each run [s] (3600)")
 
 
 def shared_data_dir() -> Path:
@@ -451,9 +460,26 @@ def run_scaling_command(args) -> int:
     return _report_out(args, report, scaling_table(report), scaling_plot)
 
 
+def run_speed_command(args) -> int:
+    from gnss_sim_ros2.commands.bench_speed import run_speed, speed_table
+
+    try:
+        report = run_speed(args.speed_duration, args.repeats or 3, args.peer_python,
+                           log=lambda m: print(m, file=sys.stderr, flush=True))
+    except (ValueError, RuntimeError) as exc:
+        print(f"gnss-sim bench: error: {exc}", file=sys.stderr)
+        return 2
+    if args.plot:
+        print("gnss-sim bench: error: --plot is not available with --speed", file=sys.stderr)
+        return 2
+    return _report_out(args, report, speed_table(report), None)
+
+
 def run(args) -> int:
     if args.scaling:
         return run_scaling_command(args)
+    if args.speed:
+        return run_speed_command(args)
     try:
         presets = tuple(p.strip() for p in args.presets.split(",") if p.strip())
         if args.epochs is not None and args.epochs < 2:

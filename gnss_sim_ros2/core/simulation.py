@@ -77,6 +77,9 @@ class SimulationSetup:
     switches: dict = field(default_factory=dict)
     #: epochs whose states, elevations and raycasts are computed in one block (1: epoch by epoch)
     batch_epochs: int = 300
+    #: the observables of a block computed together (ReceiverChain.step_block); False: epoch by epoch
+    #: (ReceiverChain.step, what a node does); the same results (test_simulation_batch.py)
+    batch_observables: bool = True
     #: drop scene triangles that cannot block a ray above the mask from the trajectory (crop_world_mesh)
     crop_scene: bool = False
     #: called after every epoch as observer(t, true_ecef_m, obs, sol) (benchmarks, tests)
@@ -328,14 +331,18 @@ def run_simulation(setup: SimulationSetup) -> SimulationResult:
     cpu0 = time.process_time()
     res.setup_s = wall0 - t_setup0
     mask = setup.elevation_mask_deg
+    visible, blocked, attenuated = int(VISIBLE), int(BLOCKED), int(ATTENUATED)
     try:
         for i0 in range(0, n_epochs, int(setup.batch_epochs)):
             t_rel = np.arange(i0, min(i0 + int(setup.batch_epochs), n_epochs)) * interval_s
             block = _EpochBlock(setup, provider, svs_all, path, scene, t_rel, interval_s, vis_opt)
-            for b in range(len(t_rel)):
+            if setup.batch_observables:
+                products = chain.step_block(*block.stacked())
+            else:
+                products = (chain.step(*block.epoch(b), multipath=block.paths_of(b)) for b in range(len(t_rel)))
+            for b, ep in enumerate(products):
                 i = i0 + b
-                t, ecef, states, vis_state, att = block.epoch(b)
-                ep = chain.step(t, ecef, states, vis_state, att, multipath=block.paths_of(b))
+                t, ecef = ep.t, ep.antenna_ecef_m
                 obs, sol = ep.obs, ep.sol
                 if sol.is_fix:
                     fix_est.append(sol.pos_ecef_m)
@@ -344,9 +351,10 @@ def run_simulation(setup: SimulationSetup) -> SimulationResult:
                     setup.observer(t, ecef, obs, sol)
                 above = obs.sat_el_deg >= mask
                 res.tracked_per_epoch.append(obs.n_tracked_sats)
-                res.visible_per_epoch.append(int(np.sum(above & (obs.sat_vis_state == VISIBLE))))
-                res.blocked_per_epoch.append(int(np.sum(above & (obs.sat_vis_state == BLOCKED))))
-                res.attenuated_per_epoch.append(int(np.sum(above & (obs.sat_vis_state == ATTENUATED))))
+                state = obs.sat_vis_state[above]
+                res.visible_per_epoch.append(int(np.count_nonzero(state == visible)))
+                res.blocked_per_epoch.append(int(np.count_nonzero(state == blocked)))
+                res.attenuated_per_epoch.append(int(np.count_nonzero(state == attenuated)))
                 if setup.progress and (i % max(1, n_epochs // 20) == 0 or i == n_epochs - 1):
                     el = time.perf_counter() - wall0
                     print(f"\r[simulate] epoch {i + 1}/{n_epochs}  {obs.n_tracked_sats} sats tracked  "
@@ -396,6 +404,21 @@ class _EpochBlock:
         if scene is not None:
             self.vis, self.att, v = vis_opt.cast(scene, world, sat)
             self.paths = getattr(v, "paths", None)          # reflections (VisibilityOptions.multipath)
+
+    def stacked(self):
+        """(epoch tags, antenna ECEF (K, 3), states of every epoch one after another, epoch of each row,
+        visibility state per row or None, attenuation per row or None, K path sets or None): the block
+        as ReceiverChain.step_block takes it (the rows of :meth:`epoch` for each epoch, in order)."""
+        ts = [GnssTime(sec, frac) for sec, frac in zip(np.atleast_1d(self.t.sec).tolist(),
+                                                       np.atleast_1d(self.t.frac).tolist())]
+        if self.states is None:
+            return ts, self.ecef, SatelliteStates.empty(self.t[0], "none"), np.zeros(0, np.int64), None, None, None
+        kk, jj = np.nonzero(self.use)
+        st = self.states.select(self.row[kk, jj])
+        paths = None if self.paths is None else [self.paths_of(b) for b in range(self.k)]
+        if self.vis is None:
+            return ts, self.ecef, st, kk, None, None, paths
+        return ts, self.ecef, st, kk, self.vis[kk, jj], self.att[kk, jj], paths
 
     def paths_of(self, b: int):
         """The reflected paths of epoch b's satellites (rows as in :meth:`epoch`), or None."""

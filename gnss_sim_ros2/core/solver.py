@@ -41,7 +41,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.linalg import lapack as _lapack
-from scipy.stats import chi2 as _chi2
+from scipy.special import chdtri as _chdtri
 
 from .constants import C_MPS
 from .frames import ecef_to_geodetic, enu_rotation
@@ -171,9 +171,10 @@ def _system_factor(sv, cfg: SolverConfig) -> np.ndarray:
 
 @functools.lru_cache(maxsize=256)
 def _chi2_threshold(prob_false_alarm: float, dof: int) -> float:
-    """Chi-square quantile 1 - p_fa for ``dof`` degrees of freedom (scipy; cached: the same few values
-    come back every epoch)."""
-    return float(_chi2.ppf(1.0 - prob_false_alarm, dof))
+    """Chi-square quantile 1 - p_fa for ``dof`` degrees of freedom: the inverse of the complemented
+    chi-square distribution (scipy.special.chdtri, Cephes; as scipy.stats.chi2.ppf(1 - p_fa) without
+    importing scipy.stats, about 1 s at start-up); cached: the same few values come back every epoch."""
+    return float(_chdtri(dof, prob_false_alarm))
 
 
 def range_rate_from_doppler(doppler_hz, carrier_hz):
@@ -190,31 +191,24 @@ def _as_array(name, x, n, shape_tail=()):
     return a
 
 
-def _dops(h_geom: np.ndarray, rot_enu: np.ndarray):
-    """GDOP, PDOP, HDOP, VDOP, TDOP from the unweighted design matrix (columns x, y, z, clocks)."""
-    try:
-        q = _spd_inverse(h_geom.T @ h_geom)
-    except np.linalg.LinAlgError:
-        return (math.inf,) * 5
-    q_enu = rot_enu @ q[:3, :3] @ rot_enu.T
-    hdop = math.sqrt(max(q_enu[0, 0] + q_enu[1, 1], 0.0))
-    vdop = math.sqrt(max(q_enu[2, 2], 0.0))
-    pdop = math.sqrt(max(np.trace(q[:3, :3]), 0.0))
-    tdop = math.sqrt(max(q[3, 3], 0.0))
-    return math.sqrt(pdop**2 + tdop**2), pdop, hdop, vdop, tdop
-
-
 def _condition_number(a: np.ndarray) -> float:
     """2-norm condition number (largest / smallest singular value, as np.linalg.cond) of a small square
-    matrix; inf when singular, NaN for non-finite input.  LAPACK dgesdd directly: np.linalg.cond's
-    Python overhead is larger than the decomposition of a 4x4..9x9 normal matrix."""
-    if not np.all(np.isfinite(a)):
-        return math.nan
+    matrix; inf when singular.  LAPACK dgesdd directly: np.linalg.cond's Python overhead is larger than
+    the decomposition of a 4x4..9x9 normal matrix."""
     out = _lapack.dgesdd(a, compute_uv=0)        # (u, s, vt, info); u, vt empty
     s, info = out[1], out[-1]
     if info != 0:
         raise np.linalg.LinAlgError("SVD did not converge")
     return math.inf if s[-1] == 0.0 else float(s[0] / s[-1])
+
+
+def _spd_inverses(a: np.ndarray) -> np.ndarray:
+    """Inverses of symmetric positive definite matrices (K, U, U): one by LAPACK Cholesky (less overhead),
+    several by numpy's batched inverse (symmetrised)."""
+    if len(a) == 1:
+        return _spd_inverse(a[0])[None]
+    inv = np.linalg.inv(a)
+    return 0.5 * (inv + np.swapaxes(inv, 1, 2))
 
 
 def _spd_inverse(a: np.ndarray) -> np.ndarray:
@@ -275,74 +269,155 @@ def solve_pvt(sv, sat_pos_ecef_m, pseudorange_m, *, sat_clock_bias_s=None, iono_
     ``cn0_dbhz`` for C/N0 weighting; ``prior_ecef_m`` start point (default
     the Earth centre).  Velocity: ``sat_vel_ecef_mps`` (N, 3),
     ``range_rate_mps`` (N,) and optionally ``sat_clock_drift_sps`` (N,).
+    One epoch of :func:`solve_pvt_many`.
     """
-    cfg = config or _default_config()
-    sv_arr = np.asarray(sv).astype(str)
+    return solve_pvt_many([dict(
+        sv=sv, sat_pos_ecef_m=sat_pos_ecef_m, pseudorange_m=pseudorange_m, sat_clock_bias_s=sat_clock_bias_s,
+        iono_delay_m=iono_delay_m, tropo_delay_m=tropo_delay_m, sigma_m=sigma_m, cn0_dbhz=cn0_dbhz,
+        prior_ecef_m=prior_ecef_m, sat_vel_ecef_mps=sat_vel_ecef_mps, range_rate_mps=range_rate_mps,
+        sat_clock_drift_sps=sat_clock_drift_sps)], config)[0]
+
+
+class _Epoch:
+    """One epoch's checked inputs (solve_pvt_many)."""
+
+    __slots__ = ("sv", "n", "groups", "fac", "sat", "y", "sig", "cn0", "valid", "x0", "vel", "rate", "drift")
+
+
+def _epoch_inputs(e: dict, cfg: SolverConfig) -> _Epoch:
+    p = _Epoch()
+    sv_arr = np.asarray(e["sv"]).astype(str)
     if sv_arr.ndim != 1:
         raise ValueError(f"solve_pvt: sv must be 1-D, got shape {sv_arr.shape}")
-    n = sv_arr.size
-    groups, fac_all = _satellite_table(sv_arr, cfg)
-    sat = _as_array("sat_pos_ecef_m", sat_pos_ecef_m, n, (3,))
-    y = _as_array("pseudorange_m", pseudorange_m, n).copy()
-    if sat_clock_bias_s is not None:
-        y += C_MPS * _as_array("sat_clock_bias_s", sat_clock_bias_s, n)
-    if iono_delay_m is not None:
-        y -= _as_array("iono_delay_m", iono_delay_m, n)
-    if tropo_delay_m is not None:
-        y -= _as_array("tropo_delay_m", tropo_delay_m, n)
-    sig_given = None if sigma_m is None else _as_array("sigma_m", sigma_m, n)
-    cn0 = None if cn0_dbhz is None else _as_array("cn0_dbhz", cn0_dbhz, n)
-    if cfg.weighting == "cn0" and cn0 is None and sig_given is None:
+    n = p.n = sv_arr.size
+    p.sv = sv_arr
+    p.groups, fac_all = _satellite_table(sv_arr, cfg)
+    p.sat = _as_array("sat_pos_ecef_m", e["sat_pos_ecef_m"], n, (3,))
+    y = _as_array("pseudorange_m", e["pseudorange_m"], n).copy()
+    if e.get("sat_clock_bias_s") is not None:
+        y += C_MPS * _as_array("sat_clock_bias_s", e["sat_clock_bias_s"], n)
+    if e.get("iono_delay_m") is not None:
+        y -= _as_array("iono_delay_m", e["iono_delay_m"], n)
+    if e.get("tropo_delay_m") is not None:
+        y -= _as_array("tropo_delay_m", e["tropo_delay_m"], n)
+    p.y = y
+    p.sig = None if e.get("sigma_m") is None else _as_array("sigma_m", e["sigma_m"], n)
+    p.cn0 = None if e.get("cn0_dbhz") is None else _as_array("cn0_dbhz", e["cn0_dbhz"], n)
+    if cfg.weighting == "cn0" and p.cn0 is None and p.sig is None:
         raise ValueError("solve_pvt: SolverConfig.weighting='cn0' needs cn0_dbhz")
-    fac = fac_all if sig_given is None else None
-    valid = np.isfinite(y) & np.all(np.isfinite(sat), axis=1)
-    if sig_given is not None:
-        valid &= np.isfinite(sig_given) & (sig_given > 0)
-    x0 = np.zeros(3) if prior_ecef_m is None else _as_array("prior_ecef_m", prior_ecef_m, 3)
-
-    excluded: list[str] = []
-    notes = []
-    x = x0
-    while True:
-        res = _solve_position(sv_arr, sat, y, valid, groups, sig_given, cn0, x, cfg, fac)
-        if res["status"] != "fix" or not cfg.check_residuals or res["dof"] <= 0:
-            if res["status"] == "fix" and res["dof"] <= 0:
-                notes.append("no redundancy: residual check not possible")
-            break
-        if res["chi2"] <= res["chi2_threshold"]:
-            break
-        if len(excluded) >= cfg.max_exclusions or res["dof"] < 2:
-            why = ("no exclusion left" if len(excluded) >= cfg.max_exclusions
-                   else "too few satellites to identify the faulty one")
-            msg = (f"chi-square residual test failed: {res['chi2']:.1f} > {res['chi2_threshold']:.1f} "
-                   f"({res['dof']} dof), {why}")
-            if cfg.residual_failure == "no_fix":
-                res["status"] = "no_fix"
-                res["reason"] = msg
-            else:
-                notes.append(msg + "; solution kept")
-            break
-        worst = res["worst"]
-        excluded.append(str(sv_arr[worst]))
-        valid = valid.copy()
-        valid[worst] = False
-        x = res["pos"]  # restart from the current estimate
-    if excluded and res["status"] == "fix":
-        notes.append(f"excluded by the residual check: {', '.join(excluded)}")
-    if res["status"] == "fix" and res["gdop"] > cfg.max_gdop:
-        res["status"] = "no_fix"
-        res["reason"] = f"GDOP {res['gdop']:.1f} exceeds max_gdop {cfg.max_gdop}"
-    reason = res["reason"] if res["status"] != "fix" else "; ".join(notes)
-    sol = _make_solution(sv_arr, res, excluded, reason, n)
-    if range_rate_mps is not None or sat_vel_ecef_mps is not None:
-        if range_rate_mps is None or sat_vel_ecef_mps is None:
+    p.fac = fac_all if p.sig is None else np.ones(n)
+    valid = np.isfinite(y) & np.all(np.isfinite(p.sat), axis=1)
+    if p.sig is not None:
+        valid &= np.isfinite(p.sig) & (p.sig > 0)
+    p.valid = valid
+    prior = e.get("prior_ecef_m")
+    p.x0 = np.zeros(3) if prior is None else _as_array("prior_ecef_m", prior, 3)
+    vel, rate = e.get("sat_vel_ecef_mps"), e.get("range_rate_mps")
+    if rate is not None or vel is not None:
+        if rate is None or vel is None:
             raise ValueError("solve_pvt: velocity needs both sat_vel_ecef_mps and range_rate_mps")
-        _solve_velocity_into(sol, sat, _as_array("sat_vel_ecef_mps", sat_vel_ecef_mps, n, (3,)),
-                             _as_array("range_rate_mps", range_rate_mps, n),
-                             None if sat_clock_drift_sps is None
-                             else _as_array("sat_clock_drift_sps", sat_clock_drift_sps, n), cfg,
-                             los=res.get("e_final"), rot=res.get("rot"))
-    return sol
+        vel, rate = _as_array("sat_vel_ecef_mps", vel, n, (3,)), _as_array("range_rate_mps", rate, n)
+    drift = e.get("sat_clock_drift_sps")
+    p.vel, p.rate = vel, rate
+    p.drift = None if drift is None else _as_array("sat_clock_drift_sps", drift, n)
+    return p
+
+
+def solve_pvt_many(epochs, config: SolverConfig | None = None) -> list[PvtSolution]:
+    """:func:`solve_pvt` of several epochs at once: ``epochs`` is a list of dicts of solve_pvt's arguments
+    (``sv``, ``sat_pos_ecef_m``, ``pseudorange_m`` and the optional ones).  The weighted least squares
+    iterate on all epochs together (stacked design matrices, batched factorisations), then the residual
+    check and its exclusions, epoch by epoch as :func:`solve_pvt` does them; each epoch's result is the
+    one solve_pvt gives for it alone."""
+    cfg = config or _default_config()
+    ep = [_epoch_inputs(e, cfg) for e in epochs]
+    k_n = len(ep)
+    n_max = max((p.n for p in ep), default=0)
+    clock_sys = sorted({g for p in ep for g in p.groups.tolist()}, key=SYSTEM_ORDER.index)
+    slot = {g: j for j, g in enumerate(clock_sys)}
+    sat = np.zeros((k_n, n_max, 3))
+    y = np.zeros((k_n, n_max))
+    valid = np.zeros((k_n, n_max), dtype=bool)
+    col = np.zeros((k_n, n_max), dtype=np.int64)
+    fac2 = np.ones((k_n, n_max))
+    any_sig = any(p.sig is not None for p in ep)
+    any_cn0 = any(p.cn0 is not None for p in ep)
+    sig = np.ones((k_n, n_max)) if any_sig else None
+    cn0 = np.zeros((k_n, n_max)) if any_cn0 else None
+    x0 = np.zeros((k_n, 3))
+    for i, p in enumerate(ep):
+        n = p.n
+        ok = p.valid
+        sat[i, :n] = np.where(ok[:, None], p.sat, 0.0)
+        y[i, :n] = np.where(ok, p.y, 0.0)
+        valid[i, :n] = ok
+        col[i, :n] = [slot[g] for g in p.groups.tolist()]
+        fac2[i, :n] = p.fac ** 2
+        if p.sig is not None:
+            sig[i, :n] = np.where(ok, p.sig, 1.0)
+        if p.cn0 is not None:
+            cn0[i, :n] = np.where(np.isfinite(p.cn0), p.cn0, 0.0)
+        x0[i] = p.x0
+    layout = _Layout(sat, y, col, clock_sys, fac2, cn0, sig, [p.n for p in ep], [p.sig is not None for p in ep])
+
+    excluded: list[list[str]] = [[] for _ in range(k_n)]
+    notes: list[list[str]] = [[] for _ in range(k_n)]
+    results: list = [None] * k_n
+    pending = np.arange(k_n)
+    while pending.size:
+        out = _solve_positions(layout, pending, valid[pending], x0[pending], cfg)
+        again = []
+        for i, res in zip(pending.tolist(), out):
+            results[i] = res
+            if res["status"] != "fix" or not cfg.check_residuals or res["dof"] <= 0:
+                if res["status"] == "fix" and res["dof"] <= 0:
+                    notes[i].append("no redundancy: residual check not possible")
+                continue
+            if res["chi2"] <= res["chi2_threshold"]:
+                continue
+            if len(excluded[i]) >= cfg.max_exclusions or res["dof"] < 2:
+                why = ("no exclusion left" if len(excluded[i]) >= cfg.max_exclusions
+                       else "too few satellites to identify the faulty one")
+                msg = (f"chi-square residual test failed: {res['chi2']:.1f} > {res['chi2_threshold']:.1f} "
+                       f"({res['dof']} dof), {why}")
+                if cfg.residual_failure == "no_fix":
+                    res["status"] = "no_fix"
+                    res["reason"] = msg
+                else:
+                    notes[i].append(msg + "; solution kept")
+                continue
+            worst = res["worst"]
+            excluded[i].append(str(ep[i].sv[worst]))
+            valid[i, worst] = False
+            x0[i] = res["pos"]  # restart from the current estimate
+            again.append(i)
+        pending = np.array(again, dtype=np.int64)
+
+    sols = []
+    for i, (p, res) in enumerate(zip(ep, results)):
+        if excluded[i] and res["status"] == "fix":
+            notes[i].append(f"excluded by the residual check: {', '.join(excluded[i])}")
+        if res["status"] == "fix" and res["gdop"] > cfg.max_gdop:
+            res["status"] = "no_fix"
+            res["reason"] = f"GDOP {res['gdop']:.1f} exceeds max_gdop {cfg.max_gdop}"
+        reason = res["reason"] if res["status"] != "fix" else "; ".join(notes[i])
+        sol = _make_solution(p.sv, res, excluded[i], reason, p.n)
+        sols.append(sol)
+    _solve_velocities([(sol, p.sat, p.vel, p.rate, p.drift, res.get("e_final"), res.get("rot"))
+                       for p, res, sol in zip(ep, results, sols) if p.rate is not None], cfg)
+    return sols
+
+
+class _Layout:
+    """The stacked inputs of solve_pvt_many: (K, N) rows padded, clock column of each row."""
+
+    def __init__(self, sat, y, col, clock_sys, fac2, cn0, sig, n, has_sig):
+        self.sat, self.y, self.col, self.clock_sys, self.fac2 = sat, y, col, clock_sys, fac2
+        self.cn0, self.sig, self.n, self.has_sig = cn0, sig, n, np.asarray(has_sig, dtype=bool)
+        k_n, n_max = y.shape
+        self.onehot = np.zeros((k_n, n_max, len(clock_sys)))
+        if n_max:
+            self.onehot[np.arange(k_n)[:, None], np.arange(n_max)[None, :], col] = 1.0
 
 
 def _no_fix(n, reason="", it=0) -> dict:
@@ -352,116 +427,247 @@ def _no_fix(n, reason="", it=0) -> dict:
             "dof": 0, "iter": it, "worst": None}
 
 
-def _solve_position(sv, sat, y, valid, groups, sig_given, cn0, x, cfg, fac=None) -> dict:
-    n = sv.size
-    if not valid.any():
-        return _no_fix(n, "no satellite with a finite pseudorange and position")
-    x = np.asarray(x, dtype=np.float64).copy()
-    prev_use = None
-    converged = False
-    # the elevation mask and weights start once the position is roughly known: a start
-    # point away from the Earth centre (a prior) or a Gauss-Newton step below 1 km
-    last_step = 0.0 if math.sqrt(x @ x) > _NEAR_CENTRE_M else math.inf
-    fac2 = None if fac is None else fac**2
-    elevation_weights = sig_given is None and cfg.weighting == "elevation"
+def _rotations(lat_deg, lon_deg) -> np.ndarray:
+    """(K, 3, 3) ENU rotations (frames.enu_rotation) at K positions."""
+    lat, lon = np.radians(lat_deg), np.radians(lon_deg)
+    sl, cl, so, co = np.sin(lat), np.cos(lat), np.sin(lon), np.cos(lon)
+    r = np.empty((len(sl), 3, 3))
+    r[:, 0, 0], r[:, 0, 1], r[:, 0, 2] = -so, co, 0.0
+    r[:, 1, 0], r[:, 1, 1], r[:, 1, 2] = -sl * co, -sl * so, cl
+    r[:, 2, 0], r[:, 2, 1], r[:, 2, 2] = cl * co, cl * so, sl
+    return r
+
+
+def _rotations_at(x: np.ndarray) -> np.ndarray:
+    """ENU rotations (K, 3, 3) at the geodetic positions of ECEF points (K, 3) (one point: the scalar path
+    of frames.ecef_to_geodetic, cheaper)."""
+    if len(x) == 1:
+        lat, lon, _ = ecef_to_geodetic(x[0, 0], x[0, 1], x[0, 2])
+        return enu_rotation(lat, lon)[None]
+    lat, lon, _ = ecef_to_geodetic(x[:, 0], x[:, 1], x[:, 2])
+    return _rotations(lat, lon)
+
+
+def _filled(nmat: np.ndarray, present: np.ndarray) -> np.ndarray:
+    """Normal matrices (K, U, U) with the rows/columns of clocks absent from an epoch (all zero) given a
+    diagonal element equal to the first one (a value between the present block's extreme eigenvalues, so
+    neither its inverse nor its condition number changes)."""
+    if present.all():
+        return nmat
+    absent = np.flatnonzero(~present.ravel())
+    if absent.size:
+        k, g = np.divmod(absent, present.shape[1])
+        nmat[k, 3 + g, 3 + g] = nmat[k, 0, 0]
+    return nmat
+
+
+def _solve_positions(lay: _Layout, rows: np.ndarray, valid: np.ndarray, x0: np.ndarray, cfg) -> list:
+    """Gauss-Newton of the epochs ``rows`` of ``lay`` together (valid (K, N), start points (K, 3)).
+
+    The elevation mask and weights start once the position is roughly known: a start point away from
+    the Earth centre (a prior) or a Gauss-Newton step below 1 km.  Per epoch as one-epoch iterations
+    would do: the same iterations, convergence test and failures (reasons in the results)."""
+    k_n, n_max = valid.shape
+    sat, y, onehot = lay.sat[rows], lay.y[rows], lay.onehot[rows]
+    fac2 = lay.fac2[rows]
+    n_of = [lay.n[i] for i in rows.tolist()]
+    has_sig = lay.has_sig[rows]
+    x = x0.astype(np.float64).copy()
+    out: list = [None] * k_n
+    last_step = np.where(np.sqrt(np.einsum("ki,ki->k", x, x)) > _NEAR_CENTRE_M, 0.0, np.inf)
+    prev_use = np.zeros((k_n, n_max), dtype=bool)
+    have_prev = np.zeros(k_n, dtype=bool)
+    active = valid.any(axis=1)
+    for i in np.flatnonzero(~active).tolist():
+        out[i] = _no_fix(n_of[i], "no satellite with a finite pseudorange and position")
+    # each iteration's arrays (design matrix, covariance, solution, rows used, elevation, ENU, variance, weight,
+    # clocks present) of the epochs it solved; an epoch's final quantities come from its last one
+    fin: dict = {}
     mask_deg = cfg.elevation_mask_deg
-    enu = None
-    h = idx = col = None       # design-matrix layout, set when the satellite set changes (first iteration)
+    it_of = np.zeros(k_n, dtype=np.int64)
     for it in range(1, cfg.max_iterations + 1):
-        d = sat - x
-        rho = np.sqrt(np.einsum("ij,ij->i", d, d))
-        e = d / rho[:, None]
-        placed = math.sqrt(x @ x) > _NEAR_CENTRE_M and last_step < _PLACED_STEP_M
-        if placed:
-            # elevation in the ENU frame at the current position (as frames.az_el_from_ecef)
-            lat_x, lon_x, _ = ecef_to_geodetic(x[0], x[1], x[2])
-            enu = d @ enu_rotation(lat_x, lon_x).T
-            el = np.degrees(np.arcsin(np.minimum(np.maximum(enu[:, 2] / rho, -1.0), 1.0)))
-            use = valid & (el >= mask_deg)
+        a = np.flatnonzero(active)
+        if a.size == 0:
+            break
+        xa = x[a]
+        d = sat[a] - xa[:, None, :]
+        rho = np.sqrt(np.einsum("kni,kni->kn", d, d))
+        rho_safe = np.where(rho > 0, rho, 1.0)
+        e = d / rho_safe[..., None]
+        placed = (np.sqrt(np.einsum("ki,ki->k", xa, xa)) > _NEAR_CENTRE_M) & (last_step[a] < _PLACED_STEP_M)
+        if placed.all():
+            enu = np.einsum("kni,kji->knj", d, _rotations_at(xa))
+            el = np.degrees(np.arcsin(np.minimum(np.maximum(enu[..., 2] / rho_safe, -1.0), 1.0)))
         else:
-            enu, el = None, np.full(n, 90.0)
-            use = valid.copy()
-        same_set = prev_use is not None and bool((use == prev_use).all())
-        if same_set:      # same satellites as the last iteration: same clocks, same design-matrix layout
-            h[:, :3] = -e[idx]
+            el = np.full(rho.shape, 90.0)
+            enu = np.zeros(d.shape)
+            if placed.any():
+                enu[placed] = np.einsum("kni,kji->knj", d[placed], _rotations_at(xa[placed]))
+                el[placed] = np.degrees(np.arcsin(np.minimum(np.maximum(enu[placed, :, 2] / rho_safe[placed],
+                                                                        -1.0), 1.0)))
+        use = valid[a] & (~placed[:, None] | (el >= mask_deg))
+        same = have_prev[a] & np.all(use == prev_use[a], axis=1)
+        present = np.einsum("kn,kng->kg", use.astype(float), onehot[a]) > 0
+        n_unk = 3 + present.sum(axis=1)
+        n_use = use.sum(axis=1)
+        few = n_use < n_unk
+        for j in (np.flatnonzero(few).tolist() if few.any() else ()):
+            i = int(a[j])
+            n_valid = int(valid[i].sum())
+            cs = [lay.clock_sys[g] for g in np.flatnonzero(present[j])]
+            masked = f"{n_valid - n_use[j]} below the {cfg.elevation_mask_deg:g} deg mask, " if placed[j] else ""
+            out[i] = _no_fix(n_of[i], f"too few satellites: {n_use[j]} usable ({masked}{n_of[i] - n_valid} without "
+                                      f"data or excluded), need {n_unk[j]} (3 position + {len(cs)} clock"
+                                      f"{'s' if len(cs) != 1 else ''}: {'/'.join(cs) or '-'})", it)
+            active[i] = False
+        h = np.concatenate([-e, onehot[a]], axis=2) * use[..., None]
+        ai = a
+        sig_rows = has_sig[ai]
+        model = ~sig_rows
+        if not sig_rows.any() and cfg.weighting == "elevation":     # the usual case, without masks
+            sin_el = np.sin(np.radians(np.minimum(np.maximum(el, 1.0), 90.0)))
+            var = (cfg.sigma_a_m**2 + cfg.sigma_b_m**2 / sin_el**2) * fac2[ai]
+            model = sig_rows
         else:
-            clock_sys = sorted(set(groups[use].tolist()), key=SYSTEM_ORDER.index)
-            n_unk = 3 + len(clock_sys)
-            idx = np.flatnonzero(use)
-            n_use = idx.size
-            if n_use < n_unk:
-                n_valid = int(valid.sum())
-                masked = f"{n_valid - n_use} below the {cfg.elevation_mask_deg:g} deg mask, " if placed else ""
-                return _no_fix(n, f"too few satellites: {n_use} usable ({masked}{n - n_valid} without data or "
-                                  f"excluded), need {n_unk} (3 position + {len(clock_sys)} clock"
-                                  f"{'s' if len(clock_sys) != 1 else ''}: {'/'.join(clock_sys) or '-'})", it)
-            slot = {g: j for j, g in enumerate(clock_sys)}
-            col = np.array([slot[g] for g in groups[idx].tolist()], dtype=np.int64)
-            h = np.zeros((n_use, n_unk))
-            h[:, :3] = -e[idx]
-            h[np.arange(n_use), 3 + col] = 1.0
-        if sig_given is not None:
-            var = sig_given[idx] ** 2
-        elif elevation_weights:   # pseudorange_sigma_m, inline, system factors looked up once per solve
-            sin_el = np.sin(np.radians(np.minimum(np.maximum(el[idx], 1.0), 90.0)))
-            var = (cfg.sigma_a_m**2 + cfg.sigma_b_m**2 / sin_el**2) * fac2[idx]
-        else:
-            var = _variance(el[idx], None if cn0 is None else cn0[idx], cfg) * fac2[idx]
-        w = 1.0 / var
-        hwt = h.T * w
-        nmat = hwt @ h
+            var = np.ones(rho.shape)
+        if sig_rows.any():
+            var[sig_rows] = lay.sig[rows[ai[sig_rows]]] ** 2
+        if model.any():
+            if cfg.weighting == "elevation":   # pseudorange_sigma_m, inline, system factors looked up once
+                sin_el = np.sin(np.radians(np.minimum(np.maximum(el[model], 1.0), 90.0)))
+                var[model] = (cfg.sigma_a_m**2 + cfg.sigma_b_m**2 / sin_el**2) * fac2[ai[model]]
+            else:
+                c = None if lay.cn0 is None else lay.cn0[rows[ai[model]]]
+                var[model] = _variance(el[model], c, cfg) * fac2[ai[model]]
+        w = np.where(use, 1.0 / var, 0.0)
+        hw = h * w[..., None]
+        nmat = _filled(np.einsum("kni,knj->kij", hw, h), present)
+        resid = np.where(use, y[a] - rho, 0.0)
+        ok = ~few
+        cond = np.full(a.size, np.nan)
+        finite = ok & np.all(np.isfinite(nmat), axis=(1, 2))
+        if finite.all() and a.size == 1:     # one epoch (a node): LAPACK directly, less overhead
+            cond[0] = _condition_number(nmat[0])
+        elif finite.any():
+            cond[finite] = np.linalg.cond(nmat[finite])
+        bad = ok & ~(cond <= 1e14)                              # also NaN
+        for j in (np.flatnonzero(bad).tolist() if bad.any() else ()):
+            i = int(a[j])
+            out[i] = _no_fix(n_of[i], f"singular geometry with {n_use[j]} satellites (normal matrix not "
+                                      f"invertible)", it)
+            active[i] = False
+        good = np.flatnonzero(ok & ~bad)
+        if good.size == 0:
+            continue
+        gi = a[good]
         try:
-            if not _condition_number(nmat) <= 1e14:      # also NaN
-                raise np.linalg.LinAlgError
-            cov = _spd_inverse(nmat)       # the covariance at the end, the step now
-            sol = cov @ (hwt @ (y[idx] - rho[idx]))
-        except np.linalg.LinAlgError:
-            return _no_fix(n, f"singular geometry with {idx.size} satellites (normal matrix not invertible)", it)
-        dx = sol[:3]
-        x = x + dx
-        last_step = math.sqrt(dx @ dx)
-        prev_use = use
-        if last_step < cfg.convergence_m and (same_set or not placed or it == 1):
-            if placed:
-                converged = True
-                break
-        if not math.sqrt(x @ x) <= 1e9:      # also NaN
-            return _no_fix(n, "the iteration diverged", it)
-    if not converged:
-        return _no_fix(n, f"no convergence in {cfg.max_iterations} iterations (last step {last_step:.3g} m)", it)
-    # final quantities at the converged position (sat set and clocks from the last step)
-    clk = sol[3:]
-    d = sat - x
-    rho = np.sqrt(np.einsum("ij,ij->i", d, d))
-    e_final = d / rho[:, None]      # line of sight at the solution (for the velocity)
-    v = np.full(n, np.nan)
-    v_idx = y[idx] - rho[idx] - clk[col]
-    v[idx] = v_idx
-    lat, lon, hgt = ecef_to_geodetic(x[0], x[1], x[2])
-    rot = enu_rotation(lat, lon)
-    dops = _dops(h, rot)
-    dof = idx.size - n_unk
-    chi2 = float(w @ (v_idx * v_idx))
-    thr = _chi2_threshold(float(cfg.chi2_prob_false_alarm), int(dof)) if dof > 0 else math.nan
-    worst = None
-    if dof > 0:
-        # standardised residuals: v_i / sqrt((Sigma - H N^-1 H^T)_ii)  (Baarda w-test)
-        qv = var - np.einsum("ij,ij->i", h @ cov, h)
-        wstat = np.abs(v_idx) / np.sqrt(np.maximum(qv, 1e-30))
-        # a satellite without redundancy (alone in its clock group: its residual is zero whatever its
-        # error) cannot be tested: its statistic would be round-off / round-off
-        wstat[qv <= 1e-9 * var] = 0.0
-        # ties (the two satellites of a clock group that has only two have equal statistics) go to the
-        # first in input order, not to whichever round-off makes larger
-        worst = int(idx[int(np.argmax(wstat >= np.max(wstat) * (1.0 - 1e-6)))])
-    used = np.zeros(n, bool)
-    used[idx] = True
-    if cfg.scale_covariance and dof > 0:
-        cov = cov * max(1.0, chi2 / dof)        # a-posteriori variance factor (residuals beyond the sigmas)
-    return {"status": "fix", "reason": "", "pos": x, "clk": {s: float(c) for s, c in zip(clock_sys, clk)},
-            "clock_systems": clock_sys, "used": used, "v": v, "el": el, "az": _azimuth(enu, n), "cov": cov,
-            "dops": dops, "gdop": dops[0], "chi2": chi2, "chi2_threshold": thr, "dof": dof, "iter": it,
-            "worst": worst, "rot": rot, "lla": (float(lat), float(lon), float(hgt)), "e": e, "e_final": e_final}
+            cov = _spd_inverses(nmat[good])
+        except np.linalg.LinAlgError:       # one epoch whose matrix is not positive definite after all
+            for i in gi.tolist():
+                out[i] = _no_fix(n_of[i], f"singular geometry with {int(n_use[good][0])} satellites (normal "
+                                          f"matrix not invertible)", it)
+                active[i] = False
+            continue
+        sol = np.einsum("kij,kj->ki", cov, np.einsum("kni,kn->ki", hw[good], resid[good]))
+        dx = sol[:, :3]
+        x[gi] = x[gi] + dx
+        step = np.sqrt(np.einsum("ki,ki->k", dx, dx))
+        last_step[gi] = step
+        prev_use[gi] = use[good]
+        same_g = same[good]
+        have_prev[gi] = True
+        it_of[gi] = it
+        fin[it] = (gi, good, h, cov, sol, use, el, enu, var, w, present)
+        conv = (step < cfg.convergence_m) & (same_g | ~placed[good] | (it == 1)) & placed[good]
+        active[gi[conv]] = False
+        for i in gi[conv].tolist():
+            out[i] = "converged"
+        still = gi[~conv]
+        div = ~(np.sqrt(np.einsum("ki,ki->k", x[still], x[still])) <= 1e9) if still.size else conv[:0]
+        for i in still[div].tolist():
+            out[i] = _no_fix(n_of[i], "the iteration diverged", it)
+            active[i] = False
+    for i in np.flatnonzero(active).tolist():
+        out[i] = _no_fix(n_of[i], f"no convergence in {cfg.max_iterations} iterations (last step "
+                                  f"{last_step[i]:.3g} m)", cfg.max_iterations)
+    done = [i for i in range(k_n) if isinstance(out[i], str)]
+    if done:
+        _final_quantities(lay, rows, done, x, fin, it_of, n_of, out, cfg)
+    return out
+
+
+def _final_quantities(lay, rows, done, x, fin, it_of, n_of, out, cfg):
+    """Residuals, DOPs, chi-square, w-test and covariance of the converged epochs ``done`` (into ``out``)."""
+    d_idx = np.array(done, dtype=np.int64)
+    g_rows = rows[d_idx]
+    parts = []
+    for it in np.unique(it_of[d_idx]).tolist():      # the epochs that ended at iteration it
+        gi, good, h, cov, sol, use, el, enu, var, w, present = fin[it]
+        sel = np.flatnonzero(it_of[d_idx] == it)
+        q = np.searchsorted(gi, d_idx[sel])            # gi is sorted: their places in that iteration
+        j = good[q]
+        parts.append((sel, (h[j], cov[q], sol[q], use[j], el[j], enu[j], var[j], w[j], present[j])))
+    if len(parts) == 1:
+        h, cov, sol, use, el, enu, var, w, present = parts[0][1]
+    else:
+        order = np.argsort(np.concatenate([p[0] for p in parts]))
+        h, cov, sol, use, el, enu, var, w, present = (np.concatenate([p[1][k] for p in parts])[order]
+                                                      for k in range(9))
+    xs = x[d_idx]
+    sat, y, col = lay.sat[g_rows], lay.y[g_rows], lay.col[g_rows]
+    clk = sol[:, 3:]
+    d = sat - xs[:, None, :]
+    rho = np.sqrt(np.einsum("kni,kni->kn", d, d))
+    e_final = d / np.where(rho > 0, rho, 1.0)[..., None]     # line of sight at the solution (for the velocity)
+    v = np.where(use, y - rho - clk[np.arange(len(done))[:, None], col], np.nan)
+    if len(xs) == 1:
+        lat, lon, hgt = (np.atleast_1d(v) for v in ecef_to_geodetic(xs[0, 0], xs[0, 1], xs[0, 2]))
+        rot = enu_rotation(lat[0], lon[0])[None]
+    else:
+        lat, lon, hgt = ecef_to_geodetic(xs[:, 0], xs[:, 1], xs[:, 2])
+        rot = _rotations(lat, lon)
+    # DOPs from the unweighted design matrix (columns x, y, z, clocks) of the last iteration
+    q = _spd_inverses(_filled(np.einsum("kni,knj->kij", h, h), present))
+    q3 = q[:, :3, :3]
+    q_enu = rot @ q3 @ np.swapaxes(rot, 1, 2)
+    hdop = np.sqrt(np.maximum(q_enu[:, 0, 0] + q_enu[:, 1, 1], 0.0))
+    vdop = np.sqrt(np.maximum(q_enu[:, 2, 2], 0.0))
+    pdop = np.sqrt(np.maximum(np.trace(q3, axis1=1, axis2=2), 0.0))
+    ref = 3 + np.argmax(present, axis=1)
+    tdop = np.sqrt(np.maximum(q[np.arange(len(done)), ref, ref], 0.0))
+    gdop = np.sqrt(pdop**2 + tdop**2)
+    n_use = use.sum(axis=1)
+    dof = n_use - 3 - present.sum(axis=1)
+    chi2 = np.einsum("kn,kn->k", w, np.where(use, v, 0.0) ** 2)
+    # standardised residuals: v_i / sqrt((Sigma - H N^-1 H^T)_ii)  (Baarda w-test)
+    qv = var - np.einsum("kni,kij,knj->kn", h, cov, h)
+    wstat = np.abs(np.where(use, v, 0.0)) / np.sqrt(np.maximum(qv, 1e-30))
+    # a satellite without redundancy (alone in its clock group: its residual is zero whatever its
+    # error) cannot be tested: its statistic would be round-off / round-off
+    wstat[qv <= 1e-9 * var] = 0.0
+    wstat[~use] = -1.0
+    wmax = wstat.max(axis=1, initial=-1.0)
+    # ties (the two satellites of a clock group that has only two have equal statistics) go to the
+    # first in input order, not to whichever round-off makes larger
+    worst = np.argmax(wstat >= (wmax * (1.0 - 1e-6))[:, None], axis=1)
+    for q_i, i in enumerate(done):
+        n = n_of[i]
+        k_dof = int(dof[q_i])
+        c = cov[q_i]
+        if cfg.scale_covariance and k_dof > 0:
+            c = c * max(1.0, float(chi2[q_i]) / k_dof)   # a-posteriori variance factor (residuals beyond sigmas)
+        cols = np.flatnonzero(present[q_i])
+        keep = np.concatenate([[0, 1, 2], 3 + cols])
+        cs = [lay.clock_sys[g] for g in cols.tolist()]
+        thr = _chi2_threshold(float(cfg.chi2_prob_false_alarm), k_dof) if k_dof > 0 else math.nan
+        dops = (float(gdop[q_i]), float(pdop[q_i]), float(hdop[q_i]), float(vdop[q_i]), float(tdop[q_i]))
+        out[i] = {"status": "fix", "reason": "", "pos": xs[q_i].copy(),
+                  "clk": {s: float(clk[q_i, g]) for s, g in zip(cs, cols.tolist())}, "clock_systems": cs,
+                  "used": use[q_i, :n].copy(), "v": v[q_i, :n], "el": el[q_i, :n], "az": _azimuth(enu[q_i, :n], n),
+                  "cov": c[keep][:, keep], "dops": dops, "gdop": dops[0], "chi2": float(chi2[q_i]),
+                  "chi2_threshold": thr, "dof": k_dof, "iter": int(it_of[i]),
+                  "worst": int(worst[q_i]) if k_dof > 0 else None, "rot": rot[q_i],
+                  "lla": (float(lat[q_i]), float(lon[q_i]), float(hgt[q_i])), "e_final": e_final[q_i, :n]}
 
 
 def _azimuth(enu, n):
@@ -501,51 +707,81 @@ def _make_solution(sv, res, excluded, reason, n) -> PvtSolution:
 def _solve_velocity_into(sol: PvtSolution, sat, sat_vel, rate, sat_drift, cfg, los=None, rot=None) -> None:
     """Velocity and drift into ``sol``; ``los``: unit vectors receiver -> satellite (N, 3) at sol.pos_ecef_m
     and ``rot``: ENU rotation there, when the position solution has them already."""
-    if not sol.is_fix:
-        sol.vel_status, sol.vel_reason = "no_fix", "no position fix"
-        return
-    ok = sol.used & np.isfinite(rate) & np.all(np.isfinite(sat_vel), axis=1)
-    if sat_drift is not None:
-        ok &= np.isfinite(sat_drift)
-    idx = np.flatnonzero(ok)
-    if idx.size < 4:
-        sol.vel_status = "no_fix"
-        sol.vel_reason = f"too few range rates: {idx.size} of the used satellites, need 4 (3 velocity + 1 drift)"
-        return
-    if los is None:
-        d = sat[idx] - sol.pos_ecef_m
-        e = d / np.sqrt(np.einsum("ij,ij->i", d, d))[:, None]
-    else:
-        e = los[idx]
-    # rate = e.(v_sat - v_rx) + drift_rx - c ddt_sat  ->  rate - e.v_sat + c ddt_sat = -e.v_rx + drift_rx
-    yv = rate[idx] - np.einsum("ij,ij->i", e, sat_vel[idx])
-    if sat_drift is not None:
-        yv = yv + C_MPS * sat_drift[idx]
-    h = np.empty((idx.size, 4))
-    h[:, :3] = -e
-    h[:, 3] = 1.0
-    s = np.sin(np.radians(np.minimum(np.maximum(sol.el_deg[idx], 1.0), 90.0)))
-    w = 1.0 / (cfg.rate_sigma_a_mps**2 + cfg.rate_sigma_b_mps**2 / s**2)
-    hwt = h.T * w
-    nmat = hwt @ h
+    _solve_velocities([(sol, sat, sat_vel, rate, sat_drift, los, rot)], cfg)
+
+
+def _solve_velocities(items, cfg) -> None:
+    """Velocity and clock drift of several epochs (``items``: (solution, sat, sat_vel, rate, sat_drift,
+    los, rot) each, as _solve_velocity_into takes them), the least squares of all of them at once:
+    rate = e.(v_sat - v_rx) + drift_rx - c ddt_sat, weights from the elevation model of the rates."""
+    todo = []
+    for sol, sat, sat_vel, rate, sat_drift, los, rot in items:
+        if not sol.is_fix:
+            sol.vel_status, sol.vel_reason = "no_fix", "no position fix"
+            continue
+        ok = sol.used & np.isfinite(rate) & np.all(np.isfinite(sat_vel), axis=1)
+        if sat_drift is not None:
+            ok &= np.isfinite(sat_drift)
+        n_ok = int(ok.sum())
+        if n_ok < 4:
+            sol.vel_status = "no_fix"
+            sol.vel_reason = f"too few range rates: {n_ok} of the used satellites, need 4 (3 velocity + 1 drift)"
+            continue
+        if los is None:
+            d = sat - sol.pos_ecef_m
+            los = d / np.sqrt(np.einsum("ij,ij->i", d, d))[:, None]
+        # rate - e.v_sat + c ddt_sat = -e.v_rx + drift_rx
+        yv = rate - np.einsum("ij,ij->i", los, np.where(np.isfinite(sat_vel), sat_vel, 0.0))
+        if sat_drift is not None:
+            yv = yv + C_MPS * sat_drift
+        todo.append((sol, ok, los, np.where(ok, yv, 0.0), rot))
+    if todo:
+        _velocity_lsq(todo, cfg)
+
+
+def _velocity_lsq(todo, cfg) -> None:
+    """The velocity least squares of prepared epochs (_solve_velocities), stacked."""
+    k_n, n_max = len(todo), max(len(t[1]) for t in todo)
+    ok = np.zeros((k_n, n_max), dtype=bool)
+    h = np.zeros((k_n, n_max, 4))
+    yv = np.zeros((k_n, n_max))
+    el = np.full((k_n, n_max), 90.0)
+    for i, (sol, ok_i, los, y_i, _) in enumerate(todo):
+        n = len(ok_i)
+        ok[i, :n] = ok_i
+        h[i, :n, :3] = -np.where(ok_i[:, None], los, 0.0)
+        h[i, :n, 3] = 1.0
+        yv[i, :n] = y_i
+        el[i, :n] = np.where(ok_i, sol.el_deg, 90.0)
+    s = np.sin(np.radians(np.minimum(np.maximum(el, 1.0), 90.0)))
+    w = np.where(ok, 1.0 / (cfg.rate_sigma_a_mps**2 + cfg.rate_sigma_b_mps**2 / s**2), 0.0)
+    hw = h * w[..., None]
+    nmat = np.einsum("kni,knj->kij", hw, h)
     try:
-        cov = _spd_inverse(nmat)
-        xv = cov @ (hwt @ yv)
+        cov = _spd_inverses(nmat)
+        if not np.all(np.isfinite(cov)):
+            raise np.linalg.LinAlgError
     except np.linalg.LinAlgError:
-        sol.vel_status, sol.vel_reason = "no_fix", "singular geometry for the velocity"
+        if k_n > 1:                      # one of them is singular: each on its own
+            for t in todo:
+                _velocity_lsq([t], cfg)
+            return
+        todo[0][0].vel_status, todo[0][0].vel_reason = "no_fix", "singular geometry for the velocity"
         return
-    if rot is None:
-        rot = enu_rotation(sol.lat_deg, sol.lon_deg)
-    resid = np.full(sol.sv.size, np.nan)
-    resid[idx] = yv - h @ xv
-    sol.vel_ecef_mps = xv[:3]
-    sol.vel_enu_mps = rot @ xv[:3]
-    sol.clock_drift_mps = float(xv[3])
-    sol.clock_drift_sps = float(xv[3] / C_MPS)
-    sol.cov_vel_ecef_m2ps2 = cov[:3, :3]
-    sol.cov_vel_enu_m2ps2 = rot @ cov[:3, :3] @ rot.T
-    sol.vel_residuals_mps = resid
-    sol.vel_status, sol.vel_reason = "fix", ""
+    xv = np.einsum("kij,kj->ki", cov, np.einsum("kni,kn->ki", hw, yv))
+    resid = np.where(ok, yv - np.einsum("kni,ki->kn", h, xv), np.nan)
+    for i, (sol, ok_i, _, _, rot) in enumerate(todo):
+        if rot is None:
+            rot = enu_rotation(sol.lat_deg, sol.lon_deg)
+        c3 = cov[i, :3, :3]
+        sol.vel_ecef_mps = xv[i, :3]
+        sol.vel_enu_mps = rot @ xv[i, :3]
+        sol.clock_drift_mps = float(xv[i, 3])
+        sol.clock_drift_sps = float(xv[i, 3] / C_MPS)
+        sol.cov_vel_ecef_m2ps2 = c3
+        sol.cov_vel_enu_m2ps2 = rot @ c3 @ rot.T
+        sol.vel_residuals_mps = resid[i, :len(ok_i)]
+        sol.vel_status, sol.vel_reason = "fix", ""
 
 
 def solve_velocity(sol: PvtSolution, sat_pos_ecef_m, sat_vel_ecef_mps, range_rate_mps, sat_clock_drift_sps=None,

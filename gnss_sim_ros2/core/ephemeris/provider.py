@@ -1,8 +1,8 @@
 """Open the ephemeris source a configuration names: the one entry point that
 the ephemeris node, ``gnss-sim simulate`` and the benchmarks share.
 
-Sources: ``synthetic`` (nominal constellation written as a RINEX navigation
-file, read back through the broadcast path), ``broadcast`` (RINEX navigation
+Sources: ``synthetic`` (nominal constellation as broadcast records with a
+RINEX file's rounding, served by the broadcast path; no file read), ``broadcast`` (RINEX navigation
 files), ``sp3`` (precise orbits and clocks; with navigation files, their
 group delays and health on top), ``download`` (daily broadcast
 files from public IGS archives, cached).  Only the time span simulated is
@@ -30,8 +30,10 @@ def open_ephemeris(source: str, start: GnssTime, duration_s: float, systems: str
     files behind it (to copy next to the RINEX observations); for sp3 with
     navigation files the precise orbits carry the broadcast group delays
     (precise_broadcast.PreciseWithBroadcastGroupDelay), without them none (and
-    no navigation file to write).  ``check``: raise EphemerisCoverageError when nothing of ``systems`` is
-    served over the span, warn about gaps (coverage.check_coverage).
+    no navigation file to write); the synthetic source returns none either (its records never go
+    through text).  ``workdir``: a folder for files a source may need (none does today).
+    ``check``: raise EphemerisCoverageError when nothing of ``systems`` is served over the span, warn
+    about gaps (coverage.check_coverage).
     """
     provider, paths, files = _open(source, start, duration_s, systems, nav_files, sp3_files, clk_files, workdir,
                                    cache_dir)
@@ -47,14 +49,13 @@ def _open(source, start, duration_s, systems, nav_files, sp3_files, clk_files, w
     end = start + float(duration_s)
     lo, hi = start - LOAD_MARGIN_S, end + LOAD_MARGIN_S
     if source == "synthetic":
-        from .synthetic import write_synthetic_nav
+        from .sanity import drop_outliers
+        from .synthetic import SyntheticConstellation
 
-        workdir = Path(workdir) if workdir else Path.cwd()
-        workdir.mkdir(parents=True, exist_ok=True)
-        y, doy = start.to_datetime().year, start.to_datetime().timetuple().tm_yday
-        path = workdir / f"SYNTHETIC_{y:04d}{doy:03d}_MN.rnx"
-        write_synthetic_nav(path, start - 7200.0, float(duration_s) + 4 * 3600.0, systems=systems)
-        return BroadcastEphemeris.from_files([path], start=lo, end=hi), [path], [path]
+        # the records as the RINEX file would hold them, without writing and parsing it (synthetic.py)
+        syn = SyntheticConstellation(start - 7200.0, float(duration_s) + 4 * 3600.0, systems=systems)
+        nav = drop_outliers(syn.nav())
+        return BroadcastEphemeris(nav), [], list(nav.paths)
     if source == "broadcast":
         if not nav_files:
             raise ValueError("ephemeris source 'broadcast' needs nav_files (RINEX navigation files)")

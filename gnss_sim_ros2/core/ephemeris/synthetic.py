@@ -3,11 +3,13 @@
 For any date without a navigation file at hand: every satellite flies a
 nominal orbit of its system's published constellation design, and
 broadcast-like records (Keplerian elements; GLONASS state vectors) of that
-orbit are written with :func:`write_rinex3_nav` and read back through the
-normal path (``BroadcastEphemeris.from_files``).  Deterministic: no randomness.
+orbit are written with :func:`write_rinex3_nav` (or taken straight into the
+broadcast path with the file's rounding, :meth:`SyntheticConstellation.nav`,
+what ``open_ephemeris("synthetic", ...)`` does).  Deterministic: no randomness.
 
     path = write_synthetic_nav("synthetic.rnx", GnssTime.from_iso("2025-06-01T00:00:00"), 6 * 3600)
     eph = BroadcastEphemeris.from_files([path])
+    eph = BroadcastEphemeris(SyntheticConstellation(t0, 6 * 3600).nav())   # the same states, no text
 
 Nominal orbit model (Keplerian systems G, E, C, J, I): a Keplerian ellipse
 with constant a, e, i, omega, uniformly advancing mean anomaly (n = sqrt(GM/a^3),
@@ -461,6 +463,13 @@ class SyntheticConstellation:
 
     def write(self, path) -> Path:
         return write_rinex3_nav(path, self.records(), self.header())
+
+    def nav(self):
+        """The records as reading the file :meth:`write` writes gives them (rinex.nav_read.NavData), without
+        the text: the same values to the last bit (nav_read.nav_from_records)."""
+        from ..rinex.nav_read import nav_from_records
+
+        return nav_from_records(self.records(), self.header(), name=f"synthetic constellation {self.systems}")
 
 
 def _wrap(x: float) -> float:

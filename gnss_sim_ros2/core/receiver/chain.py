@@ -19,6 +19,7 @@ epochs, in both front ends, so that one configuration gives one answer.
 """
 from __future__ import annotations
 
+import copy
 import csv
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -31,7 +32,7 @@ from ..solver import PvtSolution, SolverConfig
 from ..time import GnssTime
 from ..vocabulary import VisibilityState
 from .engine import EpochObservations, Receiver, ReceiverConfig
-from .outputs import epoch_arrays, header, obs_types_for, position_fix, rinex_name, spp_rows
+from .outputs import epoch_arrays, header, obs_types_for, position_fix, position_fixes, rinex_name, spp_rows
 from .tracking import TrackingConfig
 
 
@@ -200,6 +201,7 @@ class ReceiverChain:
         self._writer = None
         self._fix_file = None
         self._fix_csv = None
+        self._rinex_pending = None
         self._nmea_file = None
         if settings.output_dir is not None:
             settings.output_dir.mkdir(parents=True, exist_ok=True)   # an unwritable folder fails the start
@@ -211,7 +213,7 @@ class ReceiverChain:
         self.close()
         self.rx = None
         self._header = None
-        self._smooth: dict = {}        # (sv, code) -> (smoothed code [m], phase [m], epochs in the window)
+        self._smooth = _SmoothingState()
         self.prior_ecef_m = None
         self._pos_prev = None
         self.epochs = 0
@@ -245,8 +247,43 @@ class ReceiverChain:
             self.rx = self._receiver(states)
         obs = self.rx.epoch(t, ecef, states, vis_state, attenuation_db, antenna_vel_ecef_mps=antenna_vel_ecef_mps,
                             multipath=multipath)
-        fix_obs = self._smoothed(obs) if self.settings.smoothing_s > 0 else obs
-        sol = position_fix(fix_obs, self.settings.receiver.profile, self.prior_ecef_m, self.settings.solver)
+        return self._products(t, ecef, states, obs)
+
+    def step_block(self, ts, antenna_ecef_m, states, epoch_of_row, vis_state=None, attenuation_db=None,
+                   multipath=None) -> list[EpochProducts]:
+        """K consecutive epochs at once (offline): :meth:`step` K times, with the observables of the block
+        computed together (Receiver.epochs).  ``ts``: K epoch tags; ``antenna_ecef_m``: (K, 3); ``states``:
+        the rows of all epochs, epoch by epoch, ``epoch_of_row`` the epoch of each; ``vis_state``,
+        ``attenuation_db``: per row or None; ``multipath``: K path sets (rows of their epoch) or None."""
+        ecef = np.asarray(antenna_ecef_m, dtype=float).reshape(len(ts), 3)
+        vel = []
+        for t, p in zip(ts, ecef):
+            v = None
+            if self._pos_prev is not None:
+                dt = float(t - self._pos_prev[0])
+                v = (p - self._pos_prev[1]) / dt if dt > 0 else None
+            vel.append(v)
+            self._pos_prev = (t, p)
+        if self.rx is None:
+            self.rx = self._receiver(states)
+        obs = self.rx.epochs(ts, ecef, states, epoch_of_row, vis_state, attenuation_db, vel, multipath)
+        # the fixes of the block in one solve, each started at the last fix before the block (the same
+        # solutions as starting at the previous epoch's, to the solver's convergence of 0.1 mm)
+        fix_obs = [self._smoothed(o) for o in obs] if self.settings.smoothing_s > 0 else obs
+        sols = position_fixes(fix_obs, self.settings.receiver.profile, self.prior_ecef_m, self.settings.solver)
+        self._rinex_pending = []          # the block's RINEX epochs, formatted and written together
+        try:
+            return [self._products(t, p, states, o, sol) for t, p, o, sol in zip(ts, ecef, obs, sols)]
+        finally:
+            pending, self._rinex_pending = self._rinex_pending, None
+            if pending:
+                self._writer.write_epochs([t for t, _ in pending], [a for _, a in pending])
+
+    def _products(self, t, ecef, states, obs, sol=None) -> EpochProducts:
+        """The fix (unless given), NMEA, files and RTCM of one epoch's observables."""
+        if sol is None:
+            fix_obs = self._smoothed(obs) if self.settings.smoothing_s > 0 else obs
+            sol = position_fix(fix_obs, self.settings.receiver.profile, self.prior_ecef_m, self.settings.solver)
         self.epochs += 1
         if sol.is_fix:
             self.fixes += 1
@@ -283,18 +320,18 @@ class ReceiverChain:
         # divergence, DO-229 2.1.4.1.1 note); what the model misses still diverges, as in a real receiver
         phase_m = np.asarray(obs.carrier_phase_cyc, dtype=float) * lam + 2.0 * np.asarray(obs.iono_model_m, float)
         pr = np.asarray(obs.pseudorange_m, dtype=float)
-        out = pr.copy()
-        prev, cur = self._smooth, {}
-        for j, key in enumerate(zip(obs.sv.tolist(), obs.code.tolist())):
-            old = prev.get(key)
-            if old is None or int(obs.lli[j]) & 1 or not np.isfinite(phase_m[j]):
-                cur[key] = (pr[j], phase_m[j], 1)
-                continue
-            m = min(old[2] + 1, n_max)
-            out[j] = pr[j] / m + (m - 1) / m * (old[0] + phase_m[j] - old[1])
-            cur[key] = (out[j], phase_m[j], m)
-        self._smooth = cur                 # a signal not tracked this epoch starts again
-        return replace(obs, pseudorange_m=out)
+        st = self._smooth
+        idx = st.slots(obs.sv, obs.code)
+        # the window goes on for a signal also tracked at the previous call, without a loss of lock;
+        # a signal not tracked at the previous epoch starts again
+        go_on = (st.last[idx] == st.calls - 1) & ((np.asarray(obs.lli, dtype=np.int64) & 1) == 0) & np.isfinite(phase_m)
+        m = np.where(go_on, np.minimum(st.count[idx] + 1, n_max), 1)
+        out = np.where(go_on, pr / m + (m - 1) / m * (st.code[idx] + phase_m - st.phase[idx]), pr)
+        st.code[idx], st.phase[idx], st.count[idx], st.last[idx] = out, phase_m, m, st.calls
+        st.calls += 1
+        smoothed = copy.copy(obs)          # dataclasses.replace, without its field-by-field __init__
+        smoothed.pseudorange_m = out
+        return smoothed
 
     # ------------------------------------------------------------------ files
     def _make_header(self, ecef, states):
@@ -364,7 +401,10 @@ class ReceiverChain:
         else:
             self._fix_csv.writerow([stamp, "", "", "", sol.n_used, "no_fix"])
         if arrays is not None:
-            self._writer.write_epoch(t, arrays)
+            if self._rinex_pending is not None:
+                self._rinex_pending.append((t, arrays))
+            else:
+                self._writer.write_epoch(t, arrays)
         if self._nmea_file is not None:
             self._nmea_file.write(nmea_text)
 
@@ -380,6 +420,42 @@ class ReceiverChain:
             if f is not None:
                 f.close()
         self._fix_file = self._fix_csv = self._nmea_file = None
+
+
+class _SmoothingState:
+    """Hatch filter state per signal (sv, code): smoothed code [m], phase [m], epochs in the window, and
+    the call that last saw it (ReceiverChain._smoothed)."""
+
+    def __init__(self):
+        self.index: dict = {}
+        self._cache: dict = {}
+        self.calls = 0
+        self._grow(64)
+
+    def _grow(self, cap):
+        def more(old, fill, dtype):
+            new = np.full(cap, fill, dtype=dtype)
+            if old is not None:
+                new[: len(old)] = old
+            return new
+
+        g = self.__dict__.get
+        self.code, self.phase = more(g("code"), np.nan, float), more(g("phase"), np.nan, float)
+        self.count, self.last = more(g("count"), 0, np.int64), more(g("last"), -2, np.int64)
+
+    def slots(self, sv, code) -> np.ndarray:
+        sv, code = np.asarray(sv), np.asarray(code)
+        key = (sv.dtype.str, code.dtype.str, sv.tobytes(), code.tobytes())
+        hit = self._cache.get(key)
+        if hit is None:
+            hit = np.array([self.index.setdefault(k, len(self.index)) for k in zip(sv.tolist(), code.tolist())],
+                           dtype=np.int64)
+            if len(self.index) > len(self.code):
+                self._grow(2 * len(self.index))
+            if len(self._cache) > 64:
+                self._cache.clear()
+            self._cache[key] = hit
+        return hit
 
 
 class _Discard:

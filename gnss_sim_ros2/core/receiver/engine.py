@@ -311,40 +311,86 @@ class Receiver:
 
         ``states``: satellites at ``t`` (rows); ``vis_state``/``attenuation_db``: per row
         (None: all visible); ``antenna_ecef_m``: (3,) antenna phase centre; ``multipath``: reflected paths
-        per row (multipath.reflections.ScenePaths of arrays (N, K)) or None.
+        per row (multipath.reflections.ScenePaths of arrays (N, K)) or None.  One epoch of :meth:`epochs`.
+        """
+        vel = None if antenna_vel_ecef_mps is None else [antenna_vel_ecef_mps]
+        return self.epochs([t], [antenna_ecef_m], states, np.zeros(len(states), dtype=np.int64), vis_state,
+                           attenuation_db, vel, [multipath])[0]
+
+    def epochs(self, ts, antenna_ecef_m, states: SatelliteStates, epoch_of_row, vis_state=None,
+               attenuation_db=None, antenna_vel_ecef_mps=None, multipath=None) -> list[EpochObservations]:
+        """Observables of K consecutive epochs at once (offline, where the inputs of a block are known).
+
+        ``ts``: K epoch tags (scalar GnssTime each, increasing); ``antenna_ecef_m``: (K, 3);
+        ``states``: the satellites of all K epochs, rows epoch by epoch, ``epoch_of_row`` (rows,) the
+        epoch of each row (non-decreasing); ``vis_state``/``attenuation_db``: per row or None;
+        ``antenna_vel_ecef_mps``: (K, 3) or None (zero), a None row is zero; ``multipath``: K reflected
+        path sets (each for the rows of its epoch) or None.
+
+        What has no memory -- light time, satellite clocks, atmosphere, world errors, C/N0 -- is computed
+        for every row of the block in one go; the receiver clock, the tracking loops and the noise
+        processes step epoch by epoch in order, drawing from their random streams exactly as
+        :meth:`epoch` called K times does, so the observables are the same.
         """
         cfg = self.cfg
-        rx = np.asarray(antenna_ecef_m, dtype=float)
-        rx_vel = np.zeros(3) if antenna_vel_ecef_mps is None else np.asarray(antenna_vel_ecef_mps, dtype=float)
-        # receiver clock
-        dt_s = 0.0 if self._t_prev is None else float(t - self._t_prev)
-        if dt_s > 0:
-            bias, drift, _ = self.clock.step(dt_s)
+        k_n = len(ts)
+        rx_ep = np.asarray(antenna_ecef_m, dtype=float).reshape(k_n, 3)
+        vel_ep = np.zeros((k_n, 3))
+        if antenna_vel_ecef_mps is not None:
+            for b, v in enumerate(antenna_vel_ecef_mps):
+                if v is not None:
+                    vel_ep[b] = v
+        # receiver clock, epoch by epoch (its own random stream)
+        bias_ep, drift_ep, dt_ep = np.empty(k_n), np.empty(k_n), np.empty(k_n)
+        for b, t in enumerate(ts):
+            dt_s = 0.0 if self._t_prev is None else float(t - self._t_prev)
+            if dt_s > 0:
+                bias_ep[b], drift_ep[b], _ = self.clock.step(dt_s)
+            else:
+                bias_ep[b], drift_ep[b] = self.clock.bias_s, self.clock.steered_drift_sps
+            dt_ep[b] = dt_s
+            self._t_prev = t
+        if k_n == 1:      # one epoch (a node)
+            t_true = ts[0] - bias_ep[0]
         else:
-            bias, drift = self.clock.bias_s, self.clock.steered_drift_sps
-        self._t_prev = t
-        t_true = t - bias
-        lat, lon, h = self._geodetic(rx)
+            t_true = GnssTime(np.array([np.asarray(t.sec) for t in ts], dtype=np.int64),
+                              np.array([np.asarray(t.frac) for t in ts], dtype=float)) - bias_ep
+        # the antenna's geodetic position epoch by epoch (cached while it stands still), then every row's
+        # geometry with the same array arithmetic whatever the block size: a block gives the epochs' values
+        lat_ep, lon_ep, h_ep = np.array([self._geodetic(p) for p in rx_ep], dtype=float).T
 
-        keep = self._keep_mask(np.asarray(states.sv)).copy()
+        e_all = np.asarray(epoch_of_row, dtype=np.int64)
         n_all = len(states)
         vis = np.zeros(n_all, dtype=np.int64) if vis_state is None else np.asarray(vis_state, dtype=np.int64)
         att = np.zeros(n_all) if attenuation_db is None else np.asarray(attenuation_db, dtype=float)
-        az, el, _ = az_el_at(rx, lat, lon, states.pos_ecef_m)
-        keep &= el > 0.0
-        st = states.select(keep)
-        az, el, vis, att = az[keep], el[keep], vis[keep], att[keep]
-        paths = multipath.take(keep) if multipath is not None and multipath.valid.any() else None
-        svs = np.asarray(st.sv)
-        n = len(svs)
+        az, el, _ = az_el_at(rx_ep[e_all], lat_ep[e_all], lon_ep[e_all], states.pos_ecef_m)
+        keep = self._keep_mask(np.asarray(states.sv)) & (el > 0.0)
+        seg_all = np.searchsorted(e_all, np.arange(k_n + 1))
+        kidx = np.flatnonzero(keep)
+        st = states.select(kidx)
+        az, el, vis, att, e_sat = az[kidx], el[kidx], vis[kidx], att[kidx], e_all[kidx]
+        svs, glo = np.asarray(st.sv), np.asarray(st.glo_channel)
+        seg = np.searchsorted(e_sat, np.arange(k_n + 1))
+
+        # signal rows of every epoch (cached per satellite set), stacked
+        parts = [self._rows_of(svs[seg[b]:seg[b + 1]], glo[seg[b]:seg[b + 1]]) for b in range(k_n)]
+        rows = parts[0] if k_n == 1 else _SignalRows.stack(parts, seg[:-1])
+        sat_i, codes, freq, chip, systems = rows.signal_rows
+        m_ep = np.array([len(p.signal_rows[0]) for p in parts], dtype=np.int64)
+        sig_seg = np.concatenate([[0], np.cumsum(m_ep)])
+        m = len(sat_i)
+        out = []
+        if m == 0:
+            for b in range(k_n):
+                s = slice(seg[b], seg[b + 1])
+                out.append(self._empty(ts[b], bias_ep[b], drift_ep[b], svs[s], az[s], el[s], vis[s], att[s]))
+            return out
+        e_sig = e_sat[sat_i]
+        bias_sat = bias_ep[0] if k_n == 1 else bias_ep[e_sat]
+        t_true_sat = t_true if k_n == 1 else t_true[e_sat]
 
         # geometry at the transmit time, seen at the true reception time
-        rows = self._rows_of(svs, np.asarray(st.glo_channel))
-        sat_i, codes, freq, chip, systems = rows.signal_rows
-        m = len(sat_i)
-        if n == 0 or m == 0:
-            return self._empty(t, bias, drift, svs, az, el, vis, att)
-        sol = self._light_time(rx, rx_vel, t_true, bias, st, rows.omega)
+        sol = self._light_time(rx_ep[e_sat], vel_ep[e_sat], t_true_sat, bias_sat, st, rows.omega)
         lam = rows.lam
         rho = sol.range_m[sat_i]
         rho_dot = sol.range_rate_mps[sat_i]
@@ -352,96 +398,129 @@ class Receiver:
 
         # satellite clock at transmit time (SP3 convention polynomial + relativistic - group delay)
         tau = sol.tau_s
-        clk_poly = st.clock_bias_s - st.clock_drift_sps * (bias + tau)
+        clk_poly = st.clock_bias_s - st.clock_drift_sps * (bias_sat + tau)
         rel = -2.0 * np.einsum("ij,ij->i", sol.sat_pos_ecef_m, sol.sat_vel_ecef_mps) / k.C_MPS**2
         dts = (clk_poly + rel)[sat_i] - rows.gd_factor * st.tgd_s[sat_i]
         ddts = st.clock_drift_sps[sat_i]
 
         # atmosphere (per satellite; the ionosphere scaled to each signal's frequency)
+        lat, lon, h = lat_ep[e_sat], lon_ep[e_sat], h_ep[e_sat]
         if self.iono_truth != "none":
-            l1_delay = prop.klobuchar_l1_delay_s(t_true, lat, lon, az, el, self.iono_alpha, self.iono_beta)
+            l1_delay = prop.klobuchar_l1_delay_s(t_true_sat, lat, lon, az, el, self.iono_alpha, self.iono_beta)
             iono_model = prop.iono_code_delay_m(l1_delay[sat_i], freq)
             if self._nequick is not None:
-                l1_true = self._nequick.l1_delay_s(t_true.to_datetime("UTC"), lat, lon, az, el)
+                l1_true = np.empty(len(svs))
+                for b in range(k_n):
+                    s = slice(seg[b], seg[b + 1])
+                    t_b = t_true if k_n == 1 else t_true[b]
+                    l1_true[s] = self._nequick.l1_delay_s(t_b.to_datetime("UTC"), lat_ep[b], lon_ep[b], az[s], el[s])
                 iono_base = prop.iono_code_delay_m(l1_true[sat_i], freq)
             else:
                 iono_base = iono_model
         else:
             iono_model = iono_base = np.zeros(m)
         if cfg.troposphere == "saastamoinen":
-            tropo = prop.tropo_slant_delay_m(np.maximum(el, 1.0), lat, h, self._day_of_year(t))[sat_i]
+            doy = np.array([self._day_of_year(t) for t in ts])
+            tropo = prop.tropo_slant_delay_m(np.maximum(el, 1.0), lat, h, doy[0] if k_n == 1 else doy[e_sat])[sat_i]
         else:
             tropo = np.zeros(m)
         frac = cfg.iono_error_frac.get(self.iono_truth, 0.0)
         if cfg.noise and frac != 0:
             if self._iono_terms is None:
                 self._iono_terms = self._stacked_terms([("iono",)])
-            g_iono = self._world_process_terms(t_true, self._iono_terms)[0]
-            iono_true = iono_base * (1.0 + frac * g_iono)
+            g_iono = self._world_process_terms(t_true, self._iono_terms)
+            iono_true = iono_base * (1.0 + frac * (g_iono[0] if k_n == 1 else g_iono[e_sig]))
         else:
             iono_true = iono_base
 
-        # signal strength and tracking
+        # signal strength; tracking and the noise processes epoch by epoch, in order
         cn0 = cn0_model.cn0_dbhz_from_params(rows.p_min, rows.el_min, rho, el_j, att[sat_i], budget=cfg.link_budget)
-        if cfg.noise and cfg.cn0_noise_db > 0:
-            cn0_meas = cn0 + cfg.cn0_noise_db * self.rng_noise.standard_normal(m)
-        else:
-            cn0_meas = cn0
         vis_j = vis[sat_i]
-        mp_err = None
-        if paths is not None:
-            mp_err = self._scene_multipath(paths, sat_i, vis_j, att[sat_i], el_j, chip, lam)
-            if mp_err is not None:
-                rows_mp, err = mp_err
-                # composite amplitude relative to the unobstructed line of sight replaces the obstruction loss
-                delta = cn0_meas - cn0                     # the C/N0 estimate's noise, drawn above
-                cn0 = cn0.copy()
-                cn0[rows_mp] += att[sat_i][rows_mp] + 20.0 * np.log10(np.maximum(err.amplitude, 1e-6))
-                cn0_meas = cn0 + delta
+        att_j = att[sat_i]
         line_ok = (vis_j == VISIBLE) | (vis_j == ATTENUATED)
-        if mp_err is not None:
-            # no line of sight, a reflected path: tracked if strong enough (thresholds with hysteresis, tracking.py);
-            # REFLECTED_ONLY without the paths (a caller that has only the state) stays untracked
-            nlos_rows = mp_err[0][mp_err[1].nlos]
-            line_ok[nlos_rows] |= vis_j[nlos_rows] == REFLECTED_ONLY
-        line_ok &= el_j >= cfg.elevation_mask_deg
+        above = el_j >= cfg.elevation_mask_deg
         sv_j = rows.sv_j
-        trk = self.tracker.update(t, sv_j, codes, cn0, visible=line_ok)
+        draw_cn0 = cfg.noise and cfg.cn0_noise_db > 0
+        z_cn0 = np.zeros(m)
+        r = np.zeros((3, m))
+        mp_x = np.zeros(m)
+        mp_code, mp_phase = np.zeros(m), np.zeros(m)
+        tracked = np.zeros(m, dtype=bool)
+        lli = np.zeros(m, dtype=np.int8)
+        lock = np.zeros(m)
+        amb = np.zeros(m, dtype=np.int64)
+        empty = np.zeros(k_n, dtype=bool)
+        for b in range(k_n):
+            j0, j1 = sig_seg[b], sig_seg[b + 1]
+            if j0 == j1 or seg[b] == seg[b + 1]:
+                empty[b] = True
+                self.tracker.update(ts[b], np.zeros(0, dtype="<U3"), np.zeros(0, dtype="<U2"), np.zeros(0))
+                continue
+            s = slice(j0, j1)
+            mb = j1 - j0
+            if draw_cn0:
+                z_cn0[s] = self.rng_noise.standard_normal(mb)
+            ok = line_ok[s]
+            paths = None if multipath is None else multipath[b]
+            if paths is not None and paths.valid.any():
+                paths = paths.take(keep[seg_all[b]:seg_all[b + 1]])
+                loc = sat_i[s] - seg[b]
+                mp_err = self._scene_multipath(paths, loc, vis_j[s], att_j[s], el_j[s], chip[s], lam[s])
+                if mp_err is not None:
+                    rows_mp, err = mp_err
+                    # composite amplitude relative to the unobstructed line of sight replaces the obstruction loss
+                    cn0[j0 + rows_mp] += att_j[j0 + rows_mp] + 20.0 * np.log10(np.maximum(err.amplitude, 1e-6))
+                    mp_code[j0 + rows_mp] = err.code_m
+                    mp_phase[j0 + rows_mp] = err.phase_m
+                    # no line of sight, a reflected path: tracked if strong enough (thresholds with hysteresis,
+                    # tracking.py); REFLECTED_ONLY without the paths (a caller with only the state) stays untracked
+                    nlos_rows = rows_mp[err.nlos]
+                    ok = ok.copy()
+                    ok[nlos_rows] |= vis_j[j0 + nlos_rows] == REFLECTED_ONLY
+            trk = self.tracker.update(ts[b], sv_j[s], codes[s], cn0[s], visible=ok & above[s])
+            tracked[s], lli[s], lock[s], amb[s] = trk.tracked, trk.lli, trk.lock_time_s, trk.ambiguity_cyc
+            if cfg.noise:
+                r[:, s] = self.rng_noise.standard_normal((3, mb))
+                mp_x[s] = self._multipath_state(rows.mp_idx[s], dt_ep[b])
 
         # noise
+        cn0_meas = cn0 + cfg.cn0_noise_db * z_cn0 if draw_cn0 else cn0
         if cfg.noise:
             code_sig = noise_model.dll_sigma_m(cn0, chip, cfg.dll_bn_hz, cfg.dll_spacing_chips)
             ph_sig = noise_model.pll_sigma_m(cn0, lam)
             dop_sig = noise_model.doppler_sigma_hz(cn0)
-            r = self.rng_noise.standard_normal((3, m))
             e_p, e_l, e_d = code_sig * r[0], ph_sig * r[1], dop_sig * r[2]
-            mp = self._multipath_rows(rows.mp_idx, el_j, dt_s)
+            mp = self._multipath_sigma(el_j) * mp_x
         else:
             e_p = e_l = e_d = mp = np.zeros(m)
 
-        common = rho + k.C_MPS * (bias - dts) + tropo
+        bias_j = bias_ep[0] if k_n == 1 else bias_ep[e_sig]
+        common = rho + k.C_MPS * (bias_j - dts) + tropo
         if cfg.noise:
-            common = common + (rows.sisre_sigma * self._world_process_terms(t_true, rows.sisre_terms))[sat_i]
-        pr = common + iono_true + rows.code_bias_m + mp + e_p
-        phase_m = common - iono_true + e_l
-        if mp_err is not None:
-            rows_mp, err = mp_err
-            pr[rows_mp] += err.code_m
-            phase_m[rows_mp] += err.phase_m
-        phase = phase_m / lam + trk.ambiguity_cyc
-        dop = -(rho_dot + k.C_MPS * (drift - ddts)) / lam + e_d
+            common = common + (rows.sisre_sigma * self._world_process_terms(t_true_sat, rows.sisre_terms))[sat_i]
+        pr = common + iono_true + rows.code_bias_m + mp + e_p + mp_code
+        phase_m = common - iono_true + e_l + mp_phase
+        phase = phase_m / lam + amb
+        drift_j = drift_ep[0] if k_n == 1 else drift_ep[e_sig]
+        dop = -(rho_dot + k.C_MPS * (drift_j - ddts)) / lam + e_d
 
-        tr = trk.tracked
-        sat_tr = sat_i[tr]
-        return EpochObservations(
-            t=t, clock_bias_s=bias, clock_drift_sps=drift,
-            sat_sv=svs, sat_az_deg=az, sat_el_deg=el, sat_vis_state=vis, sat_attenuation_db=att,
-            sv=sv_j[tr], code=codes[tr], frequency_hz=freq[tr], pseudorange_m=pr[tr], carrier_phase_cyc=phase[tr],
-            doppler_hz=dop[tr], cn0_dbhz=cn0_meas[tr], lli=trk.lli[tr], lock_time_s=trk.lock_time_s[tr],
-            sat_pos_ecef_m=sol.sat_pos_ecef_m[sat_tr], sat_vel_ecef_mps=sol.sat_vel_ecef_mps[sat_tr],
-            sat_clock_s=dts[tr], sat_clock_drift_sps=ddts[tr], iono_model_m=iono_model[tr],
-            tropo_model_m=tropo[tr], el_deg=el_j[tr], true_range_m=rho[tr],
-        )
+        for b in range(k_n):
+            s = slice(seg[b], seg[b + 1])
+            if empty[b]:
+                out.append(self._observation(ts[b], bias_ep[b], drift_ep[b], svs[s], az[s], el[s], vis[s], att[s]))
+                continue
+            sel = sig_seg[b] + np.flatnonzero(tracked[sig_seg[b]:sig_seg[b + 1]])
+            sat_tr = sat_i[sel]
+            out.append(EpochObservations(
+                t=ts[b], clock_bias_s=bias_ep[b], clock_drift_sps=drift_ep[b],
+                sat_sv=svs[s], sat_az_deg=az[s], sat_el_deg=el[s], sat_vis_state=vis[s], sat_attenuation_db=att[s],
+                sv=sv_j[sel], code=codes[sel], frequency_hz=freq[sel], pseudorange_m=pr[sel],
+                carrier_phase_cyc=phase[sel], doppler_hz=dop[sel], cn0_dbhz=cn0_meas[sel], lli=lli[sel],
+                lock_time_s=lock[sel], sat_pos_ecef_m=sol.sat_pos_ecef_m[sat_tr],
+                sat_vel_ecef_mps=sol.sat_vel_ecef_mps[sat_tr], sat_clock_s=dts[sel], sat_clock_drift_sps=ddts[sel],
+                iono_model_m=iono_model[sel], tropo_model_m=tropo[sel], el_deg=el_j[sel], true_range_m=rho[sel],
+            ))
+        return out
 
     def _scene_multipath(self, paths, sat_i, vis_j, att_j, el_j, chip, lam):
         """(signal rows with reflected paths, multipath.composite.CompositeErrors) or None (none this epoch)."""
@@ -479,7 +558,10 @@ class Receiver:
 
     # ------------------------------------------------------------------
     def _light_time(self, rx, rx_vel, t_true, bias, st, omega):
+        """Light-time solution of the rows of ``st``; ``rx``, ``rx_vel``: (3,) or per row (N, 3); ``t_true``,
+        ``bias``: scalar or per row."""
         cfg = self.cfg
+        bias = np.asarray(bias, dtype=float)[..., None]
         # the satellites' states at the epoch tag moved back to the true reception time (second order)
         pos = st.pos_ecef_m - st.vel_ecef_mps * bias + 0.5 * st.acc_ecef_mps2 * bias**2
         if cfg.transmit_time == "recompute" and self.provider is not None:
@@ -520,14 +602,15 @@ class Receiver:
 
     def _world_process_terms(self, t: GnssTime, terms) -> np.ndarray:
         """Smooth zero-mean unit-variance processes of GPS time, one per row of ``terms`` (_stacked_terms),
-        from ``world_seed`` only.
+        from ``world_seed`` only; ``t`` scalar (every row at t) or (K,) (row k at t[k]; ``terms`` of one row
+        serve every t).
 
         x(t) = sqrt(2/K) sum_k sin(2 pi t / P_k + phi_k), K = 6 terms, integer periods
         P_k log-uniform in the key's band, phases uniform: the same values at any
         epoch rate and for every receiver with the same ``world_seed``.
         """
-        sec = int(np.asarray(t.sec))
-        frac = float(np.asarray(t.frac))
+        sec = np.asarray(t.sec, dtype=np.int64)[..., None]      # t scalar: (1,); t (K,): (K, 1), one per row
+        frac = np.asarray(t.frac, dtype=np.float64)[..., None]
         per, pha = terms
         arg = 2.0 * np.pi * ((sec % per) + frac) / per + pha
         return np.sqrt(2.0 / WORLD_TERMS) * np.sin(arg).sum(axis=-1)
@@ -547,19 +630,30 @@ class Receiver:
         return self._multipath_rows(idx, el_j, dt_s)
 
     def _multipath_rows(self, idx, el_j, dt_s):
+        return self._multipath_sigma(el_j) * self._multipath_state(idx, dt_s)
+
+    def _multipath_sigma(self, el_j):
         cfg = self.cfg
-        sigma = cfg.mp_zenith_m + cfg.mp_low_m * np.exp(-np.maximum(el_j, 0.0) / 15.0)
-        phi = np.exp(-dt_s / cfg.mp_tau_s) if dt_s > 0 else 0.0
+        return cfg.mp_zenith_m + cfg.mp_low_m * np.exp(-np.maximum(el_j, 0.0) / 15.0)
+
+    def _multipath_state(self, idx, dt_s):
+        """Unit-variance Gauss-Markov states of the slots ``idx`` advanced by ``dt_s`` (one draw each)."""
+        phi = np.exp(-dt_s / self.cfg.mp_tau_s) if dt_s > 0 else 0.0
         w = self._mp_rng.standard_normal(len(idx))
         prev = self._mp_x[idx]
         x = np.where(np.isnan(prev), w, phi * prev + np.sqrt(1 - phi * phi) * w)
         self._mp_x[idx] = x
-        return sigma * x
+        return x
 
     def _empty(self, t, bias, drift, svs, az, el, vis, att):
-        z = np.zeros(0)
         # nothing observed this epoch: every track the tracker holds loses lock
-        self.tracker.update(t, np.zeros(0, dtype="<U3"), np.zeros(0, dtype="<U2"), z)
+        self.tracker.update(t, np.zeros(0, dtype="<U3"), np.zeros(0, dtype="<U2"), np.zeros(0))
+        return self._observation(t, bias, drift, svs, az, el, vis, att)
+
+    @staticmethod
+    def _observation(t, bias, drift, svs, az, el, vis, att):
+        """An epoch without any signal tracked (satellites above the horizon listed)."""
+        z = np.zeros(0)
         return EpochObservations(t, bias, drift, svs, az, el, vis, att, np.zeros(0, "<U3"), np.zeros(0, "<U2"),
                                  z, z, z, z, z, np.zeros(0, np.int8), z, np.zeros((0, 3)), np.zeros((0, 3)), z, z, z,
                                  z, z, z)
@@ -596,6 +690,22 @@ class _SignalRows:
     sisre_sigma: np.ndarray
     sisre_terms: tuple | None
     mp_idx: np.ndarray
+
+    @staticmethod
+    def stack(parts: list, sat_offset) -> _SignalRows:
+        """The rows of several epochs one after another; ``sat_offset``: the first satellite row of each
+        epoch in the stacked states (signal_rows[0] then indexes those)."""
+        out = _SignalRows()
+        cols = list(zip(*(p.signal_rows for p in parts)))
+        out.signal_rows = (np.concatenate([c + o for c, o in zip(cols[0], sat_offset)]),
+                           *(np.concatenate(c) for c in cols[1:]))
+        for name in ("lam", "gd_factor", "p_min", "el_min", "omega", "sv_j", "code_bias_m", "sisre_sigma",
+                     "mp_idx"):
+            setattr(out, name, np.concatenate([getattr(p, name) for p in parts]))
+        terms = [p.sisre_terms for p in parts if p.sisre_terms is not None]
+        out.sisre_terms = (np.concatenate([x[0] for x in terms]), np.concatenate([x[1] for x in terms])) \
+            if terms else None
+        return out
 
 
 def _array_key(a) -> tuple:

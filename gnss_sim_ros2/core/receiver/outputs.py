@@ -11,7 +11,7 @@ import numpy as np
 
 from .. import constants as k
 from ..rinex.obs_write import EpochArrays, RinexObsHeader, ssi_from_cn0
-from ..solver import PvtSolution, SolverConfig, solve_pvt
+from ..solver import PvtSolution, SolverConfig, solve_pvt_many
 from ..time import GnssTime
 from .engine import EpochObservations
 
@@ -26,36 +26,54 @@ def obs_types_for(profile: dict[str, list[str]], systems: str) -> dict[str, list
 
 def epoch_arrays(obs: EpochObservations, obs_types: dict[str, list[str]]) -> EpochArrays:
     """One RINEX epoch (rows = satellites with a tracked signal) from the receiver's observables."""
-    sv_list = obs.sv.tolist()
-    svs = list(dict.fromkeys(sv_list))
-    row = {sv: i for i, sv in enumerate(svs)}
-    width = max((len(v) for v in obs_types.values()), default=0)
+    svs, rows, cols, width, codes = _layout(obs.sv, obs.code, obs_types)
     value = np.full((len(svs), width), np.nan)
     lli = np.full((len(svs), width), -1, dtype=np.int64)
     ssi = np.full((len(svs), width), -1, dtype=np.int64)
-    cols_of = _columns_of(obs_types)
-    m = len(sv_list)
-    if m:
-        no_cols = (-1,) * len(OBS_KINDS)
-        cols = np.array([cols_of.get((sv[0], code), no_cols) for sv, code in zip(sv_list, obs.code.tolist())],
-                        dtype=np.int64).reshape(m, len(OBS_KINDS))
-        rows = np.array([row[sv] for sv in sv_list], dtype=np.int64)
+    if len(rows):
         ssi_j = ssi_from_cn0(obs.cn0_dbhz)
-        for kind, v in zip(OBS_KINDS, (obs.pseudorange_m, obs.carrier_phase_cyc, obs.doppler_hz, obs.cn0_dbhz)):
-            c = cols[:, OBS_KINDS.index(kind)]
-            ok = c >= 0
-            r, c = rows[ok], c[ok]
+        for kind, v, (ok, r, c) in zip(OBS_KINDS, (obs.pseudorange_m, obs.carrier_phase_cyc, obs.doppler_hz,
+                                                   obs.cn0_dbhz), cols):
             value[r, c] = np.asarray(v)[ok]
             if kind in "CL":
                 ssi[r, c] = ssi_j[ok]
             if kind == "L":
                 lli[r, c] = np.asarray(obs.lli)[ok].astype(np.int64)
-    # shorter systems' code lists padded to the common width with names not in the header (never filled)
-    codes = {s: list(v) + [f"X{i}Z" for i in range(width - len(v))] for s, v in obs_types.items()}
-    return EpochArrays(sv=svs, codes=codes, value=value, lli=lli, ssi=ssi)
+    return EpochArrays(sv=list(svs), codes=codes, value=value, lli=lli, ssi=ssi)
 
 
 _COLUMNS_CACHE: dict = {}
+_LAYOUT_CACHE: dict = {}
+
+
+def _layout(sv, code, obs_types):
+    """(satellites in order of appearance, row of each signal, per kind C/L/D/S (signals with a column,
+    their rows, their columns), width, codes per system padded to the width) of one epoch's signals;
+    cached (the tracked set changes rarely)."""
+    sv, code = np.asarray(sv), np.asarray(code)
+    key = (sv.dtype.str, sv.tobytes(), code.dtype.str, code.tobytes(),
+           tuple((s, tuple(c)) for s, c in obs_types.items()))
+    hit = _LAYOUT_CACHE.get(key)
+    if hit is None:
+        sv_list = sv.tolist()
+        svs = tuple(dict.fromkeys(sv_list))
+        row = {s: i for i, s in enumerate(svs)}
+        width = max((len(v) for v in obs_types.values()), default=0)
+        cols_of = _columns_of(obs_types)
+        no_cols = (-1,) * len(OBS_KINDS)
+        m = len(sv_list)
+        cols = np.array([cols_of.get((s[0], c), no_cols) for s, c in zip(sv_list, code.tolist())],
+                        dtype=np.int64).reshape(m, len(OBS_KINDS))
+        rows = np.array([row[s] for s in sv_list], dtype=np.int64)
+        # per kind: the signals with a column, their rows and columns
+        cols = [(c >= 0, rows[c >= 0], c[c >= 0]) for c in cols.T]
+        # shorter systems' code lists padded to the common width with names not in the header (never filled)
+        codes = {s: list(v) + [f"X{i}Z" for i in range(width - len(v))] for s, v in obs_types.items()}
+        hit = (svs, rows, cols, width, codes)
+        if len(_LAYOUT_CACHE) > 256:
+            _LAYOUT_CACHE.clear()
+        _LAYOUT_CACHE[key] = hit
+    return hit
 
 
 def _columns_of(obs_types: dict[str, list[str]]) -> dict:
@@ -128,15 +146,25 @@ def position_fix(obs: EpochObservations, profile: dict[str, list[str]], prior_ec
                  config: SolverConfig | None = None) -> PvtSolution:
     """Single point position and velocity from the observables, as a receiver computes it:
     broadcast satellite clock (with group delay), broadcast ionosphere, troposphere model."""
+    return position_fixes([obs], profile, prior_ecef_m, config)[0]
+
+
+def position_fixes(obs_list, profile: dict[str, list[str]], prior_ecef_m=None,
+                   config: SolverConfig | None = None) -> list[PvtSolution]:
+    """:func:`position_fix` of several epochs in one solve (solver.solve_pvt_many), each started at
+    ``prior_ecef_m``."""
+    return solve_pvt_many([_fix_inputs(obs, profile, prior_ecef_m) for obs in obs_list], config)
+
+
+def _fix_inputs(obs: EpochObservations, profile, prior_ecef_m) -> dict:
     rows = spp_rows(obs, profile)
     lam = k.C_MPS / obs.frequency_hz[rows]
-    return solve_pvt(
-        obs.sv[rows], obs.sat_pos_ecef_m[rows], obs.pseudorange_m[rows],
+    return dict(
+        sv=obs.sv[rows], sat_pos_ecef_m=obs.sat_pos_ecef_m[rows], pseudorange_m=obs.pseudorange_m[rows],
         sat_clock_bias_s=obs.sat_clock_s[rows], iono_delay_m=obs.iono_model_m[rows],
         tropo_delay_m=obs.tropo_model_m[rows], cn0_dbhz=obs.cn0_dbhz[rows], prior_ecef_m=prior_ecef_m,
         sat_vel_ecef_mps=obs.sat_vel_ecef_mps[rows], range_rate_mps=-obs.doppler_hz[rows] * lam,
-        sat_clock_drift_sps=obs.sat_clock_drift_sps[rows], config=config,
-    )
+        sat_clock_drift_sps=obs.sat_clock_drift_sps[rows])
 
 
 def write_navigation(path: Path, provider, systems: str) -> Path | None:

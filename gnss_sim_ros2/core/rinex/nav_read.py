@@ -347,6 +347,53 @@ def parse_nav_text(text: str, name: str = "<text>", start: GnssTime | None = Non
     return nav
 
 
+def nav_from_records(records_by_system: dict, header: dict | None = None, name: str = "<records>") -> NavData:
+    """The NavData that reading the file ``write_rinex3_nav(path, records_by_system, header)`` gives,
+    without writing or parsing text: every value rounded to the file's D19.12 (GLONASS in km, as written
+    and read back), the epochs to the second, the ionospheric coefficients to D12.4, so the satellite
+    states equal those of the round trip.  ``name`` stands for the file in messages."""
+    from .nav_write import GLONASS_KM_FIELDS, d12, d19, iono_from_header, record_values
+
+    header = dict(header or {})
+    iono = {kind: [float(d12(v)) for v in vals] for kind, vals in iono_from_header(header).items()}
+    leap = header.get("LEAP SECONDS")
+    nav = NavData(iono=iono, leap_seconds=None if leap is None else int(leap), versions=[3.04], paths=[name])
+    for sysid in SUPPORTED_SYSTEMS:
+        recs = records_by_system.get(sysid) or []
+        groups: dict[str, dict] = {}
+        file_fields = _file_fields(sysid)
+        for k, rec in enumerate(recs):
+            sv, t, vals = record_values(sysid, rec, f"{name} record {k}")
+            vals = [float(d19(v)) * (1000.0 if sysid == "R" and f in GLONASS_KM_FIELDS else 1.0)
+                    for f, v in zip(file_fields, vals)]
+            row = dict(zip(file_fields, vals))
+            nav_type = _nav_type(sysid, sv, int(row.get("DataSrc", 0)))
+            epoch = np.datetime64(t, "s")
+            groups.setdefault(nav_type, {})[(sv, epoch)] = row    # the last of a repeated record wins
+            nav.origin[(sv, nav_type, epoch_key(epoch))] = f"{name}:{sv}"
+        for nav_type, rows in sorted(groups.items()):
+            fields = GEORINEX_FIELDS[sysid]
+            raw = np.array([[row.get(f, 0.0) for f in fields] for row in rows.values()], dtype=np.float64)
+            sv = np.array([key[0] for key in rows], dtype="U3")
+            epoch = np.array([key[1] for key in rows], dtype="datetime64[s]")
+            tab = _table(sysid, nav_type, sv, epoch, raw, fields, name, nav)
+            if len(tab):
+                nav.tables[sysid] = SystemTable.concatenate([nav.tables[sysid], tab]) if sysid in nav.tables else tab
+    for sysid, tab in list(nav.tables.items()):
+        if sysid in KEPLER_SYSTEMS:
+            _fix_semicircles(tab, name, nav)
+        nav.tables[sysid] = _dedupe(tab)
+    return nav
+
+
+def _file_fields(sysid: str) -> list[str]:
+    """The georinex names of the fields of a record in file order (nav_write.FIELDS, spares as written)."""
+    from .nav_write import FIELDS
+
+    spares = iter(f for f in GEORINEX_FIELDS[sysid] if f.startswith("spare"))
+    return [next(spares) if f.startswith("spare") else f for f in FIELDS[sysid]]
+
+
 def epoch_key(epoch) -> str:
     """A record epoch (datetime or datetime64) as 'YYYY-MM-DD HH:MM:SS' (dictionary key)."""
     return str(np.datetime64(epoch, "s")).replace("T", " ")
@@ -393,12 +440,20 @@ def _epoch3(line: str):
 
 
 def _nav_type_from_body(sysid: str, sv: str, body: list[str]) -> str:
+    src = 0
     if sysid == "E":
         try:
             src = int(_parse_float(body[5][4 + 19: 4 + 38]))
         except (ValueError, IndexError):
             src = 0
-        if src & 2 and not src & 5:
+    return _nav_type(sysid, sv, src)
+
+
+def _nav_type(sysid: str, sv: str, data_src: int = 0) -> str:
+    """The message type of a record: Galileo I/NAV or F/NAV by its data source bits (RINEX 3.04 A8),
+    BeiDou D2 (GEO) or D1, GLONASS FDMA, LNAV otherwise."""
+    if sysid == "E":
+        if data_src & 2 and not data_src & 5:
             return "FNAV"
         return "INAV"
     if sysid == "C":
@@ -589,7 +644,12 @@ def _dataset_to_table(ds, sysid, nav_type, name, nav: NavData) -> SystemTable | 
         return None
     raw = np.stack([ds[f].values[ti, si] for f in fields], axis=1).astype(np.float64)
     sv = np.array([str(s)[:3] for s in svs[si]])
-    epoch = times[ti]
+    return _table(sysid, nav_type, sv, times[ti], raw, fields, name, nav)
+
+
+def _table(sysid, nav_type, sv, epoch, raw, fields, name, nav: NavData) -> SystemTable:
+    """The SystemTable of records (sv, epoch as written, georinex values ``raw`` (n, fields)); records that
+    cannot be orbits are dropped (nav.drop)."""
     if sysid == "R":
         rec, why = _glonass_table(sv, epoch, raw, fields, name)
     else:

@@ -76,7 +76,8 @@ FIELDS: dict[str, list[str]] = {
           "Z", "dZ", "dZ2", "AgeOpInfo"],
 }
 _ALIASES = {("I", "BDTWeek"): ("IRNWeek",)}
-_GLO_KM = {"X", "dX", "dX2", "Y", "dY", "dY2", "Z", "dZ", "dZ2"}
+#: GLONASS fields RINEX writes in km (georinex gives them in m)
+GLONASS_KM_FIELDS = {"X", "dX", "dX2", "Y", "dY", "dY2", "Z", "dZ", "dZ2"}
 _SYSTEM_NAMES = {"G": "GPS", "R": "GLONASS", "E": "GALILEO", "C": "BEIDOU", "J": "QZSS", "I": "IRNSS", "M": "MIXED"}
 _IONO_ORDER = ("GAL", "GPSA", "GPSB", "QZSA", "QZSB", "BDSA", "BDSB", "IRNA", "IRNB")
 _IONO_ATTRS = {"GPS": ("GPSA", "GPSB"), "QZS": ("QZSA", "QZSB"), "BDS": ("BDSA", "BDSB"), "IRN": ("IRNA", "IRNB")}
@@ -118,7 +119,7 @@ def _as_datetime(t, where: str) -> _dt.datetime:
     raise ValueError(f"{where}: 'time' must be a datetime or numpy datetime64, got {type(t).__name__}")
 
 
-def _iono_from_header(header: Mapping) -> dict[str, list[float]]:
+def iono_from_header(header: Mapping) -> dict[str, list[float]]:
     out: dict[str, list[float]] = {}
     for kind, vals in dict(header.get("IONOSPHERIC CORR") or {}).items():
         out[str(kind).strip().upper()] = [float(v) for v in vals]
@@ -155,7 +156,7 @@ def _header(systems: str, header: Mapping) -> list[str]:
     for c in header.get("comments", ()) or ():
         for k in range(0, max(len(c), 1), 60):
             lines.append(_header_line(c[k:k + 60], "COMMENT"))
-    iono = _iono_from_header(header)
+    iono = iono_from_header(header)
     for kind in _IONO_ORDER:
         if kind in iono:
             vals = list(iono[kind]) + ([0.0] if kind == "GAL" else [])
@@ -189,8 +190,10 @@ def _value(rec: Mapping, sysid: str, name: str):
     return 0.0
 
 
-def format_record(sysid: str, rec: Mapping, where: str = "record") -> str:
-    """Text (8 or 4 lines) of one navigation record of system ``sysid``."""
+def record_values(sysid: str, rec: Mapping, where: str = "record") -> tuple[str, _dt.datetime, list[float]]:
+    """(sv, epoch, field values) of one record as the file writes them: the epoch rounded to the second
+    (RINEX 3 nav has I2.2 seconds), the values in FIELDS order and RINEX units (GLONASS km), not yet
+    rounded to D19.12."""
     if sysid not in FIELDS:
         raise ValueError(f"{where}: system {sysid!r} not supported (expected one of {''.join(FIELDS)})")
     sv = str(rec.get("sv", ""))
@@ -206,12 +209,18 @@ def format_record(sysid: str, rec: Mapping, where: str = "record") -> str:
             raise ValueError(f"{where} ({sv}): field {name!r} is not a number: {v!r}") from exc
         if not math.isfinite(v):
             v = 0.0
-        if sysid == "R" and name in _GLO_KM:
+        if sysid == "R" and name in GLONASS_KM_FIELDS:
             v = v / 1000.0  # georinex units (m) -> RINEX km
         vals.append(v)
     # integer-second epochs only in RINEX 3 nav (I2.2 seconds)
     sec = t.second + (1 if t.microsecond >= 500000 else 0)
     t = t.replace(second=0, microsecond=0) + _dt.timedelta(seconds=sec)
+    return sv, t, vals
+
+
+def format_record(sysid: str, rec: Mapping, where: str = "record") -> str:
+    """Text (8 or 4 lines) of one navigation record of system ``sysid``."""
+    sv, t, vals = record_values(sysid, rec, where)
     out = [f"{sv} {t.year:4d} {t.month:02d} {t.day:02d} {t.hour:02d} {t.minute:02d} {t.second:02d}"
            + "".join(d19(v) for v in vals[:3])]
     rest = vals[3:]

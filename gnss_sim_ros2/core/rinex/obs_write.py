@@ -256,6 +256,7 @@ class RinexObsWriter:
         self._code_index = {s: {c: i for i, c in enumerate(codes)} for s, codes in self.header.obs_types.items()}
         self._n_codes = {s: len(codes) for s, codes in self.header.obs_types.items()}
         self._array_maps: dict[tuple, list] = {}
+        self._flat_cache: dict = {}
         self._fd: int | None = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
         self._header_written = False
         self._last_obs_offset: int | None = None
@@ -399,7 +400,7 @@ class RinexObsWriter:
             raise ValueError(f"{where}: satellite {sv!r} is not an id like 'G05' of a system in the header "
                              f"obs_types ({list(self.header.obs_types)})")
 
-    def _dict_lines(self, observations: Mapping) -> list[bytes]:
+    def _dict_flat(self, observations: Mapping):
         flat_v, flat_l, flat_s = [], [], []
         svs = list(observations)
         nan = math.nan
@@ -431,9 +432,10 @@ class RinexObsWriter:
             v = np.array(flat_v, dtype=np.float64)
         except (TypeError, ValueError) as exc:
             raise ValueError(f"observations: values must be numbers or None ({exc})") from exc
-        return self._format_rows(svs, v, flat_l, flat_s)
+        return svs, v, flat_l, flat_s
 
-    def _array_lines(self, ep: EpochArrays) -> list[bytes]:
+    def _array_flat(self, ep: EpochArrays):
+        """(satellites, flat values, LLI, SSI) of an EpochArrays, checked against the header."""
         value = np.asarray(ep.value, dtype=np.float64)
         per_sys = isinstance(ep.codes, Mapping)
         svs = list(ep.sv)
@@ -448,6 +450,31 @@ class RinexObsWriter:
         for name, arr in (("lli", lli), ("ssi", ssi)):
             if arr.shape != (n, m):
                 raise ValueError(f"observations.{name}: shape {arr.shape}, expected ({n}, {m})")
+        key = (tuple(svs), tuple((s, tuple(c)) for s, c in ep.codes.items()) if per_sys else tuple(ep.codes))
+        hit = self._flat_cache.get(key)
+        if hit is None:
+            hit = self._flat_layout(ep, svs, per_sys, n, m)
+            if len(self._flat_cache) > 256:
+                self._flat_cache.clear()
+            self._flat_cache[key] = hit
+        known, pos, total = hit
+        unknown = ~known & ~np.isnan(value)
+        if unknown.any():
+            sys_rows = [sv[0] for sv in svs]
+            r, j = np.argwhere(unknown)[0]
+            code = ep.codes[sys_rows[r]][j] if per_sys else ep.codes[j]
+            raise ValueError(f"observations: {svs[r]} has a value for {code!r}, not in the header obs_types for "
+                             f"{sys_rows[r]}: {list(self.header.obs_types[sys_rows[r]])}")
+        fv = np.full(total, np.nan)
+        fl = np.full(total, -1, np.int64)
+        fs = np.full(total, -1, np.int64)
+        fv[pos] = value[known]
+        fl[pos] = lli[known]
+        fs[pos] = ssi[known]
+        return svs, fv, fl, fs
+
+    def _flat_layout(self, ep: EpochArrays, svs, per_sys: bool, n: int, m: int):
+        """(cells with a header code (n, m), their flat positions, flat length) of an epoch's layout."""
         for r, sv in enumerate(svs):
             self._check_sv(sv, f"observations.sv[{r}]")
         sys_rows = [sv[0] for sv in svs]
@@ -467,21 +494,7 @@ class RinexObsWriter:
                 self._array_maps[key] = cmap
             cm[sys_arr == s] = cmap
         known = cm >= 0
-        unknown = ~known & ~np.isnan(value)
-        if unknown.any():
-            r, j = np.argwhere(unknown)[0]
-            code = ep.codes[sys_rows[r]][j] if per_sys else ep.codes[j]
-            raise ValueError(f"observations: {svs[r]} has a value for {code!r}, not in the header obs_types for "
-                             f"{sys_rows[r]}: {list(self.header.obs_types[sys_rows[r]])}")
-        total = int(counts.sum())
-        pos = (offsets[:, None] + cm)[known]
-        fv = np.full(total, np.nan)
-        fl = np.full(total, -1, np.int64)
-        fs = np.full(total, -1, np.int64)
-        fv[pos] = value[known]
-        fl[pos] = lli[known]
-        fs[pos] = ssi[known]
-        return self._format_rows(svs, fv, fl, fs)
+        return known, (offsets[:, None] + cm)[known], int(counts.sum())
 
     def write_epoch(self, t: GnssTime, observations, clock_offset_s: float | None = None, flag: int = 0) -> None:
         """Append one epoch (time ``t`` in GPS time) and hand it to the OS at once.
@@ -492,40 +505,58 @@ class RinexObsWriter:
         ``clock_offset_s``: receiver clock offset (F15.12) or None; ``flag``:
         epoch flag 0 (OK) or 1 (power failure since the previous epoch).
         """
+        self.write_epochs([t], [observations], None if clock_offset_s is None else [clock_offset_s], flag)
+
+    def write_epochs(self, ts, observations, clock_offsets_s=None, flag: int = 0) -> None:
+        """Append several epochs (:meth:`write_epoch` each, in order) and hand them to the OS at once: the
+        values of all of them formatted in one vectorised pass.  Nothing is written when one is invalid."""
         if self._fd is None:
             raise ValueError(f"{self.path}: write_epoch() after close()")
-        if np.ndim(t.sec) != 0:
-            raise ValueError("write_epoch: t must be a scalar GnssTime")
         if flag not in (0, 1):
             raise ValueError(f"write_epoch: flag={flag!r}; only 0 (OK) and 1 (power failure) carry observations")
-        if self.t_last is not None and not (t - self.t_last) > 0:
-            raise ValueError(f"write_epoch: t={t!r} is not after the previous epoch {self.t_last!r}")
-        if isinstance(observations, EpochArrays):
-            sv_lines = self._array_lines(observations)
-        elif isinstance(observations, Mapping):
-            sv_lines = self._dict_lines(observations)
-        else:
-            raise ValueError(f"write_epoch: observations must be a dict or EpochArrays, not "
-                             f"{type(observations).__name__}")
-        if len(sv_lines) > 999:
-            raise ValueError(f"write_epoch: {len(sv_lines)} satellites; the epoch record holds at most 999")
-        # Epoch record: A1,1X,I4,4(1X,I2.2),F11.7,2X,I1,I3,6X,F15.12 (RINEX 3.04 table A13)
-        y, mo, d, h, mi, s, q = _time_fields(t)
-        head = f"> {y:04d} {mo:02d} {d:02d} {h:02d} {mi:02d} {s:02d}.{q:07d}  {flag:1d}{len(sv_lines):3d}"
-        if clock_offset_s is not None:
-            c = float(clock_offset_s)
-            if not (math.isfinite(c) and abs(c) < 1000.0):
-                raise ValueError(f"write_epoch: clock_offset_s={clock_offset_s!r} does not fit F15.12")
-            head += f"      {c:15.12f}"
-        block = (head + "\n").encode("ascii") + b"".join(ln + b"\n" for ln in sv_lines)
+        t_prev = self.t_last
+        flats = []
+        for t, obs in zip(ts, observations):
+            if np.ndim(t.sec) != 0:
+                raise ValueError("write_epoch: t must be a scalar GnssTime")
+            if t_prev is not None and not (t - t_prev) > 0:
+                raise ValueError(f"write_epoch: t={t!r} is not after the previous epoch {t_prev!r}")
+            t_prev = t
+            if isinstance(obs, EpochArrays):
+                flats.append(self._array_flat(obs))
+            elif isinstance(obs, Mapping):
+                flats.append(self._dict_flat(obs))
+            else:
+                raise ValueError(f"write_epoch: observations must be a dict or EpochArrays, not "
+                                 f"{type(obs).__name__}")
+            if len(flats[-1][0]) > 999:
+                raise ValueError(f"write_epoch: {len(flats[-1][0])} satellites; the epoch record holds at most 999")
+        if not flats:
+            return
+        lines = self._format_rows([sv for f in flats for sv in f[0]], *(np.concatenate([f[k] for f in flats])
+                                                                       for k in (1, 2, 3)))
+        parts, pos = [], 0
+        for k, (t, f) in enumerate(zip(ts, flats)):
+            n = len(f[0])
+            # Epoch record: A1,1X,I4,4(1X,I2.2),F11.7,2X,I1,I3,6X,F15.12 (RINEX 3.04 table A13)
+            y, mo, d, h, mi, s, q = _time_fields(t)
+            head = f"> {y:04d} {mo:02d} {d:02d} {h:02d} {mi:02d} {s:02d}.{q:07d}  {flag:1d}{n:3d}"
+            if clock_offsets_s is not None and clock_offsets_s[k] is not None:
+                c = float(clock_offsets_s[k])
+                if not (math.isfinite(c) and abs(c) < 1000.0):
+                    raise ValueError(f"write_epoch: clock_offset_s={clock_offsets_s[k]!r} does not fit F15.12")
+                head += f"      {c:15.12f}"
+            parts.append((head + "\n").encode("ascii"))
+            parts.extend(ln + b"\n" for ln in lines[pos:pos + n])
+            pos += n
         if not self._header_written:
-            text, self._last_obs_offset = self._header_text(t)
+            text, self._last_obs_offset = self._header_text(ts[0])
             self._write_all(text.encode("ascii"))
             self._header_written = True
-            self.t_first = t
-        self._write_all(block)
-        self.t_last = t
-        self.epochs_written += 1
+            self.t_first = ts[0]
+        self._write_all(b"".join(parts))
+        self.t_last = ts[len(flats) - 1]
+        self.epochs_written += len(flats)
 
     def close(self) -> None:
         """Fill in TIME OF LAST OBS (over the reserved COMMENT line) and close the file.
