@@ -60,9 +60,9 @@ PILOT_CODES = frozenset(
 #: (system, codes or None for the system's other data codes) -> (frame sync period [s], sync word [s]) of the
 #: navigation message on that signal (module doc); a data code found in none: the GPS subframe
 HALF_CYCLE_SYNC = {
-    ("G", ("2S",)): (12.0, 1.2),          # L2C-M CNAV: 12 s message at 25 bps, 8-bit preamble in 48 FEC symbols
-    ("G", None): (6.0, 0.6),              # LNAV (C/A, P(Y)) and L5-I CNAV: 6 s subframe / message
-    ("J", ("2S",)): (12.0, 1.2),
+    ("G", ("2S",)): (12.0, 0.32),         # L2C-M CNAV: 12 s message at 25 bps, 8-bit preamble (IS-GPS-200N 30.3)
+    ("G", None): (6.0, 0.6),              # LNAV (C/A, P(Y)): 6 s subframe, 0.6 s TLM word; L5-I CNAV: 6 s message
+    ("J", ("2S",)): (12.0, 0.32),
     ("J", None): (6.0, 0.6),
     ("R", None): (2.0, 0.3),              # 2 s string ending in a 0.3 s time mark
     ("E", ("5I",)): (10.0, 0.24),         # F/NAV page 10 s, 12-symbol sync at 50 sps
