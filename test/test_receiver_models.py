@@ -172,7 +172,7 @@ def test_clock_continuous_steering_and_validation():
 
 # ---------------------------------------------------------------------------- tracking
 def test_track_appears_blocked_returns():
-    tr = Tracker(TrackingConfig(random_slips=False), rng=3)
+    tr = Tracker(TrackingConfig(random_slips=False, half_cycle_time_s=6.0), rng=3)
     t0 = GnssTime.from_iso("2022-01-01T00:00:00")
     outs = []
     for i in range(30):
@@ -225,3 +225,31 @@ def test_acquisition_time_and_random_slips_rare_at_strong_signal():
     # at 45 dB-Hz the mean time to slip is astronomically long: no slip in an hour of 1 s epochs
     slips = sum(int(tr.update(float(i), ["G07"], ["1C"], [45.0]).slipped[0]) for i in range(5, 3605))
     assert slips == 0
+
+
+def test_half_cycle_flag_lasts_until_the_frame_sync_word():
+    """LLI bit 1 from acquisition to the end of the first frame sync word of the navigation data: uniform over
+    the frame period plus the word (GPS LNAV 6 s + 0.6 s, GLONASS 2 s + 0.3 s, BeiDou GEO D2 0.6 s + 0.06 s);
+    never on a pilot (Galileo E1C)."""
+    from gnss_sim_ros2.core.receiver.tracking import half_cycle_sync
+
+    assert half_cycle_sync("G05", "1C") == (6.0, 0.6) and half_cycle_sync("R07", "1C") == (2.0, 0.3)
+    assert half_cycle_sync("C03", "2I") == (0.6, 0.06) and half_cycle_sync("C23", "2I") == (6.0, 0.6)
+    tr = Tracker(TrackingConfig(random_slips=False), rng=11)
+    svs, codes = ["G05", "R07", "C03", "E11"], ["1C", "1C", "2I", "1C"]
+    ends = {sv: [] for sv in svs}
+    dt = 0.1
+    for cycle in range(200):                  # 200 tracks of 8 s each, 1 s blocked between them
+        t0 = cycle * 9.0
+        flagged = np.zeros(4)
+        for i in range(80):
+            o = tr.update(t0 + i * dt, svs, codes, [45.0] * 4)
+            flagged += (o.lli & LLI_HALF_CYCLE) > 0
+        tr.update(t0 + 8.5, svs, codes, [45.0] * 4, visible=False)
+        for j, sv in enumerate(svs):
+            ends[sv].append(flagged[j] * dt)
+    g, r, c = (np.array(ends[s]) for s in ("G05", "R07", "C03"))
+    assert g.min() >= 0.6 - 1e-9 and g.max() <= 6.6 + dt and abs(g.mean() - 3.6) < 0.3
+    assert r.min() >= 0.3 - 1e-9 and r.max() <= 2.3 + dt and abs(r.mean() - 1.3) < 0.15
+    assert c.max() <= 0.66 + dt
+    assert max(ends["E11"]) == 0.0

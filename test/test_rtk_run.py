@@ -2,9 +2,13 @@
 
 - Issue 17's acceptance run, ``gnss-sim run --rtk --duration 120`` on the demo path (open ground, the
   gate, the courtyard, under tree_1): /gnss/rtk/fix on >= 90 % of the epochs, fixed on >= 80 % of the
-  solutions after the first quarter, the bag holds /gnss/rtk/fix.  Its RTK horizontal error RMS is printed:
-  in the gate (8 m between 12 m and 15 m walls) rtkrcv fixes 5-7 satellites with ratio 999.9 and some of
-  those fixes are wrong by 0.1-0.6 m (RTKLIB 2.4.3 b34 has no minimum number of satellites to fix).
+  solutions after the first quarter, RTK horizontal error RMS of the fixed solutions <= 0.05 m, the bag
+  holds /gnss/rtk/fix.  The gate (8 m between 12 m and 15 m walls) is the hard part: 5-7 satellites, and
+  RTKLIB 2.4.3 b34 fixes with two double differences of one system (no minimum number of satellites), the
+  other directions from code; its MSM decoder turns the half-cycle indicator (DF420) into a loss of lock
+  every epoch (rtcm3.c: LLI = lossoflock + 3), so a re-acquired data signal's phase is unusable until its
+  half cycle is resolved (tracking.py: the first frame sync word, not a fixed 6 s): 4.4 cm with the
+  default seeds (2.9-6.7 cm over seeds 1, 3, 5, 7: README "RTK in the loop").
 - The same graph on open ground (a 120 s drive south of the block): RTK horizontal error RMS of the fixed
   solutions <= 0.05 m, >= 90 % of the epochs with a solution, >= 80 % fixed after the first quarter.
 - The base station: same world errors, its own noise (RINEX of its own in output_dir/base).
@@ -62,6 +66,7 @@ def test_run_rtk_demo_path_acceptance(tmp_path):
     assert s["epochs"] == 121
     assert s["rtk_solution_ratio"] >= 0.9
     assert s["rtk_fixed_ratio_after_first_quarter"] >= 0.8
+    assert s["rtk_horizontal_error_rms_m"] <= 0.05
     assert s["bag_messages"]["/gnss/rtk/fix"] == s["rtk_epochs"] >= 0.9 * s["epochs"]
     timeline = (out / s["rtk_timeline"]).read_text().splitlines()
     assert timeline[0] == "t_s,quality,horizontal_error_m" and len(timeline) == s["rtk_epochs"] + 1

@@ -18,20 +18,31 @@ Rules (per key ``(sv, code)``, e.g. ``("G05", "1C")``):
   changes by +-1 cycle and the lock time restarts;
 - RINEX 3.04 LLI (5.3, table A2): bit 0 (value 1) on the first epoch of a new
   track and on an epoch with a cycle slip; bit 1 (value 2) "half-cycle
-  ambiguity possible" during the first ``half_cycle_time_s`` (default 6 s,
-  one GPS subframe: the time to find the data preamble that resolves the
-  Costas loop's half-cycle) of a track of a data-modulated signal.  Signals
-  tracked on a dataless pilot (L1C-P, L2C-L, L5-Q, E1-C, E5a/b-Q, B1C/B2a-P,
-  ...) never get bit 1.
+  ambiguity possible" until the Costas loop's half-cycle is resolved, on a
+  data-modulated signal: the loop locks with a 180 deg ambiguity that the
+  polarity of the navigation message's frame sync word removes, so the flag
+  lasts from acquisition to the end of the first sync word received, the wait
+  for the next frame start (uniform over the frame period: the acquisition
+  instant is unrelated to the data frame) plus the word itself
+  (:data:`HALF_CYCLE_SYNC`: GPS/QZSS LNAV subframe 6 s with its 0.6 s
+  telemetry word, IS-GPS-200N 20.3.2/20.3.3.1; GLONASS string 2 s with its
+  0.3 s time mark, GLONASS ICD 5.1 4.3; BeiDou D1 6 s / GEO D2 0.6 s with a
+  30-bit first word, BDS-SIS-ICD-B1I 3.0 5.2/5.3; Galileo I/NAV page part
+  1 s, F/NAV page 10 s, C/NAV page 1 s, OS SIS ICD 2.1 4.3; NavIC subframe
+  12 s with a 16-symbol sync word, IRNSS SPS ICD 1.1 5.1); or a fixed
+  ``half_cycle_time_s`` when one is set.  Signals tracked on a dataless
+  pilot (L1C-P, L2C-L, L5-Q, E1-C, E5a/b-Q, B1C/B2a-P, ...) never get bit 1.
 - ``lock_time_s``: time since acquisition or the last slip (0 when not tracked).
 """
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 import numpy as np
 
 from gnss_sim_ros2.core.receiver.noise import mean_time_to_slip_s
+from gnss_sim_ros2.core.signals import BEIDOU_GEO_PATTERN
 from gnss_sim_ros2.core.time import GnssTime
 
 LLI_LOSS_OF_LOCK = 1
@@ -46,6 +57,36 @@ PILOT_CODES = frozenset(
 )
 
 
+#: (system, codes or None for the system's other data codes) -> (frame sync period [s], sync word [s]) of the
+#: navigation message on that signal (module doc); a data code found in none: the GPS subframe
+HALF_CYCLE_SYNC = {
+    ("G", ("2S",)): (12.0, 0.32),         # L2C-M CNAV: 12 s message at 25 bps, 8-bit preamble (IS-GPS-200N 30.3)
+    ("G", None): (6.0, 0.6),              # LNAV (C/A, P(Y)): 6 s subframe, 0.6 s TLM word; L5-I CNAV: 6 s message
+    ("J", ("2S",)): (12.0, 0.32),
+    ("J", None): (6.0, 0.6),
+    ("R", None): (2.0, 0.3),              # 2 s string ending in a 0.3 s time mark
+    ("E", ("5I",)): (10.0, 0.24),         # F/NAV page 10 s, 12-symbol sync at 50 sps
+    ("E", ("6B",)): (1.0, 0.016),         # C/NAV page 1 s, 16-symbol sync at 1000 sps
+    ("E", None): (1.0, 0.04),             # I/NAV page part 1 s, 10-symbol sync at 250 sps (E1-B, E5b-I)
+    ("C", None): (6.0, 0.6),              # D1 subframe 6 s (MEO/IGSO); GEO: BEIDOU_GEO_SYNC
+    ("I", None): (12.0, 0.32),            # subframe 12 s (600 symbols at 50 sps), 16-symbol sync word
+}
+#: BeiDou GEO satellites broadcast D2 (500 bps): subframe 0.6 s, 30-bit first word 0.06 s
+BEIDOU_GEO_SYNC = (0.6, 0.06)
+_BEIDOU_GEO = re.compile(BEIDOU_GEO_PATTERN)
+
+
+def half_cycle_sync(sv: str, code: str) -> tuple[float, float]:
+    """(frame sync period [s], sync word duration [s]) of the navigation data on signal ``code`` of ``sv``."""
+    system = sv[:1]
+    if system == "C" and _BEIDOU_GEO.fullmatch(sv):
+        return BEIDOU_GEO_SYNC
+    for (s, codes), v in HALF_CYCLE_SYNC.items():
+        if s == system and codes is not None and code in codes:
+            return v
+    return HALF_CYCLE_SYNC.get((system, None), HALF_CYCLE_SYNC[("G", None)])
+
+
 def _as_rows(a, dtype, n):
     """``a`` as an (n,) array of ``dtype`` (np.broadcast_to of a scalar; arrays of that shape as they are)."""
     a = np.asarray(a, dtype=dtype)
@@ -57,7 +98,8 @@ class TrackingConfig:
     acquisition_cn0_dbhz: float = 33.0
     tracking_cn0_dbhz: float = 28.0
     acquisition_time_s: float = 0.0
-    half_cycle_time_s: float = 6.0
+    #: None: the wait for the navigation data's frame sync (module doc); a number: that time for every track
+    half_cycle_time_s: float | None = None
     ambiguity_max_cyc: int = 1_000_000
     random_slips: bool = True
     pll_bn_hz: float = 15.0
@@ -68,7 +110,8 @@ class TrackingConfig:
             raise ValueError(
                 f"TrackingConfig: 'tracking_cn0_dbhz' = {self.tracking_cn0_dbhz} exceeds "
                 f"'acquisition_cn0_dbhz' = {self.acquisition_cn0_dbhz}")
-        if self.acquisition_time_s < 0 or self.half_cycle_time_s < 0 or self.ambiguity_max_cyc < 1:
+        if (self.acquisition_time_s < 0 or (self.half_cycle_time_s is not None and self.half_cycle_time_s < 0)
+                or self.ambiguity_max_cyc < 1):
             raise ValueError("TrackingConfig: times must be >= 0 and 'ambiguity_max_cyc' >= 1")
 
 
@@ -114,6 +157,9 @@ class Tracker:
         self._lock_start = grow(g("_lock_start"), np.nan, np.float64)
         self._amb = grow(g("_amb"), 0, np.int64)
         self._pilot = grow(g("_pilot"), False, bool)
+        self._sync = grow(g("_sync"), 0.0, np.float64)       # frame sync period of the signal's data [s]
+        self._sync_word = grow(g("_sync_word"), 0.0, np.float64)
+        self._half_end = grow(g("_half_end"), np.nan, np.float64)  # track time when the half cycle is resolved
         self._cap = cap
 
     def _rows(self, sv, code):
@@ -131,6 +177,7 @@ class Tracker:
                 i = self._n
                 self._index[key] = i
                 self._pilot[i] = (key[0][:1], key[1]) in PILOT_CODES
+                self._sync[i], self._sync_word[i] = half_cycle_sync(key[0], key[1])
                 self._n += 1
             idx[j] = i
         if len(np.unique(idx)) != len(idx):
@@ -195,6 +242,11 @@ class Tracker:
         n_new = int(new.sum())
         if n_new:
             amb[new] = self.rng.integers(-c.ambiguity_max_cyc, c.ambiguity_max_cyc + 1, size=n_new)
+            inew = idx[new]
+            if c.half_cycle_time_s is None:
+                self._half_end[inew] = self._sync[inew] * self.rng.random(n_new) + self._sync_word[inew]
+            else:
+                self._half_end[inew] = c.half_cycle_time_s
         slipped = keep & forced
         if c.random_slips and dt > 0 and np.any(keep):
             p = 1.0 - np.exp(-dt / mean_time_to_slip_s(cn0, c.pll_bn_hz, c.pll_t_int_s))
@@ -214,7 +266,7 @@ class Tracker:
 
         lli = np.zeros(n, np.int8)
         lli[tracked & (new | slipped)] |= LLI_LOSS_OF_LOCK
-        half = tracked & ~self._pilot[idx] & (ts - track_start < c.half_cycle_time_s - 1e-9)
+        half = tracked & ~self._pilot[idx] & (ts - track_start < self._half_end[idx] - 1e-9)
         lli[half] |= LLI_HALF_CYCLE
         lock_time = np.where(tracked, ts - lock_start, 0.0)
         return TrackingOutput(tracked.copy(), lli, lock_time, amb.copy(), new.copy(), slipped.copy())

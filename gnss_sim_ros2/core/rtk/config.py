@@ -75,7 +75,11 @@ def default_options(systems: str = "GE", frequencies: int = 2, elevation_mask_de
     ``mode`` "movingbase": the base moves (RTKLIB takes its position from its own single point
     solution each epoch and needs base and rover observations of the same epoch, rtkpos.c TTOL_MOVEB).
     No baseline length constraint (pos2-baselen): with it RTKLIB 2.4.3 b34 lost the fix after a minute
-    on a 1.2 m baseline of ours that it fixes throughout without (test_rtk_engine)."""
+    on a 1.2 m baseline of ours that it fixes throughout without (test_rtk_engine).
+
+    Left at RTKLIB 2.4.3's defaults: pos2-arlockcnt 0, pos2-arelmask 0, pos2-maxout 5 epochs,
+    pos2-rejionno 30 m, pos1-snrmask off.  On the demo path fix-and-hold (pos2-armode) helps some noise
+    draws and not others (README "RTK in the loop"), so continuous stays."""
     if mode not in MODES:
         raise RtkConfigError(f"rtk mode {mode!r}: one of {MODES} (parameter rtk_mode)")
     bad = [s for s in systems if s not in NAVSYS_BITS]
