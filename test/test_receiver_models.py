@@ -68,6 +68,21 @@ def test_mean_time_to_slip_orders_of_magnitude():
     assert np.all(np.diff(noise.mean_time_to_slip_s(cn0)) > 0)
 
 
+def test_slip_probability_equals_the_full_formula():
+    """The rows skipped (probability 0 in double precision whatever I0 is) give exactly what the formula
+    gives; the others are the formula itself (weak signals, long gaps, other loop bandwidths)."""
+    cn0 = np.linspace(0.0, 60.0, 6001)
+    evaluated = 0
+    for dt in (0.05, 1.0, 30.0, 3600.0, 1e7):
+        for bn, t_int in ((15.0, 0.001), (2.0, 0.02), (100.0, 0.001)):
+            full = 1.0 - np.exp(-dt / noise.mean_time_to_slip_s(cn0, bn, t_int))
+            got = noise.slip_probability(cn0, dt, bn, t_int)
+            np.testing.assert_array_equal(got, full)
+            evaluated += int(np.count_nonzero(full))
+    assert evaluated > 1000      # the grid reaches the weak signals that can slip
+    assert noise.slip_probability(np.array([45.0, 50.0]), 1.0).tolist() == [0.0, 0.0]
+
+
 # ------------------------------------------------------------------------------- C/N0
 def test_noise_density_kt0():
     assert rcn0.DEFAULT_BUDGET.noise_density_dbwhz == pytest.approx(-204.0, abs=0.05)  # kT0, T0 = 290 K

@@ -40,8 +40,6 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.linalg import lapack as _lapack
-from scipy.special import chdtri as _chdtri
 
 from .constants import C_MPS
 from .frames import ecef_to_geodetic, enu_rotation
@@ -172,9 +170,33 @@ def _system_factor(sv, cfg: SolverConfig) -> np.ndarray:
 @functools.lru_cache(maxsize=256)
 def _chi2_threshold(prob_false_alarm: float, dof: int) -> float:
     """Chi-square quantile 1 - p_fa for ``dof`` degrees of freedom: the inverse of the complemented
-    chi-square distribution (scipy.special.chdtri, Cephes; as scipy.stats.chi2.ppf(1 - p_fa) without
-    importing scipy.stats, about 1 s at start-up); cached: the same few values come back every epoch."""
-    return float(_chdtri(dof, prob_false_alarm))
+    chi-square distribution (scipy.special.chdtri, Cephes; as scipy.stats.chi2.ppf(1 - p_fa)); the
+    default p_fa = 0.001 from a table of chdtri's values (no scipy import at start-up, about 0.25 s);
+    cached: the same few values come back every epoch."""
+    if prob_false_alarm == 1e-3 and 1 <= dof <= len(CHI2_QUANTILE_P001):
+        return CHI2_QUANTILE_P001[dof - 1]
+    from scipy.special import chdtri
+
+    return float(chdtri(dof, prob_false_alarm))
+
+
+#: scipy.special.chdtri(dof, 0.001) for dof = 1..64, as round-trip decimals (the same doubles;
+#: test_solver.py compares every entry with scipy)
+CHI2_QUANTILE_P001 = (
+    10.827566170662733, 13.815510557964274, 16.26623619623813, 18.466826952903173, 20.515005652432876,
+    22.457744484825323, 24.321886347856854, 26.124481558376143, 27.877164871256575, 29.58829844507442,
+    31.26413362023999, 32.90949040736021, 34.52817897487089, 36.12327368039814, 37.69729821835383,
+    39.25235479076848, 40.79021670690253, 42.31239633167997, 43.82019596451753, 45.31474661812587,
+    46.7970380415613, 48.26794229083519, 49.72823246643151, 51.17859777737739, 52.61965577617283,
+    54.051962388576655, 55.47602020574521, 56.892285393353625, 58.30117348979492, 59.703064304429944,
+    61.09830608105814, 62.487219057088495, 63.87009852234495, 65.24721746094242, 66.61882884370104,
+    67.98516762602424, 69.3464524962412, 70.70288741150503, 72.0546629519878, 73.40195751899103,
+    74.74493839842374, 76.08376270770003, 77.41857824131394, 78.74952422804303, 80.07673201081901,
+    81.40032565871002, 82.72042251912403, 84.0371337172235, 85.350564608593, 86.66081519040317,
+    87.96798047562868, 89.27215083430448, 90.57341230529862, 91.8718468816601, 93.16753277222854,
+    94.46054464187806, 95.75095383248951, 97.03882856650873, 98.32423413474163, 99.60723306984946,
+    100.88788530685825, 102.1662483318488, 103.44237731987324, 104.71632526304059,
+)
 
 
 def range_rate_from_doppler(doppler_hz, carrier_hz):
@@ -191,36 +213,11 @@ def _as_array(name, x, n, shape_tail=()):
     return a
 
 
-def _condition_number(a: np.ndarray) -> float:
-    """2-norm condition number (largest / smallest singular value, as np.linalg.cond) of a small square
-    matrix; inf when singular.  LAPACK dgesdd directly: np.linalg.cond's Python overhead is larger than
-    the decomposition of a 4x4..9x9 normal matrix."""
-    out = _lapack.dgesdd(a, compute_uv=0)        # (u, s, vt, info); u, vt empty
-    s, info = out[1], out[-1]
-    if info != 0:
-        raise np.linalg.LinAlgError("SVD did not converge")
-    return math.inf if s[-1] == 0.0 else float(s[0] / s[-1])
-
-
 def _spd_inverses(a: np.ndarray) -> np.ndarray:
-    """Inverses of symmetric positive definite matrices (K, U, U): one by LAPACK Cholesky (less overhead),
-    several by numpy's batched inverse (symmetrised)."""
-    if len(a) == 1:
-        return _spd_inverse(a[0])[None]
+    """Inverses of symmetric positive definite matrices (K, U, U), numpy's batched inverse symmetrised
+    (one path for one epoch and many)."""
     inv = np.linalg.inv(a)
     return 0.5 * (inv + np.swapaxes(inv, 1, 2))
-
-
-def _spd_inverse(a: np.ndarray) -> np.ndarray:
-    """Inverse of a symmetric positive definite matrix (LAPACK Cholesky dpotrf + dpotri); LinAlgError when
-    it is not positive definite (singular normal matrix)."""
-    c, info = _lapack.dpotrf(a, lower=0, clean=1)
-    if info != 0:
-        raise np.linalg.LinAlgError("normal matrix not positive definite")
-    inv, info = _lapack.dpotri(c, lower=0)
-    if info != 0:
-        raise np.linalg.LinAlgError("normal matrix singular")
-    return inv + np.triu(inv, 1).T      # dpotri fills the upper triangle (the lower one is zero: clean=1)
 
 
 def _clock_group(sv_list, groups: Mapping[str, str]) -> np.ndarray:
@@ -546,9 +543,7 @@ def _solve_positions(lay: _Layout, rows: np.ndarray, valid: np.ndarray, x0: np.n
         ok = ~few
         cond = np.full(a.size, np.nan)
         finite = ok & np.all(np.isfinite(nmat), axis=(1, 2))
-        if finite.all() and a.size == 1:     # one epoch (a node): LAPACK directly, less overhead
-            cond[0] = _condition_number(nmat[0])
-        elif finite.any():
+        if finite.any():
             cond[finite] = np.linalg.cond(nmat[finite])
         bad = ok & ~(cond <= 1e14)                              # also NaN
         for j in (np.flatnonzero(bad).tolist() if bad.any() else ()):

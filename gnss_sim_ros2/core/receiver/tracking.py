@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gnss_sim_ros2.core.receiver.noise import mean_time_to_slip_s
+from gnss_sim_ros2.core.receiver.noise import slip_probability
 from gnss_sim_ros2.core.time import GnssTime
 
 LLI_LOSS_OF_LOCK = 1
@@ -197,7 +197,7 @@ class Tracker:
             amb[new] = self.rng.integers(-c.ambiguity_max_cyc, c.ambiguity_max_cyc + 1, size=n_new)
         slipped = keep & forced
         if c.random_slips and dt > 0 and np.any(keep):
-            p = 1.0 - np.exp(-dt / mean_time_to_slip_s(cn0, c.pll_bn_hz, c.pll_t_int_s))
+            p = slip_probability(cn0, dt, c.pll_bn_hz, c.pll_t_int_s)
             u = self.rng.random(n)
             slipped |= keep & (u < p)
         n_slip = int(slipped.sum())
