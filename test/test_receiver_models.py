@@ -240,3 +240,44 @@ def test_acquisition_time_and_random_slips_rare_at_strong_signal():
     # at 45 dB-Hz the mean time to slip is astronomically long: no slip in an hour of 1 s epochs
     slips = sum(int(tr.update(float(i), ["G07"], ["1C"], [45.0]).slipped[0]) for i in range(5, 3605))
     assert slips == 0
+
+
+def test_update_many_equals_update_epoch_by_epoch():
+    """A block of epochs through Tracker.update_many gives what update gives epoch by epoch, with the
+    same random draws afterwards: keys coming and going, weak signals that slip, blocked epochs, an epoch
+    without keys, strong steady runs (the block's fast path)."""
+    rng = np.random.default_rng(3)
+    keys = [("G01", "1C"), ("G01", "2W"), ("G07", "1C"), ("E11", "1C"), ("E11", "5Q"), ("G30", "1C")]
+    epochs = []
+    for b in range(400):
+        present = [k for i, k in enumerate(keys) if not (i == 5 and 100 < b < 180) and not (150 <= b < 152)]
+        if b == 300:
+            present = []
+        cn0 = np.where(rng.random(len(present)) < 0.05, 27.0, 45.0) if b < 250 else np.full(len(present), 45.0)
+        cn0[[i for i, k in enumerate(present) if k[0] == "G07"]] = 26.5 if 200 < b < 230 else 45.0
+        vis = np.ones(len(present), bool)
+        if 50 < b < 55:
+            vis[:1] = False
+        epochs.append((GnssTime(1_300_000_000 + b), present, cn0, vis))
+    one = Tracker(TrackingConfig(), rng=7)
+    many = Tracker(TrackingConfig(), rng=7)
+    want = []
+    for t, present, cn0, vis in epochs:
+        out = one.update(t, [k[0] for k in present], [k[1] for k in present], cn0, visible=vis)
+        want.append((out.tracked, out.lli, out.lock_time_s, out.ambiguity_cyc))
+    got = []
+    for b0 in range(0, len(epochs), 70):
+        blk = epochs[b0:b0 + 70]
+        seg = np.concatenate([[0], np.cumsum([len(e[1]) for e in blk])])
+        flat = [k for e in blk for k in e[1]]
+        res = many.update_many([e[0] for e in blk], [k[0] for k in flat], [k[1] for k in flat],
+                               np.concatenate([e[2] for e in blk]), np.concatenate([e[3] for e in blk]), seg)
+        got += [tuple(a[seg[i]:seg[i + 1]] for a in res) for i in range(len(blk))]
+    slips = 0
+    for (wt, wl, wk, wa), (gt, gl, gk, ga) in zip(want, got):
+        np.testing.assert_array_equal(gt, wt)
+        np.testing.assert_array_equal(gl, wl)
+        np.testing.assert_array_equal(gk, wk)
+        np.testing.assert_array_equal(ga, wa)
+        slips += int(np.sum((wl & LLI_LOSS_OF_LOCK) > 0))
+    assert slips > 10 and one.rng.random() == many.rng.random()

@@ -263,6 +263,8 @@ class GnssTime:
 
     def __sub__(self, other):
         if isinstance(other, GnssTime):
+            if type(self.sec) is int and type(other.sec) is int:     # two scalars: the same double, less overhead
+                return float(self.sec - other.sec) + (self.frac - other.frac)
             ds = np.asarray(self.sec, dtype=np.int64) - np.asarray(other.sec, dtype=np.int64)
             out = ds.astype(np.float64) + (np.asarray(self.frac) - np.asarray(other.frac))
             return float(out) if np.ndim(out) == 0 else out

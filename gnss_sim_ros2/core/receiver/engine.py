@@ -441,47 +441,53 @@ class Receiver:
         above = el_j >= cfg.elevation_mask_deg
         sv_j = rows.sv_j
         draw_cn0 = cfg.noise and cfg.cn0_noise_db > 0
+        mp_code, mp_phase = np.zeros(m), np.zeros(m)
+        ok_all = line_ok
+        empty = sig_seg[1:] == sig_seg[:-1]
+        # the scene's reflected paths, epoch by epoch (no memory, no random draw)
+        for b in (range(k_n) if multipath is not None else ()):
+            j0, j1 = sig_seg[b], sig_seg[b + 1]
+            paths = multipath[b]
+            if j0 == j1 or paths is None or not paths.valid.any():
+                continue
+            s = slice(j0, j1)
+            paths = paths.take(keep[seg_all[b]:seg_all[b + 1]])
+            loc = sat_i[s] - seg[b]
+            mp_err = self._scene_multipath(paths, loc, vis_j[s], att_j[s], el_j[s], chip[s], lam[s])
+            if mp_err is not None:
+                rows_mp, err = mp_err
+                # composite amplitude relative to the unobstructed line of sight replaces the obstruction loss
+                cn0[j0 + rows_mp] += att_j[j0 + rows_mp] + 20.0 * np.log10(np.maximum(err.amplitude, 1e-6))
+                mp_code[j0 + rows_mp] = err.code_m
+                mp_phase[j0 + rows_mp] = err.phase_m
+                # no line of sight, a reflected path: tracked if strong enough (thresholds with hysteresis,
+                # tracking.py); REFLECTED_ONLY without the paths (a caller with only the state) stays untracked
+                nlos_rows = j0 + rows_mp[err.nlos]
+                if ok_all is line_ok:
+                    ok_all = line_ok.copy()
+                ok_all[nlos_rows] |= vis_j[nlos_rows] == REFLECTED_ONLY
+        # the tracking loops, epoch by epoch in order (Tracker.update_many)
+        tracked, lli, lock, amb = self.tracker.update_many(ts, sv_j, codes, cn0, ok_all & above, sig_seg)
+        # the noise processes' draws, epoch after epoch as K calls of one epoch make them (the same streams:
+        # a Generator's draws of n and then m values are its n + m values): per epoch C/N0 noise, then code,
+        # phase and Doppler noise from rng_noise; the code multipath's innovations from _mp_rng
         z_cn0 = np.zeros(m)
         r = np.zeros((3, m))
         mp_x = np.zeros(m)
-        mp_code, mp_phase = np.zeros(m), np.zeros(m)
-        tracked = np.zeros(m, dtype=bool)
-        lli = np.zeros(m, dtype=np.int8)
-        lock = np.zeros(m)
-        amb = np.zeros(m, dtype=np.int64)
-        empty = np.zeros(k_n, dtype=bool)
-        for b in range(k_n):
-            j0, j1 = sig_seg[b], sig_seg[b + 1]
-            if j0 == j1 or seg[b] == seg[b + 1]:
-                empty[b] = True
-                self.tracker.update(ts[b], np.zeros(0, dtype="<U3"), np.zeros(0, dtype="<U2"), np.zeros(0))
-                continue
-            s = slice(j0, j1)
-            mb = j1 - j0
+        if cfg.noise:
+            lead = 1 if draw_cn0 else 0
+            j0_row = sig_seg[e_sig]
+            mb_row = m_ep[e_sig]
+            base = (3 + lead) * j0_row + (np.arange(m) - j0_row)
+            w = self.rng_noise.standard_normal((3 + lead) * m)
             if draw_cn0:
-                z_cn0[s] = self.rng_noise.standard_normal(mb)
-            ok = line_ok[s]
-            paths = None if multipath is None else multipath[b]
-            if paths is not None and paths.valid.any():
-                paths = paths.take(keep[seg_all[b]:seg_all[b + 1]])
-                loc = sat_i[s] - seg[b]
-                mp_err = self._scene_multipath(paths, loc, vis_j[s], att_j[s], el_j[s], chip[s], lam[s])
-                if mp_err is not None:
-                    rows_mp, err = mp_err
-                    # composite amplitude relative to the unobstructed line of sight replaces the obstruction loss
-                    cn0[j0 + rows_mp] += att_j[j0 + rows_mp] + 20.0 * np.log10(np.maximum(err.amplitude, 1e-6))
-                    mp_code[j0 + rows_mp] = err.code_m
-                    mp_phase[j0 + rows_mp] = err.phase_m
-                    # no line of sight, a reflected path: tracked if strong enough (thresholds with hysteresis,
-                    # tracking.py); REFLECTED_ONLY without the paths (a caller with only the state) stays untracked
-                    nlos_rows = rows_mp[err.nlos]
-                    ok = ok.copy()
-                    ok[nlos_rows] |= vis_j[j0 + nlos_rows] == REFLECTED_ONLY
-            trk = self.tracker.update(ts[b], sv_j[s], codes[s], cn0[s], visible=ok & above[s])
-            tracked[s], lli[s], lock[s], amb[s] = trk.tracked, trk.lli, trk.lock_time_s, trk.ambiguity_cyc
-            if cfg.noise:
-                r[:, s] = self.rng_noise.standard_normal((3, mb))
-                mp_x[s] = self._multipath_state(rows.mp_idx[s], dt_ep[b])
+                z_cn0 = w[base]
+            for i in range(3):
+                r[i] = w[base + (lead + i) * mb_row]
+            w_mp = self._mp_rng.standard_normal(m)
+            for b in np.flatnonzero(~empty).tolist():
+                s = slice(sig_seg[b], sig_seg[b + 1])
+                mp_x[s] = self._multipath_state(rows.mp_idx[s], dt_ep[b], w_mp[s])
 
         # noise
         cn0_meas = cn0 + cfg.cn0_noise_db * z_cn0 if draw_cn0 else cn0
@@ -636,10 +642,12 @@ class Receiver:
         cfg = self.cfg
         return cfg.mp_zenith_m + cfg.mp_low_m * np.exp(-np.maximum(el_j, 0.0) / 15.0)
 
-    def _multipath_state(self, idx, dt_s):
-        """Unit-variance Gauss-Markov states of the slots ``idx`` advanced by ``dt_s`` (one draw each)."""
+    def _multipath_state(self, idx, dt_s, w=None):
+        """Unit-variance Gauss-Markov states of the slots ``idx`` advanced by ``dt_s`` (one draw each: ``w``, or
+        drawn now)."""
         phi = np.exp(-dt_s / self.cfg.mp_tau_s) if dt_s > 0 else 0.0
-        w = self._mp_rng.standard_normal(len(idx))
+        if w is None:
+            w = self._mp_rng.standard_normal(len(idx))
         prev = self._mp_x[idx]
         x = np.where(np.isnan(prev), w, phi * prev + np.sqrt(1 - phi * phi) * w)
         self._mp_x[idx] = x

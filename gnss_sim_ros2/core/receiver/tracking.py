@@ -219,6 +219,74 @@ class Tracker:
         lock_time = np.where(tracked, ts - lock_start, 0.0)
         return TrackingOutput(tracked.copy(), lli, lock_time, amb.copy(), new.copy(), slipped.copy())
 
+    def update_many(self, ts, sv, code, cn0_dbhz, visible, seg):
+        """:meth:`update` for K epochs in order: epoch b's keys are the rows ``seg[b]:seg[b + 1]`` of ``sv``,
+        ``code``, ``cn0_dbhz`` and ``visible`` (no forced slips).  Returns (tracked, lli, lock_time_s,
+        ambiguity_cyc) per row, what K calls of update give.
+
+        A run of epochs with the previous epoch's keys, all of them tracked and kept (visible, above the
+        tracking threshold) and a slip probability of exactly 0 changes no state but the time: its rows
+        are filled together and its uniform draws (one per key and epoch, as update makes them) taken in
+        one call; every other epoch goes through update."""
+        n_all = len(sv)
+        tracked = np.zeros(n_all, dtype=bool)
+        lli = np.zeros(n_all, dtype=np.int8)
+        lock = np.zeros(n_all)
+        amb = np.zeros(n_all, dtype=np.int64)
+        seg = np.asarray(seg, dtype=np.int64)
+        sv, code = np.asarray(sv, dtype=str), np.asarray(code, dtype=str)
+        cn0 = np.asarray(cn0_dbhz, dtype=np.float64)
+        vis = np.asarray(visible, dtype=bool)
+        c = self.config
+        ts = [t if isinstance(t, GnssTime) else float(t) for t in ts]
+        t_s = [self._seconds(t) for t in ts]
+        prev = [self._t_prev] + t_s[:-1]
+        dt_ep = np.array([t - p if p is not None else 0.0 for t, p in zip(t_s, prev)])
+        n_ep = np.diff(seg)
+
+        def per_epoch(x):      # how many rows of each epoch have x
+            cs = np.concatenate([[0], np.cumsum(x, dtype=np.int64)])
+            return cs[seg[1:]] - cs[seg[:-1]]
+
+        # epochs that may be steady, from their inputs: every key kept (finite C/N0 above the tracking
+        # threshold, visible), time advancing, no slip possible
+        steady_in = (n_ep > 0) & (dt_ep > 0) & (per_epoch(vis & (cn0 >= c.tracking_cn0_dbhz)) == n_ep)
+        if c.random_slips and steady_in.any():
+            p = slip_probability(cn0, np.repeat(np.where(dt_ep > 0, dt_ep, 1.0), n_ep), c.pll_bn_hz, c.pll_t_int_s)
+            steady_in &= per_epoch(p > 0) == 0
+        run: list = []            # epochs of the current steady run
+
+        def flush():
+            if not run:
+                return
+            idx = self._idx_prev
+            k_r = len(run)
+            tt = np.repeat(np.array([t_s[b] for b in run]), len(idx))
+            rows = np.concatenate([np.arange(seg[b], seg[b + 1]) for b in run])
+            if c.random_slips:
+                self.rng.random(len(idx) * k_r)      # the draws update makes (every slip probability is 0)
+            tracked[rows] = True
+            amb[rows] = np.tile(self._amb[idx], k_r)
+            lock[rows] = tt - np.tile(self._lock_start[idx], k_r)
+            half = ~np.tile(self._pilot[idx], k_r) & (tt - np.tile(self._track_start[idx], k_r)
+                                                      < c.half_cycle_time_s - 1e-9)
+            lli[rows[half]] = LLI_HALF_CYCLE
+            self._t_prev = t_s[run[-1]]
+            run.clear()
+
+        for b in range(len(ts)):
+            s = slice(seg[b], seg[b + 1])
+            if steady_in[b]:
+                idx = self._rows(sv[s], code[s])
+                if idx is self._idx_prev and self._n == self._n_prev and (run or self._tracked[idx].all()):
+                    run.append(b)
+                    continue
+            flush()
+            out = self.update(ts[b], sv[s], code[s], cn0[s], visible=vis[s])
+            tracked[s], lli[s], lock[s], amb[s] = out.tracked, out.lli, out.lock_time_s, out.ambiguity_cyc
+        flush()
+        return tracked, lli, lock, amb
+
     def keys(self):
         """All (sv, code) keys seen so far."""
         return list(self._index)
