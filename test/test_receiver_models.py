@@ -258,9 +258,16 @@ def test_update_many_equals_update_epoch_by_epoch():
         vis = np.ones(len(present), bool)
         if 50 < b < 55:
             vis[:1] = False
+        if b != 300:    # a key below the mask (not visible), then between the two thresholds (never acquired)
+            present = present + [("C20", "2I")]
+            cn0 = np.append(cn0, 30.0 if b < 330 else 40.0)
+            vis = np.append(vis, b >= 200)
         epochs.append((GnssTime(1_300_000_000 + b), present, cn0, vis))
     one = Tracker(TrackingConfig(), rng=7)
     many = Tracker(TrackingConfig(), rng=7)
+    calls = []
+    many_update = many.update
+    many.update = lambda *a, **kw: calls.append(1) or many_update(*a, **kw)
     want = []
     for t, present, cn0, vis in epochs:
         out = one.update(t, [k[0] for k in present], [k[1] for k in present], cn0, visible=vis)
@@ -281,3 +288,4 @@ def test_update_many_equals_update_epoch_by_epoch():
         np.testing.assert_array_equal(ga, wa)
         slips += int(np.sum((wl & LLI_LOSS_OF_LOCK) > 0))
     assert slips > 10 and one.rng.random() == many.rng.random()
+    assert len(calls) < len(epochs) / 2     # the steady runs were filled together

@@ -132,6 +132,9 @@ class GnssTime:
     __slots__ = ("sec", "frac")
 
     def __init__(self, sec, frac=0.0):
+        if type(sec) is int and type(frac) is float and 0.0 <= frac < 1.0:    # normalised scalars already
+            self.sec, self.frac = sec, frac
+            return
         sec_is_scalar = np.ndim(sec) == 0 and np.ndim(frac) == 0
         if sec_is_scalar and isinstance(sec, float):
             whole = math.floor(sec)

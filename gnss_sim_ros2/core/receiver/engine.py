@@ -200,7 +200,7 @@ class EpochObservations:
 
     @property
     def n_tracked_sats(self) -> int:
-        return len(np.unique(self.sv))
+        return len(set(np.asarray(self.sv).tolist()))
 
 
 class Receiver:

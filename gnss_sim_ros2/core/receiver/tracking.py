@@ -224,10 +224,10 @@ class Tracker:
         ``code``, ``cn0_dbhz`` and ``visible`` (no forced slips).  Returns (tracked, lli, lock_time_s,
         ambiguity_cyc) per row, what K calls of update give.
 
-        A run of epochs with the previous epoch's keys, all of them tracked and kept (visible, above the
-        tracking threshold) and a slip probability of exactly 0 changes no state but the time: its rows
-        are filled together and its uniform draws (one per key and epoch, as update makes them) taken in
-        one call; every other epoch goes through update."""
+        An epoch with the previous epoch's keys where every tracked key is kept (visible, above the tracking
+        threshold, a slip probability of exactly 0) and no other key reaches the acquisition threshold
+        changes no state but the time: a run of such epochs is filled together, its uniform draws (one per
+        key and epoch, as update makes them) taken in one call; every other epoch goes through update."""
         n_all = len(sv)
         tracked = np.zeros(n_all, dtype=bool)
         lli = np.zeros(n_all, dtype=np.int8)
@@ -243,18 +243,17 @@ class Tracker:
         prev = [self._t_prev] + t_s[:-1]
         dt_ep = np.array([t - p if p is not None else 0.0 for t, p in zip(t_s, prev)])
         n_ep = np.diff(seg)
-
-        def per_epoch(x):      # how many rows of each epoch have x
-            cs = np.concatenate([[0], np.cumsum(x, dtype=np.int64)])
-            return cs[seg[1:]] - cs[seg[:-1]]
-
-        # epochs that may be steady, from their inputs: every key kept (finite C/N0 above the tracking
-        # threshold, visible), time advancing, no slip possible
-        steady_in = (n_ep > 0) & (dt_ep > 0) & (per_epoch(vis & (cn0 >= c.tracking_cn0_dbhz)) == n_ep)
-        if c.random_slips and steady_in.any():
-            p = slip_probability(cn0, np.repeat(np.where(dt_ep > 0, dt_ep, 1.0), n_ep), c.pll_bn_hz, c.pll_t_int_s)
-            steady_in &= per_epoch(p > 0) == 0
+        # per row: what would change the state of a tracked key (lost, or a possible slip), of an untracked one
+        ok_track = vis & (cn0 >= c.tracking_cn0_dbhz)
+        stop_tracked = ~ok_track
+        if c.random_slips and n_all:
+            p = slip_probability(np.where(ok_track, cn0, 99.0), np.repeat(np.where(dt_ep > 0, dt_ep, 1.0), n_ep),
+                                 c.pll_bn_hz, c.pll_t_int_s)
+            stop_tracked |= p > 0
+        start_untracked = vis & (cn0 >= c.acquisition_cn0_dbhz)
+        may = ((n_ep > 0) & (dt_ep > 0)).tolist()
         run: list = []            # epochs of the current steady run
+        held = None               # tracked flags of the run's keys
 
         def flush():
             if not run:
@@ -263,24 +262,29 @@ class Tracker:
             k_r = len(run)
             tt = np.repeat(np.array([t_s[b] for b in run]), len(idx))
             rows = np.concatenate([np.arange(seg[b], seg[b + 1]) for b in run])
-            if c.random_slips:
+            if c.random_slips and held.any():
                 self.rng.random(len(idx) * k_r)      # the draws update makes (every slip probability is 0)
-            tracked[rows] = True
+            on = np.tile(held, k_r)
+            tracked[rows] = on
             amb[rows] = np.tile(self._amb[idx], k_r)
-            lock[rows] = tt - np.tile(self._lock_start[idx], k_r)
-            half = ~np.tile(self._pilot[idx], k_r) & (tt - np.tile(self._track_start[idx], k_r)
-                                                      < c.half_cycle_time_s - 1e-9)
+            lock[rows] = np.where(on, tt - np.tile(self._lock_start[idx], k_r), 0.0)
+            half = on & ~np.tile(self._pilot[idx], k_r) & (tt - np.tile(self._track_start[idx], k_r)
+                                                           < c.half_cycle_time_s - 1e-9)
             lli[rows[half]] = LLI_HALF_CYCLE
+            self._cand_since[idx] = np.nan
             self._t_prev = t_s[run[-1]]
             run.clear()
 
         for b in range(len(ts)):
             s = slice(seg[b], seg[b + 1])
-            if steady_in[b]:
+            if may[b]:
                 idx = self._rows(sv[s], code[s])
-                if idx is self._idx_prev and self._n == self._n_prev and (run or self._tracked[idx].all()):
-                    run.append(b)
-                    continue
+                if idx is self._idx_prev and self._n == self._n_prev:
+                    if not run:
+                        held = self._tracked[idx]
+                    if not np.where(held, stop_tracked[s], start_untracked[s]).any():
+                        run.append(b)
+                        continue
             flush()
             out = self.update(ts[b], sv[s], code[s], cn0[s], visible=vis[s])
             tracked[s], lli[s], lock[s], amb[s] = out.tracked, out.lli, out.lock_time_s, out.ambiguity_cyc
