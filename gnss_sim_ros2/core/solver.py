@@ -86,6 +86,11 @@ class SolverConfig:
     clock_groups: Mapping[str, str] = field(default_factory=lambda: {"J": "G", "S": "G"})
 
 
+#: templates of the unset velocity fields (copied: np.full's own overhead is larger)
+_NAN3 = np.full(3, np.nan)
+_NAN33 = np.full((3, 3), np.nan)
+
+
 @dataclass
 class PvtSolution:
     """Result of one epoch.  Per-satellite arrays follow the input order."""
@@ -119,13 +124,13 @@ class PvtSolution:
     chi2: float                     # v^T W v
     chi2_threshold: float
     chi2_ok: bool | None            # None when there is no redundancy
-    vel_ecef_mps: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
-    vel_enu_mps: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
+    vel_ecef_mps: np.ndarray = field(default_factory=_NAN3.copy)
+    vel_enu_mps: np.ndarray = field(default_factory=_NAN3.copy)
     clock_drift_mps: float = math.nan
     clock_drift_sps: float = math.nan
-    cov_vel_ecef_m2ps2: np.ndarray = field(default_factory=lambda: np.full((3, 3), np.nan))
+    cov_vel_ecef_m2ps2: np.ndarray = field(default_factory=_NAN33.copy)
     #: the velocity's covariance in ENU at the solution [m^2/s^2] (from the a-priori range-rate sigmas)
-    cov_vel_enu_m2ps2: np.ndarray = field(default_factory=lambda: np.full((3, 3), np.nan))
+    cov_vel_enu_m2ps2: np.ndarray = field(default_factory=_NAN33.copy)
     vel_residuals_mps: np.ndarray | None = None
     vel_status: str = "none"        # "fix" | "no_fix" | "none" (no rates given)
     vel_reason: str = ""

@@ -19,7 +19,6 @@ epochs, in both front ends, so that one configuration gives one answer.
 """
 from __future__ import annotations
 
-import copy
 import csv
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -329,7 +328,8 @@ class ReceiverChain:
         out = np.where(go_on, pr / m + (m - 1) / m * (st.code[idx] + phase_m - st.phase[idx]), pr)
         st.code[idx], st.phase[idx], st.count[idx], st.last[idx] = out, phase_m, m, st.calls
         st.calls += 1
-        smoothed = copy.copy(obs)          # dataclasses.replace, without its field-by-field __init__
+        smoothed = object.__new__(EpochObservations)    # a shallow copy (copy.copy without __reduce_ex__)
+        smoothed.__dict__.update(obs.__dict__)
         smoothed.pseudorange_m = out
         return smoothed
 
