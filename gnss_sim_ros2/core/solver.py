@@ -649,32 +649,40 @@ def _final_quantities(lay, rows, done, x, fin, it_of, n_of, out, cfg):
     wmax = wstat.max(axis=1, initial=-1.0)
     # ties (the two satellites of a clock group that has only two have equal statistics) go to the
     # first in input order, not to whichever round-off makes larger
-    worst = np.argmax(wstat >= (wmax * (1.0 - 1e-6))[:, None], axis=1)
+    worst = np.argmax(wstat >= (wmax * (1.0 - 1e-6))[:, None], axis=1).tolist()
+    az = _azimuth(enu)
+    # the epochs' scalars as Python numbers at once, their clock columns per pattern of clocks present
+    dops = list(zip(gdop.tolist(), pdop.tolist(), hdop.tolist(), vdop.tolist(), tdop.tolist()))
+    chi2_l, dof_l, clk_l = chi2.tolist(), dof.tolist(), clk.tolist()
+    lla = list(zip(np.atleast_1d(lat).tolist(), np.atleast_1d(lon).tolist(), np.atleast_1d(hgt).tolist()))
+    patterns: dict = {}
     for q_i, i in enumerate(done):
         n = n_of[i]
-        k_dof = int(dof[q_i])
+        k_dof = dof_l[q_i]
         c = cov[q_i]
         if cfg.scale_covariance and k_dof > 0:
-            c = c * max(1.0, float(chi2[q_i]) / k_dof)   # a-posteriori variance factor (residuals beyond sigmas)
-        cols = np.flatnonzero(present[q_i])
-        keep = np.concatenate([[0, 1, 2], 3 + cols])
-        cs = [lay.clock_sys[g] for g in cols.tolist()]
+            c = c * max(1.0, chi2_l[q_i] / k_dof)   # a-posteriori variance factor (residuals beyond sigmas)
+        pk = present[q_i].tobytes()
+        pat = patterns.get(pk)
+        if pat is None:
+            cols = np.flatnonzero(present[q_i])
+            keep = np.concatenate([[0, 1, 2], 3 + cols])
+            pat = patterns[pk] = (cols.tolist(), [lay.clock_sys[g] for g in cols.tolist()], np.ix_(keep, keep),
+                                  len(keep) == c.shape[0])
+        cols, cs, sub, whole = pat
         thr = _chi2_threshold(float(cfg.chi2_prob_false_alarm), k_dof) if k_dof > 0 else math.nan
-        dops = (float(gdop[q_i]), float(pdop[q_i]), float(hdop[q_i]), float(vdop[q_i]), float(tdop[q_i]))
         out[i] = {"status": "fix", "reason": "", "pos": xs[q_i].copy(),
-                  "clk": {s: float(clk[q_i, g]) for s, g in zip(cs, cols.tolist())}, "clock_systems": cs,
-                  "used": use[q_i, :n].copy(), "v": v[q_i, :n], "el": el[q_i, :n], "az": _azimuth(enu[q_i, :n], n),
-                  "cov": c[keep][:, keep], "dops": dops, "gdop": dops[0], "chi2": float(chi2[q_i]),
+                  "clk": {s: clk_l[q_i][g] for s, g in zip(cs, cols)}, "clock_systems": cs,
+                  "used": use[q_i, :n].copy(), "v": v[q_i, :n], "el": el[q_i, :n], "az": az[q_i, :n],
+                  "cov": c.copy() if whole else c[sub], "dops": dops[q_i], "gdop": dops[q_i][0], "chi2": chi2_l[q_i],
                   "chi2_threshold": thr, "dof": k_dof, "iter": int(it_of[i]),
-                  "worst": int(worst[q_i]) if k_dof > 0 else None, "rot": rot[q_i],
-                  "lla": (float(lat[q_i]), float(lon[q_i]), float(hgt[q_i])), "e_final": e_final[q_i, :n]}
+                  "worst": worst[q_i] if k_dof > 0 else None, "rot": rot[q_i],
+                  "lla": lla[q_i], "e_final": e_final[q_i, :n]}
 
 
-def _azimuth(enu, n):
-    """Azimuth [deg, 0..360) from ENU vectors (NaN when there are none: position not yet placed)."""
-    if enu is None:
-        return np.full(n, np.nan)
-    az = np.degrees(np.arctan2(enu[:, 0], enu[:, 1])) % 360.0
+def _azimuth(enu):
+    """Azimuth [deg, 0..360) from ENU vectors (..., 3)."""
+    az = np.degrees(np.arctan2(enu[..., 0], enu[..., 1])) % 360.0
     return az - 360.0 * (az >= 360.0)      # (-tiny) % 360 rounds to 360.0 (as frames.az_el_at)
 
 
