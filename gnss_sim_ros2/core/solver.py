@@ -288,7 +288,8 @@ class _Epoch:
 
 def _epoch_inputs(e: dict, cfg: SolverConfig) -> _Epoch:
     p = _Epoch()
-    sv_arr = np.asarray(e["sv"]).astype(str)
+    sv_arr = np.asarray(e["sv"])
+    sv_arr = sv_arr.copy() if sv_arr.dtype.kind == "U" else sv_arr.astype(str)
     if sv_arr.ndim != 1:
         raise ValueError(f"solve_pvt: sv must be 1-D, got shape {sv_arr.shape}")
     n = p.n = sv_arr.size
@@ -778,16 +779,19 @@ def _velocity_lsq(todo, cfg) -> None:
         return
     xv = np.einsum("kij,kj->ki", cov, np.einsum("kni,kn->ki", hw, yv))
     resid = np.where(ok, yv - np.einsum("kni,ki->kn", h, xv), np.nan)
-    for i, (sol, ok_i, _, _, rot) in enumerate(todo):
-        if rot is None:
-            rot = enu_rotation(sol.lat_deg, sol.lon_deg)
-        c3 = cov[i, :3, :3]
+    # in ENU at each solution, all epochs at once
+    rot = np.stack([t[4] if t[4] is not None else enu_rotation(t[0].lat_deg, t[0].lon_deg) for t in todo])
+    c3 = cov[:, :3, :3]
+    vel_enu = np.einsum("kij,kj->ki", rot, xv[:, :3])
+    cov_enu = rot @ c3 @ np.swapaxes(rot, 1, 2)
+    drift = xv[:, 3].tolist()
+    for i, (sol, ok_i, _, _, _) in enumerate(todo):
         sol.vel_ecef_mps = xv[i, :3]
-        sol.vel_enu_mps = rot @ xv[i, :3]
-        sol.clock_drift_mps = float(xv[i, 3])
-        sol.clock_drift_sps = float(xv[i, 3] / C_MPS)
-        sol.cov_vel_ecef_m2ps2 = c3
-        sol.cov_vel_enu_m2ps2 = rot @ c3 @ rot.T
+        sol.vel_enu_mps = vel_enu[i]
+        sol.clock_drift_mps = drift[i]
+        sol.clock_drift_sps = drift[i] / C_MPS
+        sol.cov_vel_ecef_m2ps2 = c3[i]
+        sol.cov_vel_enu_m2ps2 = cov_enu[i]
         sol.vel_residuals_mps = resid[i, :len(ok_i)]
         sol.vel_status, sol.vel_reason = "fix", ""
 

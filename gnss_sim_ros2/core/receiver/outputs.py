@@ -27,9 +27,11 @@ def obs_types_for(profile: dict[str, list[str]], systems: str) -> dict[str, list
 def epoch_arrays(obs: EpochObservations, obs_types: dict[str, list[str]]) -> EpochArrays:
     """One RINEX epoch (rows = satellites with a tracked signal) from the receiver's observables."""
     svs, rows, cols, width, codes = _layout(obs.sv, obs.code, obs_types)
-    value = np.full((len(svs), width), np.nan)
-    lli = np.full((len(svs), width), -1, dtype=np.int64)
-    ssi = np.full((len(svs), width), -1, dtype=np.int64)
+    value = np.empty((len(svs), width))      # np.empty + fill: np.full's own overhead is larger here
+    value.fill(np.nan)
+    lli = np.empty((len(svs), width), dtype=np.int64)
+    lli.fill(-1)
+    ssi = lli.copy()
     if len(rows):
         ssi_j = ssi_from_cn0(obs.cn0_dbhz)
         for kind, v, (ok, r, c) in zip(OBS_KINDS, (obs.pseudorange_m, obs.carrier_phase_cyc, obs.doppler_hz,
