@@ -550,7 +550,11 @@ def _solve_positions(lay: _Layout, rows: np.ndarray, valid: np.ndarray, x0: np.n
         cond = np.full(a.size, np.nan)
         finite = ok & np.all(np.isfinite(nmat), axis=(1, 2))
         if finite.any():
-            cond[finite] = np.linalg.cond(nmat[finite])
+            # 2-norm condition number of the symmetric normal matrix: its extreme eigenvalues (its singular
+            # values; eigvalsh costs less than np.linalg.cond's SVD), inf when not positive definite
+            eig = np.linalg.eigvalsh(nmat[finite])
+            lo, hi = eig[:, 0], eig[:, -1]
+            cond[finite] = np.where(lo > 0, hi / np.where(lo > 0, lo, 1.0), np.inf)
         bad = ok & ~(cond <= 1e14)                              # also NaN
         for j in (np.flatnonzero(bad).tolist() if bad.any() else ()):
             i = int(a[j])
