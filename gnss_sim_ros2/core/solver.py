@@ -335,9 +335,18 @@ def solve_pvt_many(epochs, config: SolverConfig | None = None) -> list[PvtSoluti
     cfg = config or _default_config()
     ep = [_epoch_inputs(e, cfg) for e in epochs]
     k_n = len(ep)
-    n_max = max((p.n for p in ep), default=0)
-    clock_sys = sorted({g for p in ep for g in p.groups.tolist()}, key=SYSTEM_ORDER.index)
-    slot = {g: j for j, g in enumerate(clock_sys)}
+    n_of = [p.n for p in ep]
+    n_max = max(n_of, default=0)
+    # the epochs' rows one after another, then scattered into (K, n_max) padded arrays
+    ii = np.repeat(np.arange(k_n), n_of)
+    jj = np.arange(len(ii)) - np.repeat(np.cumsum(n_of) - n_of, n_of)
+
+    def flat(arrays, tail=()):
+        return np.concatenate(arrays) if arrays else np.zeros((0,) + tail)
+
+    ok = flat([p.valid for p in ep]).astype(bool)
+    groups = flat([p.groups for p in ep]).astype(str)
+    clock_sys = sorted(set(groups.tolist()), key=SYSTEM_ORDER.index)
     sat = np.zeros((k_n, n_max, 3))
     y = np.zeros((k_n, n_max))
     valid = np.zeros((k_n, n_max), dtype=bool)
@@ -347,21 +356,21 @@ def solve_pvt_many(epochs, config: SolverConfig | None = None) -> list[PvtSoluti
     any_cn0 = any(p.cn0 is not None for p in ep)
     sig = np.ones((k_n, n_max)) if any_sig else None
     cn0 = np.zeros((k_n, n_max)) if any_cn0 else None
-    x0 = np.zeros((k_n, 3))
-    for i, p in enumerate(ep):
-        n = p.n
-        ok = p.valid
-        sat[i, :n] = np.where(ok[:, None], p.sat, 0.0)
-        y[i, :n] = np.where(ok, p.y, 0.0)
-        valid[i, :n] = ok
-        col[i, :n] = [slot[g] for g in p.groups.tolist()]
-        fac2[i, :n] = p.fac ** 2
-        if p.sig is not None:
-            sig[i, :n] = np.where(ok, p.sig, 1.0)
-        if p.cn0 is not None:
-            cn0[i, :n] = np.where(np.isfinite(p.cn0), p.cn0, 0.0)
-        x0[i] = p.x0
-    layout = _Layout(sat, y, col, clock_sys, fac2, cn0, sig, [p.n for p in ep], [p.sig is not None for p in ep])
+    sat[ii, jj] = np.where(ok[:, None], flat([p.sat for p in ep], (3,)), 0.0)
+    y[ii, jj] = np.where(ok, flat([p.y for p in ep]), 0.0)
+    valid[ii, jj] = ok
+    col_flat = np.zeros(len(ii), dtype=np.int64)
+    for j, g in enumerate(clock_sys):
+        col_flat[groups == g] = j
+    col[ii, jj] = col_flat
+    fac2[ii, jj] = flat([p.fac for p in ep]) ** 2
+    if any_sig:
+        sig[ii, jj] = np.where(ok, flat([p.sig if p.sig is not None else np.ones(p.n) for p in ep]), 1.0)
+    if any_cn0:
+        c_flat = flat([p.cn0 if p.cn0 is not None else np.zeros(p.n) for p in ep])
+        cn0[ii, jj] = np.where(np.isfinite(c_flat), c_flat, 0.0)
+    x0 = np.array([p.x0 for p in ep], dtype=np.float64).reshape(k_n, 3)
+    layout = _Layout(sat, y, col, clock_sys, fac2, cn0, sig, n_of, [p.sig is not None for p in ep])
 
     excluded: list[list[str]] = [[] for _ in range(k_n)]
     notes: list[list[str]] = [[] for _ in range(k_n)]
