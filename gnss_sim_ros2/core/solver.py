@@ -741,40 +741,50 @@ def _solve_velocities(items, cfg) -> None:
         if not sol.is_fix:
             sol.vel_status, sol.vel_reason = "no_fix", "no position fix"
             continue
-        ok = sol.used & np.isfinite(rate) & np.all(np.isfinite(sat_vel), axis=1)
-        if sat_drift is not None:
-            ok &= np.isfinite(sat_drift)
-        n_ok = int(ok.sum())
-        if n_ok < 4:
-            sol.vel_status = "no_fix"
-            sol.vel_reason = f"too few range rates: {n_ok} of the used satellites, need 4 (3 velocity + 1 drift)"
-            continue
         if los is None:
             d = sat - sol.pos_ecef_m
             los = d / np.sqrt(np.einsum("ij,ij->i", d, d))[:, None]
-        # rate - e.v_sat + c ddt_sat = -e.v_rx + drift_rx
-        yv = rate - np.einsum("ij,ij->i", los, np.where(np.isfinite(sat_vel), sat_vel, 0.0))
-        if sat_drift is not None:
-            yv = yv + C_MPS * sat_drift
-        todo.append((sol, ok, los, np.where(ok, yv, 0.0), rot))
-    if todo:
-        _velocity_lsq(todo, cfg)
-
-
-def _velocity_lsq(todo, cfg) -> None:
-    """The velocity least squares of prepared epochs (_solve_velocities), stacked."""
-    k_n, n_max = len(todo), max(len(t[1]) for t in todo)
-    ok = np.zeros((k_n, n_max), dtype=bool)
+        todo.append((sol, sat_vel, rate, sat_drift, los, rot))
+    if not todo:
+        return
+    # the epochs' rows one after another
+    n_of = [len(t[2]) for t in todo]
+    k_n, n_max = len(todo), max(n_of)
+    ii = np.repeat(np.arange(k_n), n_of)
+    jj = np.arange(len(ii)) - np.repeat(np.cumsum(n_of) - n_of, n_of)
+    sat_vel = np.concatenate([t[1] for t in todo])
+    rate = np.concatenate([t[2] for t in todo])
+    drift = np.concatenate([t[3] if t[3] is not None else np.zeros(len(t[2])) for t in todo])
+    los = np.concatenate([t[4] for t in todo])
+    ok = (np.concatenate([t[0].used for t in todo]) & np.isfinite(rate) & np.all(np.isfinite(sat_vel), axis=1)
+          & np.isfinite(drift))
+    # rate - e.v_sat + c ddt_sat = -e.v_rx + drift_rx
+    yv = rate - np.einsum("ij,ij->i", los, np.where(np.isfinite(sat_vel), sat_vel, 0.0)) + C_MPS * drift
+    n_ok = np.bincount(ii[ok], minlength=k_n).tolist()
     h = np.zeros((k_n, n_max, 4))
-    yv = np.zeros((k_n, n_max))
+    h[ii, jj, :3] = -np.where(ok[:, None], los, 0.0)
+    h[ii, jj, 3] = 1.0
+    y_p = np.zeros((k_n, n_max))
+    y_p[ii, jj] = np.where(ok, yv, 0.0)
+    ok_p = np.zeros((k_n, n_max), dtype=bool)
+    ok_p[ii, jj] = ok
     el = np.full((k_n, n_max), 90.0)
-    for i, (sol, ok_i, los, y_i, _) in enumerate(todo):
-        n = len(ok_i)
-        ok[i, :n] = ok_i
-        h[i, :n, :3] = -np.where(ok_i[:, None], los, 0.0)
-        h[i, :n, 3] = 1.0
-        yv[i, :n] = y_i
-        el[i, :n] = np.where(ok_i, sol.el_deg, 90.0)
+    el[ii, jj] = np.where(ok, np.concatenate([t[0].el_deg for t in todo]), 90.0)
+    good = []
+    for i, t in enumerate(todo):
+        if n_ok[i] < 4:
+            t[0].vel_status = "no_fix"
+            t[0].vel_reason = f"too few range rates: {n_ok[i]} of the used satellites, need 4 (3 velocity + 1 drift)"
+        else:
+            good.append(i)
+    if good:
+        g = np.array(good)
+        _velocity_lsq([todo[i] for i in good], [n_of[i] for i in good], ok_p[g], h[g], y_p[g], el[g], cfg)
+
+
+def _velocity_lsq(todo, n_of, ok, h, yv, el, cfg) -> None:
+    """The velocity least squares of prepared epochs (_solve_velocities: padded (K, N) arrays)."""
+    k_n = len(todo)
     s = np.sin(np.radians(np.minimum(np.maximum(el, 1.0), 90.0)))
     w = np.where(ok, 1.0 / (cfg.rate_sigma_a_mps**2 + cfg.rate_sigma_b_mps**2 / s**2), 0.0)
     hw = h * w[..., None]
@@ -785,27 +795,28 @@ def _velocity_lsq(todo, cfg) -> None:
             raise np.linalg.LinAlgError
     except np.linalg.LinAlgError:
         if k_n > 1:                      # one of them is singular: each on its own
-            for t in todo:
-                _velocity_lsq([t], cfg)
+            for i in range(k_n):
+                _velocity_lsq(todo[i:i + 1], n_of[i:i + 1], ok[i:i + 1], h[i:i + 1], yv[i:i + 1], el[i:i + 1], cfg)
             return
         todo[0][0].vel_status, todo[0][0].vel_reason = "no_fix", "singular geometry for the velocity"
         return
     xv = np.einsum("kij,kj->ki", cov, np.einsum("kni,kn->ki", hw, yv))
     resid = np.where(ok, yv - np.einsum("kni,ki->kn", h, xv), np.nan)
     # in ENU at each solution, all epochs at once
-    rot = np.stack([t[4] if t[4] is not None else enu_rotation(t[0].lat_deg, t[0].lon_deg) for t in todo])
+    rot = np.stack([t[5] if t[5] is not None else enu_rotation(t[0].lat_deg, t[0].lon_deg) for t in todo])
     c3 = cov[:, :3, :3]
     vel_enu = np.einsum("kij,kj->ki", rot, xv[:, :3])
     cov_enu = rot @ c3 @ np.swapaxes(rot, 1, 2)
     drift = xv[:, 3].tolist()
-    for i, (sol, ok_i, _, _, _) in enumerate(todo):
+    for i, t in enumerate(todo):
+        sol = t[0]
         sol.vel_ecef_mps = xv[i, :3]
         sol.vel_enu_mps = vel_enu[i]
         sol.clock_drift_mps = drift[i]
         sol.clock_drift_sps = drift[i] / C_MPS
         sol.cov_vel_ecef_m2ps2 = c3[i]
         sol.cov_vel_enu_m2ps2 = cov_enu[i]
-        sol.vel_residuals_mps = resid[i, :len(ok_i)]
+        sol.vel_residuals_mps = resid[i, :n_of[i]]
         sol.vel_status, sol.vel_reason = "fix", ""
 
 
