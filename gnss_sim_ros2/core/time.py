@@ -246,7 +246,7 @@ class GnssTime:
                 sec += 1
             tail = ""
         base = GPS_EPOCH + _dt.timedelta(seconds=sec)
-        return base.strftime("%Y-%m-%dT%H:%M:%S") + tail
+        return base.isoformat(timespec="seconds") + tail     # YYYY-MM-DDThh:mm:ss (naive: no offset)
 
     def to_gps_seconds(self):
         """Float seconds since the GPS epoch (loses precision below ~0.1 us: display only)."""
