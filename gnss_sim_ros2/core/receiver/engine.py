@@ -510,21 +510,27 @@ class Receiver:
         drift_j = drift_ep[0] if k_n == 1 else drift_ep[e_sig]
         dop = -(rho_dot + k.C_MPS * (drift_j - ddts)) / lam + e_d
 
+        # the tracked signals of the block taken at once; epoch b's are the rows cut[b]:cut[b + 1] of those
+        sel = np.flatnonzero(tracked)
+        cut = np.searchsorted(sel, sig_seg).tolist()
+        sat_tr = sat_i[sel]
+        (t_sv, t_code, t_freq, t_pr, t_phase, t_dop, t_cn0, t_lli, t_lock, t_dts, t_ddts, t_iono, t_tropo, t_el,
+         t_rho) = (x[sel] for x in (sv_j, codes, freq, pr, phase, dop, cn0_meas, lli, lock, dts, ddts, iono_model,
+                                     tropo, el_j, rho))
+        t_pos, t_vel = sol.sat_pos_ecef_m[sat_tr], sol.sat_vel_ecef_mps[sat_tr]
         for b in range(k_n):
             s = slice(seg[b], seg[b + 1])
             if empty[b]:
                 out.append(self._observation(ts[b], bias_ep[b], drift_ep[b], svs[s], az[s], el[s], vis[s], att[s]))
                 continue
-            sel = sig_seg[b] + np.flatnonzero(tracked[sig_seg[b]:sig_seg[b + 1]])
-            sat_tr = sat_i[sel]
+            r = slice(cut[b], cut[b + 1])
             out.append(EpochObservations(
                 t=ts[b], clock_bias_s=bias_ep[b], clock_drift_sps=drift_ep[b],
                 sat_sv=svs[s], sat_az_deg=az[s], sat_el_deg=el[s], sat_vis_state=vis[s], sat_attenuation_db=att[s],
-                sv=sv_j[sel], code=codes[sel], frequency_hz=freq[sel], pseudorange_m=pr[sel],
-                carrier_phase_cyc=phase[sel], doppler_hz=dop[sel], cn0_dbhz=cn0_meas[sel], lli=lli[sel],
-                lock_time_s=lock[sel], sat_pos_ecef_m=sol.sat_pos_ecef_m[sat_tr],
-                sat_vel_ecef_mps=sol.sat_vel_ecef_mps[sat_tr], sat_clock_s=dts[sel], sat_clock_drift_sps=ddts[sel],
-                iono_model_m=iono_model[sel], tropo_model_m=tropo[sel], el_deg=el_j[sel], true_range_m=rho[sel],
+                sv=t_sv[r], code=t_code[r], frequency_hz=t_freq[r], pseudorange_m=t_pr[r], carrier_phase_cyc=t_phase[r],
+                doppler_hz=t_dop[r], cn0_dbhz=t_cn0[r], lli=t_lli[r], lock_time_s=t_lock[r], sat_pos_ecef_m=t_pos[r],
+                sat_vel_ecef_mps=t_vel[r], sat_clock_s=t_dts[r], sat_clock_drift_sps=t_ddts[r], iono_model_m=t_iono[r],
+                tropo_model_m=t_tropo[r], el_deg=t_el[r], true_range_m=t_rho[r],
             ))
         return out
 
