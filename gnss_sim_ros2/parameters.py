@@ -27,7 +27,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-
 from gnss_sim_ros2.core.vocabulary import (
     EPHEMERIS_SOURCES,
     IONOSPHERE_MODELS,
@@ -391,7 +390,7 @@ def load_config(path: str | Path | None = None, overrides: dict[str, dict] | Non
         return {p.name: p for p in params_of(key) if p.name not in SHARED_ONLY_NAMES}
 
     if path is not None:
-        import yaml     # only a run with a file reads YAML (start-up)
+        import yaml  # only a run with a file reads YAML (start-up)
 
         path = Path(path)
         try:

@@ -30,7 +30,7 @@ _FAST_MIN_RADIUS_M = 5.0e6
 
 def geodetic_to_ecef(lat_deg, lon_deg, h_m):
     """Geodetic (WGS 84) -> ECEF [m]; scalars or arrays. Returns (x_m, y_m, z_m)."""
-    import pymap3d     # imported where used (start-up of a run that never needs it)
+    import pymap3d  # imported where used (start-up of a run that never needs it)
 
     return pymap3d.geodetic2ecef(lat_deg, lon_deg, h_m)
 

@@ -118,10 +118,11 @@ def mean_time_to_slip_s(cn0_dbhz, bn_hz=15.0, t_int_s=0.001, costas=True):
 
 def slip_probability(cn0_dbhz, dt_s, bn_hz=15.0, t_int_s=0.001):
     """Probability of a cycle slip within ``dt_s`` > 0 (scalar or per row): 1 - exp(-dt / T),
-    T = :func:`mean_time_to_slip_s` (Costas loop).  Rows whose probability is 0 in double precision whatever I0 is are not evaluated:
-    with I0(rho) e^-rho >= 1 / sqrt(2 pi rho) for rho >= 1/2, log T >= L = log(pi^2 rho / (2 B_n)) -
-    log(2 pi rho) + 2 rho, and dt / T < 2^-54 (L > log dt + 38) makes exp(-dt / T) round to 1 exactly
-    (the I0 evaluation, scipy's, is only imported for weak signals)."""
+    T = :func:`mean_time_to_slip_s` (Costas loop).  Rows whose probability is 0 in double precision
+    whatever I0 is are not evaluated: with I0(rho) e^-rho >= 1 / sqrt(2 pi rho) for rho >= 1/2,
+    log T >= L = log(pi^2 rho / (2 B_n)) - log(2 pi rho) + 2 rho, and dt / T < 2^-54 (L > log dt + 38)
+    makes exp(-dt / T) round to 1 exactly (the I0 evaluation, scipy's, is only imported for weak
+    signals)."""
     _positive("bn_hz", bn_hz)
     c = _ratio(cn0_dbhz)
     rho = c / bn_hz / (1.0 + 1.0 / (2.0 * t_int_s * c)) / 4.0
