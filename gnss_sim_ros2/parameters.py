@@ -27,8 +27,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from gnss_sim_ros2.core.vocabulary import (
     EPHEMERIS_SOURCES,
     IONOSPHERE_MODELS,
@@ -392,6 +390,8 @@ def load_config(path: str | Path | None = None, overrides: dict[str, dict] | Non
         return {p.name: p for p in params_of(key) if p.name not in SHARED_ONLY_NAMES}
 
     if path is not None:
+        import yaml  # only a run with a file reads YAML (start-up)
+
         path = Path(path)
         try:
             doc = yaml.safe_load(path.read_text()) or {}
@@ -436,6 +436,8 @@ def load_config(path: str | Path | None = None, overrides: dict[str, dict] | Non
 
 def default_config_yaml() -> str:
     """The documented default parameter file (``config/gnss_sim.yaml``)."""
+    import yaml
+
     lines = [
         "# gnss_sim parameters: one file for `ros2 launch gnss_sim sim.launch.py config:=...`,",
         "# `gnss-sim run --config ...` and `gnss-sim simulate --config ...`.",

@@ -68,6 +68,21 @@ def test_mean_time_to_slip_orders_of_magnitude():
     assert np.all(np.diff(noise.mean_time_to_slip_s(cn0)) > 0)
 
 
+def test_slip_probability_equals_the_full_formula():
+    """The rows skipped (probability 0 in double precision whatever I0 is) give exactly what the formula
+    gives; the others are the formula itself (weak signals, long gaps, other loop bandwidths)."""
+    cn0 = np.linspace(0.0, 60.0, 6001)
+    evaluated = 0
+    for dt in (0.05, 1.0, 30.0, 3600.0, 1e7):
+        for bn, t_int in ((15.0, 0.001), (2.0, 0.02), (100.0, 0.001)):
+            full = 1.0 - np.exp(-dt / noise.mean_time_to_slip_s(cn0, bn, t_int))
+            got = noise.slip_probability(cn0, dt, bn, t_int)
+            np.testing.assert_array_equal(got, full)
+            evaluated += int(np.count_nonzero(full))
+    assert evaluated > 1000      # the grid reaches the weak signals that can slip
+    assert noise.slip_probability(np.array([45.0, 50.0]), 1.0).tolist() == [0.0, 0.0]
+
+
 # ------------------------------------------------------------------------------- C/N0
 def test_noise_density_kt0():
     assert rcn0.DEFAULT_BUDGET.noise_density_dbwhz == pytest.approx(-204.0, abs=0.05)  # kT0, T0 = 290 K
@@ -253,3 +268,50 @@ def test_half_cycle_flag_lasts_until_the_frame_sync_word():
     assert r.min() >= 0.3 - 1e-9 and r.max() <= 2.3 + dt and abs(r.mean() - 1.3) < 0.15
     assert c.max() <= 0.66 + dt
     assert max(ends["E11"]) == 0.0
+def test_update_many_equals_update_epoch_by_epoch():
+    """A block of epochs through Tracker.update_many gives what update gives epoch by epoch, with the
+    same random draws afterwards: keys coming and going, weak signals that slip, blocked epochs, an epoch
+    without keys, strong steady runs (the block's fast path)."""
+    rng = np.random.default_rng(3)
+    keys = [("G01", "1C"), ("G01", "2W"), ("G07", "1C"), ("E11", "1C"), ("E11", "5Q"), ("G30", "1C")]
+    epochs = []
+    for b in range(400):
+        present = [k for i, k in enumerate(keys) if not (i == 5 and 100 < b < 180) and not (150 <= b < 152)]
+        if b == 300:
+            present = []
+        cn0 = np.where(rng.random(len(present)) < 0.05, 27.0, 45.0) if b < 250 else np.full(len(present), 45.0)
+        cn0[[i for i, k in enumerate(present) if k[0] == "G07"]] = 26.5 if 200 < b < 230 else 45.0
+        vis = np.ones(len(present), bool)
+        if 50 < b < 55:
+            vis[:1] = False
+        if b != 300:    # a key below the mask (not visible), then between the two thresholds (never acquired)
+            present = present + [("C20", "2I")]
+            cn0 = np.append(cn0, 30.0 if b < 330 else 40.0)
+            vis = np.append(vis, b >= 200)
+        epochs.append((GnssTime(1_300_000_000 + b), present, cn0, vis))
+    one = Tracker(TrackingConfig(), rng=7)
+    many = Tracker(TrackingConfig(), rng=7)
+    calls = []
+    many_update = many.update
+    many.update = lambda *a, **kw: calls.append(1) or many_update(*a, **kw)
+    want = []
+    for t, present, cn0, vis in epochs:
+        out = one.update(t, [k[0] for k in present], [k[1] for k in present], cn0, visible=vis)
+        want.append((out.tracked, out.lli, out.lock_time_s, out.ambiguity_cyc))
+    got = []
+    for b0 in range(0, len(epochs), 70):
+        blk = epochs[b0:b0 + 70]
+        seg = np.concatenate([[0], np.cumsum([len(e[1]) for e in blk])])
+        flat = [k for e in blk for k in e[1]]
+        res = many.update_many([e[0] for e in blk], [k[0] for k in flat], [k[1] for k in flat],
+                               np.concatenate([e[2] for e in blk]), np.concatenate([e[3] for e in blk]), seg)
+        got += [tuple(a[seg[i]:seg[i + 1]] for a in res) for i in range(len(blk))]
+    slips = 0
+    for (wt, wl, wk, wa), (gt, gl, gk, ga) in zip(want, got):
+        np.testing.assert_array_equal(gt, wt)
+        np.testing.assert_array_equal(gl, wl)
+        np.testing.assert_array_equal(gk, wk)
+        np.testing.assert_array_equal(ga, wa)
+        slips += int(np.sum((wl & LLI_LOSS_OF_LOCK) > 0))
+    assert slips > 10 and one.rng.random() == many.rng.random()
+    assert len(calls) < len(epochs) / 2     # the steady runs were filled together

@@ -298,3 +298,18 @@ def test_bad_input_names_parameter():
         solve_pvt(SV2, sats, np.zeros(3))
     with pytest.raises(ValueError, match="not RINEX satellite ids"):
         solve_pvt(["X1"] + SV2[1:], sats, np.zeros(len(SV2)))
+
+
+def test_chi2_quantile_table_is_scipys():
+    """The residual test's default quantiles (no scipy import at start-up) are scipy.special.chdtri's values,
+    and other probabilities or degrees of freedom still come from scipy."""
+    from scipy.special import chdtri
+
+    from gnss_sim_ros2.core.solver import CHI2_QUANTILE_P001, _chi2_threshold
+
+    assert len(CHI2_QUANTILE_P001) >= 40
+    for dof, v in enumerate(CHI2_QUANTILE_P001, start=1):
+        assert v == float(chdtri(dof, 1e-3)), dof
+        assert _chi2_threshold(1e-3, dof) == v
+    assert _chi2_threshold(1e-3, 200) == float(chdtri(200, 1e-3))
+    assert _chi2_threshold(0.01, 5) == float(chdtri(5, 0.01))

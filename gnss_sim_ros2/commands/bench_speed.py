@@ -75,6 +75,13 @@ def run_speed(duration_s: float = 3600.0, repeats: int = 3, peer: str | None = N
     env = dict(os.environ)
     repo = str(Path(__file__).resolve().parents[2])
     env["PYTHONPATH"] = repo + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
+    # the children start from compiled modules, as an installed package (pip compiles at install, and the
+    # peer's site-packages are compiled): a shell with PYTHONDONTWRITEBYTECODE would otherwise make every
+    # gnss_sim run compile its sources again (about 0.1 s), the peer's not
+    env.pop("PYTHONDONTWRITEBYTECODE", None)
+    peer_env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+    subprocess.run([sys.executable, "-m", "compileall", "-q", str(Path(repo) / "gnss_sim_ros2")],
+                   capture_output=True, env=env)
     sim = [sys.executable, "-m", "gnss_sim_ros2.cli", "simulate", "--duration", f"{duration_s:g}", "--quiet"]
     demo_cmd = sim + ["--out", str(work / "demo")]
     xyz = ",".join(f"{v:.4f}" for v in GPS_STATION_ECEF_M)
@@ -87,12 +94,12 @@ def run_speed(duration_s: float = 3600.0, repeats: int = 3, peer: str | None = N
         peer_cmd = [py, str(PEER_SCRIPT), str(nav), str(int(start.sec) * 1000), f"{duration_s:g}", "1", xyz]
     runs = {"demo": [], "gps": [], "peer": []}
     for r in range(repeats):
-        for name, cmd, e in (("demo", demo_cmd, env), ("gps", gps_cmd, env), ("peer", peer_cmd, None)):
+        for name, cmd, e in (("demo", demo_cmd, env), ("gps", gps_cmd, env), ("peer", peer_cmd, peer_env)):
             if cmd is None:
                 continue
             # in the repository: `python -m` puts the working folder first on the path (another checkout there
             # would be run instead)
-            got = _timed(cmd, e, repo if e is not None else str(work))
+            got = _timed(cmd, e, repo if e is env else str(work))
             if name == "peer":
                 got["peer"] = json.loads(got["stdout"].strip().splitlines()[-1])
             got.pop("stdout")

@@ -15,7 +15,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import pymap3d
 
 from .constants import WGS84_A_M, WGS84_F
 
@@ -31,6 +30,8 @@ _FAST_MIN_RADIUS_M = 5.0e6
 
 def geodetic_to_ecef(lat_deg, lon_deg, h_m):
     """Geodetic (WGS 84) -> ECEF [m]; scalars or arrays. Returns (x_m, y_m, z_m)."""
+    import pymap3d  # imported where used (start-up of a run that never needs it)
+
     return pymap3d.geodetic2ecef(lat_deg, lon_deg, h_m)
 
 
@@ -49,6 +50,8 @@ def ecef_to_geodetic(x_m, y_m, z_m):
         x, y, z = float(x_m), float(y_m), float(z_m)
         p = math.hypot(x, y)
         if math.hypot(p, z) < _FAST_MIN_RADIUS_M or not math.isfinite(p + z):
+            import pymap3d
+
             return pymap3d.ecef2geodetic(x, y, z)
         beta = math.atan2(z, _ONE_M_F * p)
         for _ in range(2):
@@ -63,6 +66,8 @@ def ecef_to_geodetic(x_m, y_m, z_m):
     p = np.hypot(x, y)
     r = np.hypot(p, z)
     if not np.all(r >= _FAST_MIN_RADIUS_M):     # deep inside the Earth, or NaN: pymap3d's own handling
+        import pymap3d
+
         return pymap3d.ecef2geodetic(x, y, z)
     beta = np.arctan2(z, _ONE_M_F * p)
     for _ in range(2):

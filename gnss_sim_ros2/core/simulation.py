@@ -340,6 +340,7 @@ def run_simulation(setup: SimulationSetup) -> SimulationResult:
                 products = chain.step_block(*block.stacked())
             else:
                 products = (chain.step(*block.epoch(b), multipath=block.paths_of(b)) for b in range(len(t_rel)))
+            products = list(products)
             for b, ep in enumerate(products):
                 i = i0 + b
                 t, ecef = ep.t, ep.antenna_ecef_m
@@ -349,17 +350,25 @@ def run_simulation(setup: SimulationSetup) -> SimulationResult:
                     fix_true.append(ecef)
                 if setup.observer is not None:
                     setup.observer(t, ecef, obs, sol)
-                above = obs.sat_el_deg >= mask
                 res.tracked_per_epoch.append(obs.n_tracked_sats)
-                state = obs.sat_vis_state[above]
-                res.visible_per_epoch.append(int(np.count_nonzero(state == visible)))
-                res.blocked_per_epoch.append(int(np.count_nonzero(state == blocked)))
-                res.attenuated_per_epoch.append(int(np.count_nonzero(state == attenuated)))
                 if setup.progress and (i % max(1, n_epochs // 20) == 0 or i == n_epochs - 1):
                     el = time.perf_counter() - wall0
                     print(f"\r[simulate] epoch {i + 1}/{n_epochs}  {obs.n_tracked_sats} sats tracked  "
                           f"{(t_rel[b] + interval_s) / max(el, 1e-9):.0f}x real time", end="", file=sys.stderr,
                           flush=True)
+            # satellites above the mask per visibility state, epoch by epoch (the block's counts at once)
+            n_sat = [len(ep.obs.sat_el_deg) for ep in products]
+            if products and sum(n_sat):
+                e = np.repeat(np.arange(len(products)), n_sat)
+                el = np.concatenate([ep.obs.sat_el_deg for ep in products])
+                state = np.concatenate([ep.obs.sat_vis_state for ep in products])
+                e, state = e[el >= mask], state[el >= mask]
+                for code, counts in ((visible, res.visible_per_epoch), (blocked, res.blocked_per_epoch),
+                                     (attenuated, res.attenuated_per_epoch)):
+                    counts.extend(np.bincount(e[state == code], minlength=len(products)).tolist())
+            else:
+                for counts in (res.visible_per_epoch, res.blocked_per_epoch, res.attenuated_per_epoch):
+                    counts.extend([0] * len(products))
     finally:
         chain.close()
     if setup.progress:

@@ -40,8 +40,6 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.linalg import lapack as _lapack
-from scipy.special import chdtri as _chdtri
 
 from .constants import C_MPS
 from .frames import ecef_to_geodetic, enu_rotation
@@ -88,6 +86,11 @@ class SolverConfig:
     clock_groups: Mapping[str, str] = field(default_factory=lambda: {"J": "G", "S": "G"})
 
 
+#: templates of the unset velocity fields (copied: np.full's own overhead is larger)
+_NAN3 = np.full(3, np.nan)
+_NAN33 = np.full((3, 3), np.nan)
+
+
 @dataclass
 class PvtSolution:
     """Result of one epoch.  Per-satellite arrays follow the input order."""
@@ -121,13 +124,13 @@ class PvtSolution:
     chi2: float                     # v^T W v
     chi2_threshold: float
     chi2_ok: bool | None            # None when there is no redundancy
-    vel_ecef_mps: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
-    vel_enu_mps: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
+    vel_ecef_mps: np.ndarray = field(default_factory=_NAN3.copy)
+    vel_enu_mps: np.ndarray = field(default_factory=_NAN3.copy)
     clock_drift_mps: float = math.nan
     clock_drift_sps: float = math.nan
-    cov_vel_ecef_m2ps2: np.ndarray = field(default_factory=lambda: np.full((3, 3), np.nan))
+    cov_vel_ecef_m2ps2: np.ndarray = field(default_factory=_NAN33.copy)
     #: the velocity's covariance in ENU at the solution [m^2/s^2] (from the a-priori range-rate sigmas)
-    cov_vel_enu_m2ps2: np.ndarray = field(default_factory=lambda: np.full((3, 3), np.nan))
+    cov_vel_enu_m2ps2: np.ndarray = field(default_factory=_NAN33.copy)
     vel_residuals_mps: np.ndarray | None = None
     vel_status: str = "none"        # "fix" | "no_fix" | "none" (no rates given)
     vel_reason: str = ""
@@ -172,9 +175,30 @@ def _system_factor(sv, cfg: SolverConfig) -> np.ndarray:
 @functools.lru_cache(maxsize=256)
 def _chi2_threshold(prob_false_alarm: float, dof: int) -> float:
     """Chi-square quantile 1 - p_fa for ``dof`` degrees of freedom: the inverse of the complemented
-    chi-square distribution (scipy.special.chdtri, Cephes; as scipy.stats.chi2.ppf(1 - p_fa) without
-    importing scipy.stats, about 1 s at start-up); cached: the same few values come back every epoch."""
-    return float(_chdtri(dof, prob_false_alarm))
+    chi-square distribution (scipy.special.chdtri, Cephes; as scipy.stats.chi2.ppf(1 - p_fa)); the
+    default p_fa = 0.001 from a table of chdtri's values (no scipy import at start-up, about 0.25 s);
+    cached: the same few values come back every epoch."""
+    if prob_false_alarm == 1e-3 and 1 <= dof <= len(CHI2_QUANTILE_P001):
+        return CHI2_QUANTILE_P001[dof - 1]
+    from scipy.special import chdtri
+
+    return float(chdtri(dof, prob_false_alarm))
+
+
+#: scipy.special.chdtri(dof, 0.001) for dof = 1..50 (more than a receiver of every system reaches), as
+#: round-trip decimals (the same doubles; test_solver.py compares every entry with scipy)
+CHI2_QUANTILE_P001 = (
+    10.827566170662733, 13.815510557964274, 16.26623619623813, 18.466826952903173, 20.515005652432876,
+    22.457744484825323, 24.321886347856854, 26.124481558376143, 27.877164871256575, 29.58829844507442,
+    31.26413362023999, 32.90949040736021, 34.52817897487089, 36.12327368039814, 37.69729821835383,
+    39.25235479076848, 40.79021670690253, 42.31239633167997, 43.82019596451753, 45.31474661812587,
+    46.7970380415613, 48.26794229083519, 49.72823246643151, 51.17859777737739, 52.61965577617283,
+    54.051962388576655, 55.47602020574521, 56.892285393353625, 58.30117348979492, 59.703064304429944,
+    61.09830608105814, 62.487219057088495, 63.87009852234495, 65.24721746094242, 66.61882884370104,
+    67.98516762602424, 69.3464524962412, 70.70288741150503, 72.0546629519878, 73.40195751899103,
+    74.74493839842374, 76.08376270770003, 77.41857824131394, 78.74952422804303, 80.07673201081901,
+    81.40032565871002, 82.72042251912403, 84.0371337172235, 85.350564608593, 86.66081519040317,
+)
 
 
 def range_rate_from_doppler(doppler_hz, carrier_hz):
@@ -191,36 +215,11 @@ def _as_array(name, x, n, shape_tail=()):
     return a
 
 
-def _condition_number(a: np.ndarray) -> float:
-    """2-norm condition number (largest / smallest singular value, as np.linalg.cond) of a small square
-    matrix; inf when singular.  LAPACK dgesdd directly: np.linalg.cond's Python overhead is larger than
-    the decomposition of a 4x4..9x9 normal matrix."""
-    out = _lapack.dgesdd(a, compute_uv=0)        # (u, s, vt, info); u, vt empty
-    s, info = out[1], out[-1]
-    if info != 0:
-        raise np.linalg.LinAlgError("SVD did not converge")
-    return math.inf if s[-1] == 0.0 else float(s[0] / s[-1])
-
-
 def _spd_inverses(a: np.ndarray) -> np.ndarray:
-    """Inverses of symmetric positive definite matrices (K, U, U): one by LAPACK Cholesky (less overhead),
-    several by numpy's batched inverse (symmetrised)."""
-    if len(a) == 1:
-        return _spd_inverse(a[0])[None]
+    """Inverses of symmetric positive definite matrices (K, U, U), numpy's batched inverse symmetrised
+    (one path for one epoch and many)."""
     inv = np.linalg.inv(a)
     return 0.5 * (inv + np.swapaxes(inv, 1, 2))
-
-
-def _spd_inverse(a: np.ndarray) -> np.ndarray:
-    """Inverse of a symmetric positive definite matrix (LAPACK Cholesky dpotrf + dpotri); LinAlgError when
-    it is not positive definite (singular normal matrix)."""
-    c, info = _lapack.dpotrf(a, lower=0, clean=1)
-    if info != 0:
-        raise np.linalg.LinAlgError("normal matrix not positive definite")
-    inv, info = _lapack.dpotri(c, lower=0)
-    if info != 0:
-        raise np.linalg.LinAlgError("normal matrix singular")
-    return inv + np.triu(inv, 1).T      # dpotri fills the upper triangle (the lower one is zero: clean=1)
 
 
 def _clock_group(sv_list, groups: Mapping[str, str]) -> np.ndarray:
@@ -286,7 +285,8 @@ class _Epoch:
 
 def _epoch_inputs(e: dict, cfg: SolverConfig) -> _Epoch:
     p = _Epoch()
-    sv_arr = np.asarray(e["sv"]).astype(str)
+    sv_arr = np.asarray(e["sv"])
+    sv_arr = sv_arr.copy() if sv_arr.dtype.kind == "U" else sv_arr.astype(str)
     if sv_arr.ndim != 1:
         raise ValueError(f"solve_pvt: sv must be 1-D, got shape {sv_arr.shape}")
     n = p.n = sv_arr.size
@@ -332,9 +332,18 @@ def solve_pvt_many(epochs, config: SolverConfig | None = None) -> list[PvtSoluti
     cfg = config or _default_config()
     ep = [_epoch_inputs(e, cfg) for e in epochs]
     k_n = len(ep)
-    n_max = max((p.n for p in ep), default=0)
-    clock_sys = sorted({g for p in ep for g in p.groups.tolist()}, key=SYSTEM_ORDER.index)
-    slot = {g: j for j, g in enumerate(clock_sys)}
+    n_of = [p.n for p in ep]
+    n_max = max(n_of, default=0)
+    # the epochs' rows one after another, then scattered into (K, n_max) padded arrays
+    ii = np.repeat(np.arange(k_n), n_of)
+    jj = np.arange(len(ii)) - np.repeat(np.cumsum(n_of) - n_of, n_of)
+
+    def flat(arrays, tail=()):
+        return np.concatenate(arrays) if arrays else np.zeros((0,) + tail)
+
+    ok = flat([p.valid for p in ep]).astype(bool)
+    groups = flat([p.groups for p in ep]).astype(str)
+    clock_sys = sorted(set(groups.tolist()), key=SYSTEM_ORDER.index)
     sat = np.zeros((k_n, n_max, 3))
     y = np.zeros((k_n, n_max))
     valid = np.zeros((k_n, n_max), dtype=bool)
@@ -344,21 +353,21 @@ def solve_pvt_many(epochs, config: SolverConfig | None = None) -> list[PvtSoluti
     any_cn0 = any(p.cn0 is not None for p in ep)
     sig = np.ones((k_n, n_max)) if any_sig else None
     cn0 = np.zeros((k_n, n_max)) if any_cn0 else None
-    x0 = np.zeros((k_n, 3))
-    for i, p in enumerate(ep):
-        n = p.n
-        ok = p.valid
-        sat[i, :n] = np.where(ok[:, None], p.sat, 0.0)
-        y[i, :n] = np.where(ok, p.y, 0.0)
-        valid[i, :n] = ok
-        col[i, :n] = [slot[g] for g in p.groups.tolist()]
-        fac2[i, :n] = p.fac ** 2
-        if p.sig is not None:
-            sig[i, :n] = np.where(ok, p.sig, 1.0)
-        if p.cn0 is not None:
-            cn0[i, :n] = np.where(np.isfinite(p.cn0), p.cn0, 0.0)
-        x0[i] = p.x0
-    layout = _Layout(sat, y, col, clock_sys, fac2, cn0, sig, [p.n for p in ep], [p.sig is not None for p in ep])
+    sat[ii, jj] = np.where(ok[:, None], flat([p.sat for p in ep], (3,)), 0.0)
+    y[ii, jj] = np.where(ok, flat([p.y for p in ep]), 0.0)
+    valid[ii, jj] = ok
+    col_flat = np.zeros(len(ii), dtype=np.int64)
+    for j, g in enumerate(clock_sys):
+        col_flat[groups == g] = j
+    col[ii, jj] = col_flat
+    fac2[ii, jj] = flat([p.fac for p in ep]) ** 2
+    if any_sig:
+        sig[ii, jj] = np.where(ok, flat([p.sig if p.sig is not None else np.ones(p.n) for p in ep]), 1.0)
+    if any_cn0:
+        c_flat = flat([p.cn0 if p.cn0 is not None else np.zeros(p.n) for p in ep])
+        cn0[ii, jj] = np.where(np.isfinite(c_flat), c_flat, 0.0)
+    x0 = np.array([p.x0 for p in ep], dtype=np.float64).reshape(k_n, 3)
+    layout = _Layout(sat, y, col, clock_sys, fac2, cn0, sig, n_of, [p.sig is not None for p in ep])
 
     excluded: list[list[str]] = [[] for _ in range(k_n)]
     notes: list[list[str]] = [[] for _ in range(k_n)]
@@ -546,10 +555,12 @@ def _solve_positions(lay: _Layout, rows: np.ndarray, valid: np.ndarray, x0: np.n
         ok = ~few
         cond = np.full(a.size, np.nan)
         finite = ok & np.all(np.isfinite(nmat), axis=(1, 2))
-        if finite.all() and a.size == 1:     # one epoch (a node): LAPACK directly, less overhead
-            cond[0] = _condition_number(nmat[0])
-        elif finite.any():
-            cond[finite] = np.linalg.cond(nmat[finite])
+        if finite.any():
+            # 2-norm condition number of the symmetric normal matrix: its extreme eigenvalues (its singular
+            # values; eigvalsh costs less than np.linalg.cond's SVD), inf when not positive definite
+            eig = np.linalg.eigvalsh(nmat[finite])
+            lo, hi = eig[:, 0], eig[:, -1]
+            cond[finite] = np.where(lo > 0, hi / np.where(lo > 0, lo, 1.0), np.inf)
         bad = ok & ~(cond <= 1e14)                              # also NaN
         for j in (np.flatnonzero(bad).tolist() if bad.any() else ()):
             i = int(a[j])
@@ -649,32 +660,40 @@ def _final_quantities(lay, rows, done, x, fin, it_of, n_of, out, cfg):
     wmax = wstat.max(axis=1, initial=-1.0)
     # ties (the two satellites of a clock group that has only two have equal statistics) go to the
     # first in input order, not to whichever round-off makes larger
-    worst = np.argmax(wstat >= (wmax * (1.0 - 1e-6))[:, None], axis=1)
+    worst = np.argmax(wstat >= (wmax * (1.0 - 1e-6))[:, None], axis=1).tolist()
+    az = _azimuth(enu)
+    # the epochs' scalars as Python numbers at once, their clock columns per pattern of clocks present
+    dops = list(zip(gdop.tolist(), pdop.tolist(), hdop.tolist(), vdop.tolist(), tdop.tolist()))
+    chi2_l, dof_l, clk_l = chi2.tolist(), dof.tolist(), clk.tolist()
+    lla = list(zip(np.atleast_1d(lat).tolist(), np.atleast_1d(lon).tolist(), np.atleast_1d(hgt).tolist()))
+    patterns: dict = {}
     for q_i, i in enumerate(done):
         n = n_of[i]
-        k_dof = int(dof[q_i])
+        k_dof = dof_l[q_i]
         c = cov[q_i]
         if cfg.scale_covariance and k_dof > 0:
-            c = c * max(1.0, float(chi2[q_i]) / k_dof)   # a-posteriori variance factor (residuals beyond sigmas)
-        cols = np.flatnonzero(present[q_i])
-        keep = np.concatenate([[0, 1, 2], 3 + cols])
-        cs = [lay.clock_sys[g] for g in cols.tolist()]
+            c = c * max(1.0, chi2_l[q_i] / k_dof)   # a-posteriori variance factor (residuals beyond sigmas)
+        pk = present[q_i].tobytes()
+        pat = patterns.get(pk)
+        if pat is None:
+            cols = np.flatnonzero(present[q_i])
+            keep = np.concatenate([[0, 1, 2], 3 + cols])
+            pat = patterns[pk] = (cols.tolist(), [lay.clock_sys[g] for g in cols.tolist()], np.ix_(keep, keep),
+                                  len(keep) == c.shape[0])
+        cols, cs, sub, whole = pat
         thr = _chi2_threshold(float(cfg.chi2_prob_false_alarm), k_dof) if k_dof > 0 else math.nan
-        dops = (float(gdop[q_i]), float(pdop[q_i]), float(hdop[q_i]), float(vdop[q_i]), float(tdop[q_i]))
         out[i] = {"status": "fix", "reason": "", "pos": xs[q_i].copy(),
-                  "clk": {s: float(clk[q_i, g]) for s, g in zip(cs, cols.tolist())}, "clock_systems": cs,
-                  "used": use[q_i, :n].copy(), "v": v[q_i, :n], "el": el[q_i, :n], "az": _azimuth(enu[q_i, :n], n),
-                  "cov": c[keep][:, keep], "dops": dops, "gdop": dops[0], "chi2": float(chi2[q_i]),
+                  "clk": {s: clk_l[q_i][g] for s, g in zip(cs, cols)}, "clock_systems": cs,
+                  "used": use[q_i, :n].copy(), "v": v[q_i, :n], "el": el[q_i, :n], "az": az[q_i, :n],
+                  "cov": c.copy() if whole else c[sub], "dops": dops[q_i], "gdop": dops[q_i][0], "chi2": chi2_l[q_i],
                   "chi2_threshold": thr, "dof": k_dof, "iter": int(it_of[i]),
-                  "worst": int(worst[q_i]) if k_dof > 0 else None, "rot": rot[q_i],
-                  "lla": (float(lat[q_i]), float(lon[q_i]), float(hgt[q_i])), "e_final": e_final[q_i, :n]}
+                  "worst": worst[q_i] if k_dof > 0 else None, "rot": rot[q_i],
+                  "lla": lla[q_i], "e_final": e_final[q_i, :n]}
 
 
-def _azimuth(enu, n):
-    """Azimuth [deg, 0..360) from ENU vectors (NaN when there are none: position not yet placed)."""
-    if enu is None:
-        return np.full(n, np.nan)
-    az = np.degrees(np.arctan2(enu[:, 0], enu[:, 1])) % 360.0
+def _azimuth(enu):
+    """Azimuth [deg, 0..360) from ENU vectors (..., 3)."""
+    az = np.degrees(np.arctan2(enu[..., 0], enu[..., 1])) % 360.0
     return az - 360.0 * (az >= 360.0)      # (-tiny) % 360 rounds to 360.0 (as frames.az_el_at)
 
 
@@ -719,40 +738,50 @@ def _solve_velocities(items, cfg) -> None:
         if not sol.is_fix:
             sol.vel_status, sol.vel_reason = "no_fix", "no position fix"
             continue
-        ok = sol.used & np.isfinite(rate) & np.all(np.isfinite(sat_vel), axis=1)
-        if sat_drift is not None:
-            ok &= np.isfinite(sat_drift)
-        n_ok = int(ok.sum())
-        if n_ok < 4:
-            sol.vel_status = "no_fix"
-            sol.vel_reason = f"too few range rates: {n_ok} of the used satellites, need 4 (3 velocity + 1 drift)"
-            continue
         if los is None:
             d = sat - sol.pos_ecef_m
             los = d / np.sqrt(np.einsum("ij,ij->i", d, d))[:, None]
-        # rate - e.v_sat + c ddt_sat = -e.v_rx + drift_rx
-        yv = rate - np.einsum("ij,ij->i", los, np.where(np.isfinite(sat_vel), sat_vel, 0.0))
-        if sat_drift is not None:
-            yv = yv + C_MPS * sat_drift
-        todo.append((sol, ok, los, np.where(ok, yv, 0.0), rot))
-    if todo:
-        _velocity_lsq(todo, cfg)
-
-
-def _velocity_lsq(todo, cfg) -> None:
-    """The velocity least squares of prepared epochs (_solve_velocities), stacked."""
-    k_n, n_max = len(todo), max(len(t[1]) for t in todo)
-    ok = np.zeros((k_n, n_max), dtype=bool)
+        todo.append((sol, sat_vel, rate, sat_drift, los, rot))
+    if not todo:
+        return
+    # the epochs' rows one after another
+    n_of = [len(t[2]) for t in todo]
+    k_n, n_max = len(todo), max(n_of)
+    ii = np.repeat(np.arange(k_n), n_of)
+    jj = np.arange(len(ii)) - np.repeat(np.cumsum(n_of) - n_of, n_of)
+    sat_vel = np.concatenate([t[1] for t in todo])
+    rate = np.concatenate([t[2] for t in todo])
+    drift = np.concatenate([t[3] if t[3] is not None else np.zeros(len(t[2])) for t in todo])
+    los = np.concatenate([t[4] for t in todo])
+    ok = (np.concatenate([t[0].used for t in todo]) & np.isfinite(rate) & np.all(np.isfinite(sat_vel), axis=1)
+          & np.isfinite(drift))
+    # rate - e.v_sat + c ddt_sat = -e.v_rx + drift_rx
+    yv = rate - np.einsum("ij,ij->i", los, np.where(np.isfinite(sat_vel), sat_vel, 0.0)) + C_MPS * drift
+    n_ok = np.bincount(ii[ok], minlength=k_n).tolist()
     h = np.zeros((k_n, n_max, 4))
-    yv = np.zeros((k_n, n_max))
+    h[ii, jj, :3] = -np.where(ok[:, None], los, 0.0)
+    h[ii, jj, 3] = 1.0
+    y_p = np.zeros((k_n, n_max))
+    y_p[ii, jj] = np.where(ok, yv, 0.0)
+    ok_p = np.zeros((k_n, n_max), dtype=bool)
+    ok_p[ii, jj] = ok
     el = np.full((k_n, n_max), 90.0)
-    for i, (sol, ok_i, los, y_i, _) in enumerate(todo):
-        n = len(ok_i)
-        ok[i, :n] = ok_i
-        h[i, :n, :3] = -np.where(ok_i[:, None], los, 0.0)
-        h[i, :n, 3] = 1.0
-        yv[i, :n] = y_i
-        el[i, :n] = np.where(ok_i, sol.el_deg, 90.0)
+    el[ii, jj] = np.where(ok, np.concatenate([t[0].el_deg for t in todo]), 90.0)
+    good = []
+    for i, t in enumerate(todo):
+        if n_ok[i] < 4:
+            t[0].vel_status = "no_fix"
+            t[0].vel_reason = f"too few range rates: {n_ok[i]} of the used satellites, need 4 (3 velocity + 1 drift)"
+        else:
+            good.append(i)
+    if good:
+        g = np.array(good)
+        _velocity_lsq([todo[i] for i in good], [n_of[i] for i in good], ok_p[g], h[g], y_p[g], el[g], cfg)
+
+
+def _velocity_lsq(todo, n_of, ok, h, yv, el, cfg) -> None:
+    """The velocity least squares of prepared epochs (_solve_velocities: padded (K, N) arrays)."""
+    k_n = len(todo)
     s = np.sin(np.radians(np.minimum(np.maximum(el, 1.0), 90.0)))
     w = np.where(ok, 1.0 / (cfg.rate_sigma_a_mps**2 + cfg.rate_sigma_b_mps**2 / s**2), 0.0)
     hw = h * w[..., None]
@@ -763,24 +792,28 @@ def _velocity_lsq(todo, cfg) -> None:
             raise np.linalg.LinAlgError
     except np.linalg.LinAlgError:
         if k_n > 1:                      # one of them is singular: each on its own
-            for t in todo:
-                _velocity_lsq([t], cfg)
+            for i in range(k_n):
+                _velocity_lsq(todo[i:i + 1], n_of[i:i + 1], ok[i:i + 1], h[i:i + 1], yv[i:i + 1], el[i:i + 1], cfg)
             return
         todo[0][0].vel_status, todo[0][0].vel_reason = "no_fix", "singular geometry for the velocity"
         return
     xv = np.einsum("kij,kj->ki", cov, np.einsum("kni,kn->ki", hw, yv))
     resid = np.where(ok, yv - np.einsum("kni,ki->kn", h, xv), np.nan)
-    for i, (sol, ok_i, _, _, rot) in enumerate(todo):
-        if rot is None:
-            rot = enu_rotation(sol.lat_deg, sol.lon_deg)
-        c3 = cov[i, :3, :3]
+    # in ENU at each solution, all epochs at once
+    rot = np.stack([t[5] if t[5] is not None else enu_rotation(t[0].lat_deg, t[0].lon_deg) for t in todo])
+    c3 = cov[:, :3, :3]
+    vel_enu = np.einsum("kij,kj->ki", rot, xv[:, :3])
+    cov_enu = rot @ c3 @ np.swapaxes(rot, 1, 2)
+    drift = xv[:, 3].tolist()
+    for i, t in enumerate(todo):
+        sol = t[0]
         sol.vel_ecef_mps = xv[i, :3]
-        sol.vel_enu_mps = rot @ xv[i, :3]
-        sol.clock_drift_mps = float(xv[i, 3])
-        sol.clock_drift_sps = float(xv[i, 3] / C_MPS)
-        sol.cov_vel_ecef_m2ps2 = c3
-        sol.cov_vel_enu_m2ps2 = rot @ c3 @ rot.T
-        sol.vel_residuals_mps = resid[i, :len(ok_i)]
+        sol.vel_enu_mps = vel_enu[i]
+        sol.clock_drift_mps = drift[i]
+        sol.clock_drift_sps = drift[i] / C_MPS
+        sol.cov_vel_ecef_m2ps2 = c3[i]
+        sol.cov_vel_enu_m2ps2 = cov_enu[i]
+        sol.vel_residuals_mps = resid[i, :n_of[i]]
         sol.vel_status, sol.vel_reason = "fix", ""
 
 

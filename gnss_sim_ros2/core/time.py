@@ -132,6 +132,9 @@ class GnssTime:
     __slots__ = ("sec", "frac")
 
     def __init__(self, sec, frac=0.0):
+        if type(sec) is int and type(frac) is float and 0.0 <= frac < 1.0:    # normalised scalars already
+            self.sec, self.frac = sec, frac
+            return
         sec_is_scalar = np.ndim(sec) == 0 and np.ndim(frac) == 0
         if sec_is_scalar and isinstance(sec, float):
             whole = math.floor(sec)
@@ -243,7 +246,7 @@ class GnssTime:
                 sec += 1
             tail = ""
         base = GPS_EPOCH + _dt.timedelta(seconds=sec)
-        return base.strftime("%Y-%m-%dT%H:%M:%S") + tail
+        return base.isoformat(timespec="seconds") + tail     # YYYY-MM-DDThh:mm:ss (naive: no offset)
 
     def to_gps_seconds(self):
         """Float seconds since the GPS epoch (loses precision below ~0.1 us: display only)."""
@@ -263,6 +266,8 @@ class GnssTime:
 
     def __sub__(self, other):
         if isinstance(other, GnssTime):
+            if type(self.sec) is int and type(other.sec) is int:     # two scalars: the same double, less overhead
+                return float(self.sec - other.sec) + (self.frac - other.frac)
             ds = np.asarray(self.sec, dtype=np.int64) - np.asarray(other.sec, dtype=np.int64)
             out = ds.astype(np.float64) + (np.asarray(self.frac) - np.asarray(other.frac))
             return float(out) if np.ndim(out) == 0 else out

@@ -19,7 +19,6 @@ epochs, in both front ends, so that one configuration gives one answer.
 """
 from __future__ import annotations
 
-import copy
 import csv
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -269,7 +268,7 @@ class ReceiverChain:
         obs = self.rx.epochs(ts, ecef, states, epoch_of_row, vis_state, attenuation_db, vel, multipath)
         # the fixes of the block in one solve, each started at the last fix before the block (the same
         # solutions as starting at the previous epoch's, to the solver's convergence of 0.1 mm)
-        fix_obs = [self._smoothed(o) for o in obs] if self.settings.smoothing_s > 0 else obs
+        fix_obs = self._smoothed_many(obs) if self.settings.smoothing_s > 0 else obs
         sols = position_fixes(fix_obs, self.settings.receiver.profile, self.prior_ecef_m, self.settings.solver)
         self._rinex_pending = []          # the block's RINEX epochs, formatted and written together
         try:
@@ -310,28 +309,48 @@ class ReceiverChain:
     def _smoothed(self, obs: EpochObservations) -> EpochObservations:
         """The observables with carrier-smoothed code for the position fix, as receivers compute their fix
         (Hatch filter, RTCA DO-229 2.1.4.1.1: P_s = P / M + (M - 1) / M (P_s' + L - L'), window M up to
-        smoothing_s; restarted at a loss of lock).  The raw code stays in the observations and RINEX."""
+        smoothing_s; restarted at a loss of lock).  The raw code stays in the observations and RINEX.
+        One epoch of :meth:`_smoothed_many`."""
+        return self._smoothed_many([obs])[0]
+
+    def _smoothed_many(self, obs_list) -> list[EpochObservations]:
+        """:meth:`_smoothed` of consecutive epochs: what needs no state (the carrier in metres, the loss of lock
+        flags) for all their signals at once, then the filter epoch by epoch."""
         from ..constants import C_MPS
 
+        if not obs_list:
+            return []
         n_max = max(1, int(round(self.settings.smoothing_s / self.settings.interval_s)))
-        lam = C_MPS / np.asarray(obs.frequency_hz, dtype=float)
+        def cat(name, dtype):
+            parts = [np.asarray(getattr(o, name), dtype=dtype) for o in obs_list]
+            return parts[0] if len(parts) == 1 else np.concatenate(parts)
+
+        lam = C_MPS / cat("frequency_hz", float)
         # the carrier advances where the code is delayed: twice the receiver's own (broadcast) ionosphere
         # model is added to the phase, so the window does not drift with the ionosphere (code-carrier
         # divergence, DO-229 2.1.4.1.1 note); what the model misses still diverges, as in a real receiver
-        phase_m = np.asarray(obs.carrier_phase_cyc, dtype=float) * lam + 2.0 * np.asarray(obs.iono_model_m, float)
-        pr = np.asarray(obs.pseudorange_m, dtype=float)
+        phase_all = cat("carrier_phase_cyc", float) * lam + 2.0 * cat("iono_model_m", float)
+        pr_all = cat("pseudorange_m", float)
+        intact_all = ((cat("lli", np.int64) & 1) == 0) & np.isfinite(phase_all)
         st = self._smooth
-        idx = st.slots(obs.sv, obs.code)
-        # the window goes on for a signal also tracked at the previous call, without a loss of lock;
-        # a signal not tracked at the previous epoch starts again
-        go_on = (st.last[idx] == st.calls - 1) & ((np.asarray(obs.lli, dtype=np.int64) & 1) == 0) & np.isfinite(phase_m)
-        m = np.where(go_on, np.minimum(st.count[idx] + 1, n_max), 1)
-        out = np.where(go_on, pr / m + (m - 1) / m * (st.code[idx] + phase_m - st.phase[idx]), pr)
-        st.code[idx], st.phase[idx], st.count[idx], st.last[idx] = out, phase_m, m, st.calls
-        st.calls += 1
-        smoothed = copy.copy(obs)          # dataclasses.replace, without its field-by-field __init__
-        smoothed.pseudorange_m = out
-        return smoothed
+        out_list, j0 = [], 0
+        for obs in obs_list:
+            j1 = j0 + len(obs.pseudorange_m)
+            phase_m, pr = phase_all[j0:j1], pr_all[j0:j1]
+            idx = st.slots(obs.sv, obs.code)
+            # the window goes on for a signal also tracked at the previous call, without a loss of lock;
+            # a signal not tracked at the previous epoch starts again
+            go_on = (st.last[idx] == st.calls - 1) & intact_all[j0:j1]
+            m = np.where(go_on, np.minimum(st.count[idx] + 1, n_max), 1)
+            out = np.where(go_on, pr / m + (m - 1) / m * (st.code[idx] + phase_m - st.phase[idx]), pr)
+            st.code[idx], st.phase[idx], st.count[idx], st.last[idx] = out, phase_m, m, st.calls
+            st.calls += 1
+            smoothed = object.__new__(EpochObservations)    # a shallow copy (copy.copy without __reduce_ex__)
+            smoothed.__dict__.update(obs.__dict__)
+            smoothed.pseudorange_m = out
+            out_list.append(smoothed)
+            j0 = j1
+        return out_list
 
     # ------------------------------------------------------------------ files
     def _make_header(self, ecef, states):

@@ -81,14 +81,21 @@ class ReceiverClock:
         self.bias_s = float(self.config.initial_bias_s)
         self.drift_sps = float(self.config.initial_drift_sps)   # oscillator frequency offset
         self.steered_drift_sps = self.drift_sps
+        self._chol: dict = {}
 
     def _noise(self, dt_s, n):
         c = self.config
         if not c.noise or (c.h0 == 0 and c.h_m2 == 0):
             return np.zeros((n, 2))
-        q = process_noise(dt_s, c.h0, c.h_m2)
-        lq = np.linalg.cholesky(q + np.diag([1e-300, 1e-300]))
-        return self.rng.standard_normal((n, 2)) @ lq.T
+        key = (float(dt_s), c.h0, c.h_m2)
+        lq = self._chol.get(key)
+        if lq is None:     # the factor of one interval, computed once (an epoch grid has one or a few)
+            q = process_noise(dt_s, c.h0, c.h_m2)
+            lq = np.linalg.cholesky(q + np.diag([1e-300, 1e-300])).T
+            if len(self._chol) > 16:
+                self._chol.clear()
+            self._chol[key] = lq
+        return self.rng.standard_normal((n, 2)) @ lq
 
     def step(self, dt_s: float):
         """Advance by ``dt_s`` > 0. Returns (bias_s, drift_sps, jumped_s): jumped_s = step applied (0 or +-1 ms)."""

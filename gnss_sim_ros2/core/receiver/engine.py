@@ -200,7 +200,7 @@ class EpochObservations:
 
     @property
     def n_tracked_sats(self) -> int:
-        return len(np.unique(self.sv))
+        return len(set(np.asarray(self.sv).tolist()))
 
 
 class Receiver:
@@ -441,47 +441,53 @@ class Receiver:
         above = el_j >= cfg.elevation_mask_deg
         sv_j = rows.sv_j
         draw_cn0 = cfg.noise and cfg.cn0_noise_db > 0
+        mp_code, mp_phase = np.zeros(m), np.zeros(m)
+        ok_all = line_ok
+        empty = sig_seg[1:] == sig_seg[:-1]
+        # the scene's reflected paths, epoch by epoch (no memory, no random draw)
+        for b in (range(k_n) if multipath is not None else ()):
+            j0, j1 = sig_seg[b], sig_seg[b + 1]
+            paths = multipath[b]
+            if j0 == j1 or paths is None or not paths.valid.any():
+                continue
+            s = slice(j0, j1)
+            paths = paths.take(keep[seg_all[b]:seg_all[b + 1]])
+            loc = sat_i[s] - seg[b]
+            mp_err = self._scene_multipath(paths, loc, vis_j[s], att_j[s], el_j[s], chip[s], lam[s])
+            if mp_err is not None:
+                rows_mp, err = mp_err
+                # composite amplitude relative to the unobstructed line of sight replaces the obstruction loss
+                cn0[j0 + rows_mp] += att_j[j0 + rows_mp] + 20.0 * np.log10(np.maximum(err.amplitude, 1e-6))
+                mp_code[j0 + rows_mp] = err.code_m
+                mp_phase[j0 + rows_mp] = err.phase_m
+                # no line of sight, a reflected path: tracked if strong enough (thresholds with hysteresis,
+                # tracking.py); REFLECTED_ONLY without the paths (a caller with only the state) stays untracked
+                nlos_rows = j0 + rows_mp[err.nlos]
+                if ok_all is line_ok:
+                    ok_all = line_ok.copy()
+                ok_all[nlos_rows] |= vis_j[nlos_rows] == REFLECTED_ONLY
+        # the tracking loops, epoch by epoch in order (Tracker.update_many)
+        tracked, lli, lock, amb = self.tracker.update_many(ts, sv_j, codes, cn0, ok_all & above, sig_seg)
+        # the noise processes' draws, epoch after epoch as K calls of one epoch make them (the same streams:
+        # a Generator's draws of n and then m values are its n + m values): per epoch C/N0 noise, then code,
+        # phase and Doppler noise from rng_noise; the code multipath's innovations from _mp_rng
         z_cn0 = np.zeros(m)
         r = np.zeros((3, m))
         mp_x = np.zeros(m)
-        mp_code, mp_phase = np.zeros(m), np.zeros(m)
-        tracked = np.zeros(m, dtype=bool)
-        lli = np.zeros(m, dtype=np.int8)
-        lock = np.zeros(m)
-        amb = np.zeros(m, dtype=np.int64)
-        empty = np.zeros(k_n, dtype=bool)
-        for b in range(k_n):
-            j0, j1 = sig_seg[b], sig_seg[b + 1]
-            if j0 == j1 or seg[b] == seg[b + 1]:
-                empty[b] = True
-                self.tracker.update(ts[b], np.zeros(0, dtype="<U3"), np.zeros(0, dtype="<U2"), np.zeros(0))
-                continue
-            s = slice(j0, j1)
-            mb = j1 - j0
+        if cfg.noise:
+            lead = 1 if draw_cn0 else 0
+            j0_row = sig_seg[e_sig]
+            mb_row = m_ep[e_sig]
+            base = (3 + lead) * j0_row + (np.arange(m) - j0_row)
+            w = self.rng_noise.standard_normal((3 + lead) * m)
             if draw_cn0:
-                z_cn0[s] = self.rng_noise.standard_normal(mb)
-            ok = line_ok[s]
-            paths = None if multipath is None else multipath[b]
-            if paths is not None and paths.valid.any():
-                paths = paths.take(keep[seg_all[b]:seg_all[b + 1]])
-                loc = sat_i[s] - seg[b]
-                mp_err = self._scene_multipath(paths, loc, vis_j[s], att_j[s], el_j[s], chip[s], lam[s])
-                if mp_err is not None:
-                    rows_mp, err = mp_err
-                    # composite amplitude relative to the unobstructed line of sight replaces the obstruction loss
-                    cn0[j0 + rows_mp] += att_j[j0 + rows_mp] + 20.0 * np.log10(np.maximum(err.amplitude, 1e-6))
-                    mp_code[j0 + rows_mp] = err.code_m
-                    mp_phase[j0 + rows_mp] = err.phase_m
-                    # no line of sight, a reflected path: tracked if strong enough (thresholds with hysteresis,
-                    # tracking.py); REFLECTED_ONLY without the paths (a caller with only the state) stays untracked
-                    nlos_rows = rows_mp[err.nlos]
-                    ok = ok.copy()
-                    ok[nlos_rows] |= vis_j[j0 + nlos_rows] == REFLECTED_ONLY
-            trk = self.tracker.update(ts[b], sv_j[s], codes[s], cn0[s], visible=ok & above[s])
-            tracked[s], lli[s], lock[s], amb[s] = trk.tracked, trk.lli, trk.lock_time_s, trk.ambiguity_cyc
-            if cfg.noise:
-                r[:, s] = self.rng_noise.standard_normal((3, mb))
-                mp_x[s] = self._multipath_state(rows.mp_idx[s], dt_ep[b])
+                z_cn0 = w[base]
+            for i in range(3):
+                r[i] = w[base + (lead + i) * mb_row]
+            w_mp = self._mp_rng.standard_normal(m)
+            for b in np.flatnonzero(~empty).tolist():
+                s = slice(sig_seg[b], sig_seg[b + 1])
+                mp_x[s] = self._multipath_state(rows.mp_idx[s], dt_ep[b], w_mp[s])
 
         # noise
         cn0_meas = cn0 + cfg.cn0_noise_db * z_cn0 if draw_cn0 else cn0
@@ -504,21 +510,27 @@ class Receiver:
         drift_j = drift_ep[0] if k_n == 1 else drift_ep[e_sig]
         dop = -(rho_dot + k.C_MPS * (drift_j - ddts)) / lam + e_d
 
+        # the tracked signals of the block taken at once; epoch b's are the rows cut[b]:cut[b + 1] of those
+        sel = np.flatnonzero(tracked)
+        cut = np.searchsorted(sel, sig_seg).tolist()
+        sat_tr = sat_i[sel]
+        (t_sv, t_code, t_freq, t_pr, t_phase, t_dop, t_cn0, t_lli, t_lock, t_dts, t_ddts, t_iono, t_tropo, t_el,
+         t_rho) = (x[sel] for x in (sv_j, codes, freq, pr, phase, dop, cn0_meas, lli, lock, dts, ddts, iono_model,
+                                     tropo, el_j, rho))
+        t_pos, t_vel = sol.sat_pos_ecef_m[sat_tr], sol.sat_vel_ecef_mps[sat_tr]
         for b in range(k_n):
             s = slice(seg[b], seg[b + 1])
             if empty[b]:
                 out.append(self._observation(ts[b], bias_ep[b], drift_ep[b], svs[s], az[s], el[s], vis[s], att[s]))
                 continue
-            sel = sig_seg[b] + np.flatnonzero(tracked[sig_seg[b]:sig_seg[b + 1]])
-            sat_tr = sat_i[sel]
+            r = slice(cut[b], cut[b + 1])
             out.append(EpochObservations(
                 t=ts[b], clock_bias_s=bias_ep[b], clock_drift_sps=drift_ep[b],
                 sat_sv=svs[s], sat_az_deg=az[s], sat_el_deg=el[s], sat_vis_state=vis[s], sat_attenuation_db=att[s],
-                sv=sv_j[sel], code=codes[sel], frequency_hz=freq[sel], pseudorange_m=pr[sel],
-                carrier_phase_cyc=phase[sel], doppler_hz=dop[sel], cn0_dbhz=cn0_meas[sel], lli=lli[sel],
-                lock_time_s=lock[sel], sat_pos_ecef_m=sol.sat_pos_ecef_m[sat_tr],
-                sat_vel_ecef_mps=sol.sat_vel_ecef_mps[sat_tr], sat_clock_s=dts[sel], sat_clock_drift_sps=ddts[sel],
-                iono_model_m=iono_model[sel], tropo_model_m=tropo[sel], el_deg=el_j[sel], true_range_m=rho[sel],
+                sv=t_sv[r], code=t_code[r], frequency_hz=t_freq[r], pseudorange_m=t_pr[r], carrier_phase_cyc=t_phase[r],
+                doppler_hz=t_dop[r], cn0_dbhz=t_cn0[r], lli=t_lli[r], lock_time_s=t_lock[r], sat_pos_ecef_m=t_pos[r],
+                sat_vel_ecef_mps=t_vel[r], sat_clock_s=t_dts[r], sat_clock_drift_sps=t_ddts[r], iono_model_m=t_iono[r],
+                tropo_model_m=t_tropo[r], el_deg=t_el[r], true_range_m=t_rho[r],
             ))
         return out
 
@@ -636,10 +648,12 @@ class Receiver:
         cfg = self.cfg
         return cfg.mp_zenith_m + cfg.mp_low_m * np.exp(-np.maximum(el_j, 0.0) / 15.0)
 
-    def _multipath_state(self, idx, dt_s):
-        """Unit-variance Gauss-Markov states of the slots ``idx`` advanced by ``dt_s`` (one draw each)."""
+    def _multipath_state(self, idx, dt_s, w=None):
+        """Unit-variance Gauss-Markov states of the slots ``idx`` advanced by ``dt_s`` (one draw each: ``w``, or
+        drawn now)."""
         phi = np.exp(-dt_s / self.cfg.mp_tau_s) if dt_s > 0 else 0.0
-        w = self._mp_rng.standard_normal(len(idx))
+        if w is None:
+            w = self._mp_rng.standard_normal(len(idx))
         prev = self._mp_x[idx]
         x = np.where(np.isnan(prev), w, phi * prev + np.sqrt(1 - phi * phi) * w)
         self._mp_x[idx] = x

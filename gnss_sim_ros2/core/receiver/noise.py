@@ -26,7 +26,6 @@ Defaults: DLL B_n = 1 Hz, D = 0.5 chip, T = 20 ms; PLL B_n = 15 Hz, T = 1 ms
 from __future__ import annotations
 
 import numpy as np
-from scipy.special import i0e
 
 from gnss_sim_ros2.core import signals as _signals
 
@@ -110,9 +109,31 @@ def mean_time_to_slip_s(cn0_dbhz, bn_hz=15.0, t_int_s=0.001, costas=True):
     rho = c / bn_hz
     if costas:
         rho = rho / (1.0 + 1.0 / (2.0 * t_int_s * c)) / 4.0
+    from scipy.special import i0e
+
     # I0(rho)^2 = (i0e(rho) e^rho)^2; evaluated in logs to avoid overflow
     log_t = np.log(np.pi**2 * rho / (2.0 * bn_hz)) + 2.0 * np.log(i0e(rho)) + 2.0 * rho
     return np.exp(np.minimum(log_t, 700.0))
+
+
+def slip_probability(cn0_dbhz, dt_s, bn_hz=15.0, t_int_s=0.001):
+    """Probability of a cycle slip within ``dt_s`` > 0 (scalar or per row): 1 - exp(-dt / T),
+    T = :func:`mean_time_to_slip_s` (Costas loop).  Rows whose probability is 0 in double precision
+    whatever I0 is are not evaluated: with I0(rho) e^-rho >= 1 / sqrt(2 pi rho) for rho >= 1/2,
+    log T >= L = log(pi^2 rho / (2 B_n)) - log(2 pi rho) + 2 rho, and dt / T < 2^-54 (L > log dt + 38)
+    makes exp(-dt / T) round to 1 exactly (the I0 evaluation, scipy's, is only imported for weak
+    signals)."""
+    _positive("bn_hz", bn_hz)
+    c = _ratio(cn0_dbhz)
+    rho = c / bn_hz / (1.0 + 1.0 / (2.0 * t_int_s * c)) / 4.0
+    rho_b = np.maximum(rho, 0.5)
+    bound = np.minimum(np.log(np.pi**2 * rho_b / (2.0 * bn_hz)) - np.log(2.0 * np.pi * rho_b) + 2.0 * rho_b, 700.0)
+    dt = np.broadcast_to(np.asarray(dt_s, dtype=np.float64), np.shape(c))
+    maybe = (rho < 0.5) | (bound <= np.log(dt) + 38.0)
+    p = np.zeros(np.shape(c))
+    if maybe.any():
+        p[maybe] = 1.0 - np.exp(-dt[maybe] / mean_time_to_slip_s(np.asarray(cn0_dbhz)[maybe], bn_hz, t_int_s))
+    return p
 
 
 # ---- helpers from the signal table -----------------------------------------------------

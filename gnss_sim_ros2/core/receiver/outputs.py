@@ -26,20 +26,19 @@ def obs_types_for(profile: dict[str, list[str]], systems: str) -> dict[str, list
 
 def epoch_arrays(obs: EpochObservations, obs_types: dict[str, list[str]]) -> EpochArrays:
     """One RINEX epoch (rows = satellites with a tracked signal) from the receiver's observables."""
-    svs, rows, cols, width, codes = _layout(obs.sv, obs.code, obs_types)
-    value = np.full((len(svs), width), np.nan)
-    lli = np.full((len(svs), width), -1, dtype=np.int64)
-    ssi = np.full((len(svs), width), -1, dtype=np.int64)
-    if len(rows):
-        ssi_j = ssi_from_cn0(obs.cn0_dbhz)
-        for kind, v, (ok, r, c) in zip(OBS_KINDS, (obs.pseudorange_m, obs.carrier_phase_cyc, obs.doppler_hz,
-                                                   obs.cn0_dbhz), cols):
-            value[r, c] = np.asarray(v)[ok]
-            if kind in "CL":
-                ssi[r, c] = ssi_j[ok]
-            if kind == "L":
-                lli[r, c] = np.asarray(obs.lli)[ok].astype(np.int64)
-    return EpochArrays(sv=list(svs), codes=codes, value=value, lli=lli, ssi=ssi)
+    svs, width, codes, (dest_v, src_v, dest_s, src_s, dest_l, src_l) = _layout(obs.sv, obs.code, obs_types)
+    value = np.empty((len(svs), width))      # np.empty + fill: np.full's own overhead is larger here
+    value.fill(np.nan)
+    lli = np.empty((len(svs), width), dtype=np.int64)
+    lli.fill(-1)
+    ssi = lli.copy()
+    if len(dest_v):
+        # C, L, D, S values of every signal in one array, placed at their (row, column) cells in one go
+        kinds = np.concatenate([obs.pseudorange_m, obs.carrier_phase_cyc, obs.doppler_hz, obs.cn0_dbhz])
+        np.put(value, dest_v, kinds[src_v])
+        np.put(ssi, dest_s, ssi_from_cn0(obs.cn0_dbhz)[src_s])      # strength on code and phase
+        np.put(lli, dest_l, np.asarray(obs.lli)[src_l])              # loss of lock on phase
+    return EpochArrays(sv=svs, codes=codes, value=value, lli=lli, ssi=ssi)
 
 
 _COLUMNS_CACHE: dict = {}
@@ -47,9 +46,10 @@ _LAYOUT_CACHE: dict = {}
 
 
 def _layout(sv, code, obs_types):
-    """(satellites in order of appearance, row of each signal, per kind C/L/D/S (signals with a column,
-    their rows, their columns), width, codes per system padded to the width) of one epoch's signals;
-    cached (the tracked set changes rarely)."""
+    """(satellites in order of appearance, width, codes per system padded to the width, flat places) of one
+    epoch's signals, the flat places being (cells of the C/L/D/S values in the (satellites, width) arrays,
+    their positions in the four kinds' values one after another, cells of the C and L strengths, their
+    signals, cells of the L loss-of-lock flags, their signals); cached (the tracked set changes rarely)."""
     sv, code = np.asarray(sv), np.asarray(code)
     key = (sv.dtype.str, sv.tobytes(), code.dtype.str, code.tobytes(),
            tuple((s, tuple(c)) for s, c in obs_types.items()))
@@ -65,11 +65,16 @@ def _layout(sv, code, obs_types):
         cols = np.array([cols_of.get((s[0], c), no_cols) for s, c in zip(sv_list, code.tolist())],
                         dtype=np.int64).reshape(m, len(OBS_KINDS))
         rows = np.array([row[s] for s in sv_list], dtype=np.int64)
-        # per kind: the signals with a column, their rows and columns
-        cols = [(c >= 0, rows[c >= 0], c[c >= 0]) for c in cols.T]
+        dest, src = {}, {}
+        for k, kind in enumerate(OBS_KINDS):     # per kind: the signals with a column
+            ok = np.flatnonzero(cols[:, k] >= 0)
+            dest[kind], src[kind] = rows[ok] * width + cols[ok, k], ok
+        places = (np.concatenate([dest[x] for x in OBS_KINDS]),
+                  np.concatenate([k * m + src[x] for k, x in enumerate(OBS_KINDS)]),
+                  np.concatenate([dest["C"], dest["L"]]), np.concatenate([src["C"], src["L"]]), dest["L"], src["L"])
         # shorter systems' code lists padded to the common width with names not in the header (never filled)
         codes = {s: list(v) + [f"X{i}Z" for i in range(width - len(v))] for s, v in obs_types.items()}
-        hit = (svs, rows, cols, width, codes)
+        hit = (svs, width, codes, places)
         if len(_LAYOUT_CACHE) > 256:
             _LAYOUT_CACHE.clear()
         _LAYOUT_CACHE[key] = hit

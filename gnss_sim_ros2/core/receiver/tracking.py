@@ -41,7 +41,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gnss_sim_ros2.core.receiver.noise import mean_time_to_slip_s
+from gnss_sim_ros2.core.receiver.noise import slip_probability
 from gnss_sim_ros2.core.signals import BEIDOU_GEO_PATTERN
 from gnss_sim_ros2.core.time import GnssTime
 
@@ -249,7 +249,7 @@ class Tracker:
                 self._half_end[inew] = c.half_cycle_time_s
         slipped = keep & forced
         if c.random_slips and dt > 0 and np.any(keep):
-            p = 1.0 - np.exp(-dt / mean_time_to_slip_s(cn0, c.pll_bn_hz, c.pll_t_int_s))
+            p = slip_probability(cn0, dt, c.pll_bn_hz, c.pll_t_int_s)
             u = self.rng.random(n)
             slipped |= keep & (u < p)
         n_slip = int(slipped.sum())
@@ -270,6 +270,78 @@ class Tracker:
         lli[half] |= LLI_HALF_CYCLE
         lock_time = np.where(tracked, ts - lock_start, 0.0)
         return TrackingOutput(tracked.copy(), lli, lock_time, amb.copy(), new.copy(), slipped.copy())
+
+    def update_many(self, ts, sv, code, cn0_dbhz, visible, seg):
+        """:meth:`update` for K epochs in order: epoch b's keys are the rows ``seg[b]:seg[b + 1]`` of ``sv``,
+        ``code``, ``cn0_dbhz`` and ``visible`` (no forced slips).  Returns (tracked, lli, lock_time_s,
+        ambiguity_cyc) per row, what K calls of update give.
+
+        An epoch with the previous epoch's keys where every tracked key is kept (visible, above the tracking
+        threshold, a slip probability of exactly 0) and no other key reaches the acquisition threshold
+        changes no state but the time: a run of such epochs is filled together, its uniform draws (one per
+        key and epoch, as update makes them) taken in one call; every other epoch goes through update."""
+        n_all = len(sv)
+        tracked = np.zeros(n_all, dtype=bool)
+        lli = np.zeros(n_all, dtype=np.int8)
+        lock = np.zeros(n_all)
+        amb = np.zeros(n_all, dtype=np.int64)
+        seg = np.asarray(seg, dtype=np.int64)
+        sv, code = np.asarray(sv, dtype=str), np.asarray(code, dtype=str)
+        cn0 = np.asarray(cn0_dbhz, dtype=np.float64)
+        vis = np.asarray(visible, dtype=bool)
+        c = self.config
+        ts = [t if isinstance(t, GnssTime) else float(t) for t in ts]
+        t_s = [self._seconds(t) for t in ts]
+        prev = [self._t_prev] + t_s[:-1]
+        dt_ep = np.array([t - p if p is not None else 0.0 for t, p in zip(t_s, prev)])
+        n_ep = np.diff(seg)
+        # per row: what would change the state of a tracked key (lost, or a possible slip), of an untracked one
+        ok_track = vis & (cn0 >= c.tracking_cn0_dbhz)
+        stop_tracked = ~ok_track
+        if c.random_slips and n_all:
+            p = slip_probability(np.where(ok_track, cn0, 99.0), np.repeat(np.where(dt_ep > 0, dt_ep, 1.0), n_ep),
+                                 c.pll_bn_hz, c.pll_t_int_s)
+            stop_tracked |= p > 0
+        start_untracked = vis & (cn0 >= c.acquisition_cn0_dbhz)
+        may = ((n_ep > 0) & (dt_ep > 0)).tolist()
+        run: list = []            # epochs of the current steady run
+        held = None               # tracked flags of the run's keys
+
+        def flush():
+            if not run:
+                return
+            idx = self._idx_prev
+            k_r = len(run)
+            tt = np.repeat(np.array([t_s[b] for b in run]), len(idx))
+            rows = np.concatenate([np.arange(seg[b], seg[b + 1]) for b in run])
+            if c.random_slips and held.any():
+                self.rng.random(len(idx) * k_r)      # the draws update makes (every slip probability is 0)
+            on = np.tile(held, k_r)
+            tracked[rows] = on
+            amb[rows] = np.tile(self._amb[idx], k_r)
+            lock[rows] = np.where(on, tt - np.tile(self._lock_start[idx], k_r), 0.0)
+            half = on & ~np.tile(self._pilot[idx], k_r) & (tt - np.tile(self._track_start[idx], k_r)
+                                                           < np.tile(self._half_end[idx], k_r) - 1e-9)
+            lli[rows[half]] = LLI_HALF_CYCLE
+            self._cand_since[idx] = np.nan
+            self._t_prev = t_s[run[-1]]
+            run.clear()
+
+        for b in range(len(ts)):
+            s = slice(seg[b], seg[b + 1])
+            if may[b]:
+                idx = self._rows(sv[s], code[s])
+                if idx is self._idx_prev and self._n == self._n_prev:
+                    if not run:
+                        held = self._tracked[idx]
+                    if not np.where(held, stop_tracked[s], start_untracked[s]).any():
+                        run.append(b)
+                        continue
+            flush()
+            out = self.update(ts[b], sv[s], code[s], cn0[s], visible=vis[s])
+            tracked[s], lli[s], lock[s], amb[s] = out.tracked, out.lli, out.lock_time_s, out.ambiguity_cyc
+        flush()
+        return tracked, lli, lock, amb
 
     def keys(self):
         """All (sv, code) keys seen so far."""

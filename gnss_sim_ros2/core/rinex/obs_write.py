@@ -465,9 +465,11 @@ class RinexObsWriter:
             code = ep.codes[sys_rows[r]][j] if per_sys else ep.codes[j]
             raise ValueError(f"observations: {svs[r]} has a value for {code!r}, not in the header obs_types for "
                              f"{sys_rows[r]}: {list(self.header.obs_types[sys_rows[r]])}")
-        fv = np.full(total, np.nan)
-        fl = np.full(total, -1, np.int64)
-        fs = np.full(total, -1, np.int64)
+        fv = np.empty(total)               # np.empty + fill: less overhead than np.full
+        fv.fill(np.nan)
+        fl = np.empty(total, np.int64)
+        fl.fill(-1)
+        fs = fl.copy()
         fv[pos] = value[known]
         fl[pos] = lli[known]
         fs[pos] = ssi[known]
@@ -547,7 +549,8 @@ class RinexObsWriter:
                     raise ValueError(f"write_epoch: clock_offset_s={clock_offsets_s[k]!r} does not fit F15.12")
                 head += f"      {c:15.12f}"
             parts.append((head + "\n").encode("ascii"))
-            parts.extend(ln + b"\n" for ln in lines[pos:pos + n])
+            if n:
+                parts.append(b"\n".join(lines[pos:pos + n]) + b"\n")
             pos += n
         if not self._header_written:
             text, self._last_obs_offset = self._header_text(ts[0])
@@ -582,7 +585,7 @@ def _int_or_blank(a) -> np.ndarray:
     a = np.asarray(a)
     if a.dtype.kind == "f":
         a = np.where(np.isfinite(a), a, -1)
-    return a.astype(np.int64)
+    return a.astype(np.int64, copy=False)
 
 
 def truncate_incomplete_epoch(path) -> int:
