@@ -266,10 +266,14 @@ class Tracker:
 
         lli = np.zeros(n, np.int8)
         lli[tracked & (new | slipped)] |= LLI_LOSS_OF_LOCK
-        half = tracked & ~self._pilot[idx] & (ts - track_start < self._half_end[idx] - 1e-9)
-        lli[half] |= LLI_HALF_CYCLE
+        lli[self._half_cycle_open(idx, tracked, ts, track_start)] |= LLI_HALF_CYCLE
         lock_time = np.where(tracked, ts - lock_start, 0.0)
         return TrackingOutput(tracked.copy(), lli, lock_time, amb.copy(), new.copy(), slipped.copy())
+
+    def _half_cycle_open(self, idx, tracked, t_s, track_start):
+        """Rows (keys ``idx``) whose half-cycle ambiguity is not resolved yet at ``t_s``: tracked data signals
+        within their half-cycle time of the start of their track (module doc)."""
+        return tracked & ~self._pilot[idx] & (t_s - track_start < self._half_end[idx] - 1e-9)
 
     def update_many(self, ts, sv, code, cn0_dbhz, visible, seg):
         """:meth:`update` for K epochs in order: epoch b's keys are the rows ``seg[b]:seg[b + 1]`` of ``sv``,
@@ -320,9 +324,8 @@ class Tracker:
             tracked[rows] = on
             amb[rows] = np.tile(self._amb[idx], k_r)
             lock[rows] = np.where(on, tt - np.tile(self._lock_start[idx], k_r), 0.0)
-            half = on & ~np.tile(self._pilot[idx], k_r) & (tt - np.tile(self._track_start[idx], k_r)
-                                                           < np.tile(self._half_end[idx], k_r) - 1e-9)
-            lli[rows[half]] = LLI_HALF_CYCLE
+            idx_rows = np.tile(idx, k_r)
+            lli[rows[self._half_cycle_open(idx_rows, on, tt, self._track_start[idx_rows])]] = LLI_HALF_CYCLE
             self._cand_since[idx] = np.nan
             self._t_prev = t_s[run[-1]]
             run.clear()
