@@ -80,16 +80,19 @@ def ecef_to_geodetic(x_m, y_m, z_m):
 
 
 def enu_rotation(lat0_deg, lon0_deg) -> np.ndarray:
-    """3x3 matrix R whose rows are the east, north, up unit vectors in ECEF: enu = R @ d_ecef."""
+    """3x3 matrix R whose rows are the east, north, up unit vectors in ECEF: enu = R @ d_ecef; for arrays of
+    K origins, the (K, 3, 3) stack of them."""
     lat = np.radians(lat0_deg)
     lon = np.radians(lon0_deg)
     sl, cl = np.sin(lat), np.cos(lat)
     so, co = np.sin(lon), np.cos(lon)
-    return np.array([
-        [-so, co, 0.0],
+    zero = 0.0 if np.ndim(sl) == 0 else np.zeros_like(sl)
+    r = np.array([
+        [-so, co, zero],
         [-sl * co, -sl * so, cl],
         [cl * co, cl * so, sl],
     ])
+    return r if r.ndim == 2 else np.moveaxis(r, (0, 1), (-2, -1))
 
 
 def ecef_to_enu(pos_ecef_m, lat0_deg, lon0_deg, h0_m):

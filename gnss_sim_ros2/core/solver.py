@@ -436,17 +436,6 @@ def _no_fix(n, reason="", it=0) -> dict:
             "dof": 0, "iter": it, "worst": None}
 
 
-def _rotations(lat_deg, lon_deg) -> np.ndarray:
-    """(K, 3, 3) ENU rotations (frames.enu_rotation) at K positions."""
-    lat, lon = np.radians(lat_deg), np.radians(lon_deg)
-    sl, cl, so, co = np.sin(lat), np.cos(lat), np.sin(lon), np.cos(lon)
-    r = np.empty((len(sl), 3, 3))
-    r[:, 0, 0], r[:, 0, 1], r[:, 0, 2] = -so, co, 0.0
-    r[:, 1, 0], r[:, 1, 1], r[:, 1, 2] = -sl * co, -sl * so, cl
-    r[:, 2, 0], r[:, 2, 1], r[:, 2, 2] = cl * co, cl * so, sl
-    return r
-
-
 def _rotations_at(x: np.ndarray) -> np.ndarray:
     """ENU rotations (K, 3, 3) at the geodetic positions of ECEF points (K, 3) (one point: the scalar path
     of frames.ecef_to_geodetic, cheaper)."""
@@ -454,7 +443,7 @@ def _rotations_at(x: np.ndarray) -> np.ndarray:
         lat, lon, _ = ecef_to_geodetic(x[0, 0], x[0, 1], x[0, 2])
         return enu_rotation(lat, lon)[None]
     lat, lon, _ = ecef_to_geodetic(x[:, 0], x[:, 1], x[:, 2])
-    return _rotations(lat, lon)
+    return enu_rotation(lat, lon)
 
 
 def _filled(nmat: np.ndarray, present: np.ndarray) -> np.ndarray:
@@ -636,7 +625,7 @@ def _final_quantities(lay, rows, done, x, fin, it_of, n_of, out, cfg):
         rot = enu_rotation(lat[0], lon[0])[None]
     else:
         lat, lon, hgt = ecef_to_geodetic(xs[:, 0], xs[:, 1], xs[:, 2])
-        rot = _rotations(lat, lon)
+        rot = enu_rotation(lat, lon)
     # DOPs from the unweighted design matrix (columns x, y, z, clocks) of the last iteration
     q = _spd_inverses(_filled(np.einsum("kni,knj->kij", h, h), present))
     q3 = q[:, :3, :3]
