@@ -12,7 +12,6 @@ of them; then SIGINT: every process exits 0 without a traceback, no rtkrcv left.
 Under plain pytest (the main suite) this module is skipped: launch tests run with `launch_test`.
 """
 import os
-import shutil
 import subprocess
 import sys
 import tempfile
@@ -36,6 +35,7 @@ from launch.launch_description_sources import PythonLaunchDescriptionSource  # n
 from launch_helpers import NODES, Probe, stamp_s  # noqa: E402
 from sensor_msgs.msg import NavSatFix, NavSatStatus  # noqa: E402
 from std_msgs.msg import UInt8MultiArray  # noqa: E402
+from test_rtk_engine import rtkrcv_and_faketime  # noqa: E402
 
 from gnss_sim_ros2 import graph  # noqa: E402
 
@@ -43,7 +43,7 @@ SPEED = 4.0                     # simulated seconds per wall second
 OPEN_S = 30.0                   # demo path: open ground south of the block up to here
 RTK_NODES = tuple(s.name for s in graph.rtk_nodes())
 OUT = Path(tempfile.mkdtemp(prefix="gnss_sim_launch_rtk_"))
-HAVE_RTKRCV = shutil.which("rtkrcv") is not None
+HAVE_RTKRCV = rtkrcv_and_faketime()   # the rtk node runs rtkrcv under faketime
 RTKRCV_PIDS = set()             # rtkrcv processes the rtk node of this launch started
 
 
@@ -93,7 +93,7 @@ class TestRtkLaunch(unittest.TestCase):
 
     def test_1_every_node_active(self):
         if not HAVE_RTKRCV:
-            self.skipTest("RTKLIB rtkrcv is not installed (apt-get install rtklib)")
+            self.skipTest("RTKLIB rtkrcv and libfaketime are not installed (apt-get install rtklib faketime)")
         probe = self.probe
         names = NODES + RTK_NODES
         ok = probe.wait_for(lambda: all(probe.state_or_none(n) == "active" for n in names), 120.0)
@@ -102,7 +102,7 @@ class TestRtkLaunch(unittest.TestCase):
 
     def test_2_rtk_fixes_on_open_ground(self):
         if not HAVE_RTKRCV:
-            self.skipTest("RTKLIB rtkrcv is not installed (apt-get install rtklib)")
+            self.skipTest("RTKLIB rtkrcv and libfaketime are not installed (apt-get install rtklib faketime)")
 
         def copy():
             with self.lock:
