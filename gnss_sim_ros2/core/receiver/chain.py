@@ -233,15 +233,24 @@ class ReceiverChain:
             cfg = replace(cfg, sisre_m={s: 0.0 for s in cfg.sisre_m})
         return Receiver(cfg, self.provider, self.iono)
 
+    def _backward_velocity(self, t, ecef):
+        """The antenna velocity [m/s ECEF] as the backward difference to the previous epoch's position (None at
+        the first epoch or a repeated time); this epoch's position is kept for the next."""
+        v = None
+        if self._pos_prev is not None:
+            dt = float(t - self._pos_prev[0])
+            v = (ecef - self._pos_prev[1]) / dt if dt > 0 else None
+        self._pos_prev = (t, ecef)
+        return v
+
     # ------------------------------------------------------------------ one epoch
     def step(self, t: GnssTime, antenna_ecef_m, states, vis_state=None, attenuation_db=None,
              antenna_vel_ecef_mps=None, multipath=None) -> EpochProducts:
         """One epoch; ``multipath``: the reflected paths of the states' rows (VisibilityOptions.cast) or None."""
         ecef = np.asarray(antenna_ecef_m, dtype=float)
-        if antenna_vel_ecef_mps is None and self._pos_prev is not None:
-            dt = float(t - self._pos_prev[0])
-            antenna_vel_ecef_mps = (ecef - self._pos_prev[1]) / dt if dt > 0 else None
-        self._pos_prev = (t, ecef)
+        backward = self._backward_velocity(t, ecef)
+        if antenna_vel_ecef_mps is None:
+            antenna_vel_ecef_mps = backward
         if self.rx is None:
             self.rx = self._receiver(states)
         obs = self.rx.epoch(t, ecef, states, vis_state, attenuation_db, antenna_vel_ecef_mps=antenna_vel_ecef_mps,
@@ -255,14 +264,7 @@ class ReceiverChain:
         the rows of all epochs, epoch by epoch, ``epoch_of_row`` the epoch of each; ``vis_state``,
         ``attenuation_db``: per row or None; ``multipath``: K path sets (rows of their epoch) or None."""
         ecef = np.asarray(antenna_ecef_m, dtype=float).reshape(len(ts), 3)
-        vel = []
-        for t, p in zip(ts, ecef):
-            v = None
-            if self._pos_prev is not None:
-                dt = float(t - self._pos_prev[0])
-                v = (p - self._pos_prev[1]) / dt if dt > 0 else None
-            vel.append(v)
-            self._pos_prev = (t, p)
+        vel = [self._backward_velocity(t, p) for t, p in zip(ts, ecef)]
         if self.rx is None:
             self.rx = self._receiver(states)
         obs = self.rx.epochs(ts, ecef, states, epoch_of_row, vis_state, attenuation_db, vel, multipath)
