@@ -139,19 +139,25 @@ def absolute_paths(setup):
 
 
 def run(args) -> int:
+    import threading
+
     import numpy as np
 
-    from gnss_sim_ros2.core.sweep.driver import run_sweep
-    from gnss_sim_ros2.core.sweep.plot import summary_plot
+    from gnss_sim_ros2.core.sweep.driver import run_sweep, start_local_workers
+    from gnss_sim_ros2.core.sweep.plot import import_plotting, summary_plot
 
     out = Path(args.out)
     try:
+        if not args.scheduler and not args.print_setup:
+            start_local_workers()          # the workers' imports go on while the runs are built
         tasks = build_tasks(args, out)
         if args.print_setup:
             for point, setup in tasks:
                 print(point.name, setup.seed, setup.start.isoformat("GPS"), setup.preset, setup.world_file,
                       setup.mesh_file, setup.out_dir)
             return 0
+        # matplotlib is imported while the runs go (this process only waits for them)
+        threading.Thread(target=import_plotting, name="import-matplotlib", daemon=True).start()
         outcome = run_sweep(tasks, out, workers=args.workers, scheduler=args.scheduler, progress=not args.quiet,
                             cache=not args.no_cache)
     except ValueError as exc:

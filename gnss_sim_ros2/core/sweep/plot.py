@@ -20,11 +20,18 @@ def group_label(row: dict, columns) -> str:
     return " ".join(parts) if parts else "all runs"
 
 
-def summary_plot(rows: list[dict], path: Path, title: str = "gnss-sim sweep") -> Path:
+def import_plotting():
+    """matplotlib with the Agg backend (no screen); its pyplot module."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
+    return plt
+
+
+def summary_plot(rows: list[dict], path: Path, title: str = "gnss-sim sweep") -> Path:
+    plt = import_plotting()
 
     ok = [r for r in rows if r.get("status") == "ok"]
     varying = [c for c in GROUP_COLUMNS if len({r.get(c) for r in rows}) > 1]
