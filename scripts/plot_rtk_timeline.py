@@ -35,10 +35,9 @@ def main(argv=None) -> int:
         print(f"plot_rtk_timeline: error: {run} holds no RTK run (summary.json with rtk_timeline): {exc}",
               file=sys.stderr)
         return 2
-    import matplotlib
+    from gnss_sim_ros2.core.figures import pyplot
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     n = summary["epochs"]
     t = [float(r["t_s"]) for r in rows]

@@ -413,13 +413,11 @@ def table(report: dict) -> str:
 def plot(report: dict, path) -> Path:
     """Two panels over the cost (wall seconds per simulated second of the demo scenario, log scale):
     the headline pseudorange RMS (vs real when present) and the demo's tracked-set Jaccard vs accurate."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     from matplotlib.ticker import NullFormatter
 
-    from gnss_sim_ros2.core.sweep.plot import save_figure
+    from gnss_sim_ros2.core.figures import pyplot, save_figure
+
+    plt = pyplot()
 
     rows = report["presets"]
     cost = [1.0 / e["realtime_factor"] for e in rows]

@@ -226,12 +226,9 @@ def scaling_table(report: dict) -> str:
 
 
 def scaling_plot(report: dict, path) -> Path:
-    import matplotlib
+    from gnss_sim_ros2.core.figures import pyplot, save_figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from gnss_sim_ros2.core.sweep.plot import save_figure
+    plt = pyplot()
 
     fig, axes = plt.subplots(2, 2, figsize=(12, 8))
     spec = [("triangles", "scene triangles (generated boxes)", True),

@@ -143,8 +143,9 @@ def run(args) -> int:
 
     import numpy as np
 
+    from gnss_sim_ros2.core.figures import pyplot
     from gnss_sim_ros2.core.sweep.driver import run_sweep, start_local_workers
-    from gnss_sim_ros2.core.sweep.plot import import_plotting, summary_plot
+    from gnss_sim_ros2.core.sweep.plot import summary_plot
 
     out = Path(args.out)
     try:
@@ -157,7 +158,7 @@ def run(args) -> int:
                       setup.mesh_file, setup.out_dir)
             return 0
         # matplotlib is imported while the runs go (this process only waits for them)
-        threading.Thread(target=import_plotting, name="import-matplotlib", daemon=True).start()
+        threading.Thread(target=pyplot, name="import-matplotlib", daemon=True).start()
         outcome = run_sweep(tasks, out, workers=args.workers, scheduler=args.scheduler, progress=not args.quiet,
                             cache=not args.no_cache)
     except ValueError as exc:

@@ -24,11 +24,11 @@ def plot_skyplot(png_path, sv, az_deg, el_deg, state, horizon=None, foliage_hori
     ``horizon`` / ``foliage_horizon``: (az_deg, el_deg) skyline arrays, e.g. from ``Scene.horizon_profile``;
     ``sky``: (az_edges_deg, el_edges_deg, opaque, foliage) from ``Scene.sky_grid`` (drawn instead of them).
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     from matplotlib.lines import Line2D
+
+    from .figures import pyplot
+
+    plt = pyplot()
 
     from .scene.visibility import STATE_NAMES
 

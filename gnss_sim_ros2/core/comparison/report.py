@@ -24,12 +24,12 @@ def _md_table(header: list[str], rows: list[list]) -> list[str]:
 
 def write_figures(cmp: Comparison, out_dir) -> dict[str, Path]:
     """PNG figures; returns name -> path of those written."""
-    import matplotlib
-
-    matplotlib.use("Agg")
     import matplotlib.dates as mdates
-    import matplotlib.pyplot as plt
     from matplotlib.colors import ListedColormap
+
+    from ..figures import pyplot
+
+    plt = pyplot()
 
     out_dir = Path(out_dir)
     figs: dict[str, Path] = {}

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..figures import pyplot, save_figure
 from .table import PERCENTILES
 
 #: input columns that make a group (the seed varies inside one)
@@ -20,18 +21,8 @@ def group_label(row: dict, columns) -> str:
     return " ".join(parts) if parts else "all runs"
 
 
-def import_plotting():
-    """matplotlib with the Agg backend (no screen); its pyplot module."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
 def summary_plot(rows: list[dict], path: Path, title: str = "gnss-sim sweep") -> Path:
-    plt = import_plotting()
+    plt = pyplot()
 
     ok = [r for r in rows if r.get("status") == "ok"]
     varying = [c for c in GROUP_COLUMNS if len({r.get(c) for r in rows}) > 1]
@@ -73,15 +64,3 @@ def summary_plot(rows: list[dict], path: Path, title: str = "gnss-sim sweep") ->
     failed = len(rows) - len(ok)
     fig.suptitle(f"{title}: {len(ok)} runs" + (f", {failed} failed" if failed else ""))
     return save_figure(fig, path)
-
-
-def save_figure(fig, path, dpi: int = 110) -> Path:
-    """Lay out, write (PNG, folders made) and close a matplotlib figure; its path."""
-    import matplotlib.pyplot as plt
-
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=dpi)
-    plt.close(fig)
-    return path
