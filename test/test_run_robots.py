@@ -125,3 +125,15 @@ def test_path_files_one_per_robot(tmp_path):
     res = _run(tmp_path / "o", "--robots", "3", "--config", str(cfg), "--duration", "2", "--no-record")
     assert res.returncode == 2, res.stderr
     assert "robot_trajectory_files" in res.stderr and "--robots" in res.stderr
+
+
+@pytest.mark.slow
+def test_missing_tf_of_the_robots_names_their_frames(tmp_path):
+    """Without the players (Gazebo's TF expected), the run stops naming a robot's own antenna frame."""
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text("gnss_sim_visibility:\n  ros__parameters:\n    tf_timeout_s: 0.5\n")
+    res = _run(tmp_path / "o", "--robots", "2", "--no-trajectory-player", "--config", str(cfg), "--duration", "5",
+               "--no-record")
+    assert res.returncode == 1, res.stderr[-2000:]
+    assert "no transform from 'world' to 'robot0/gnss_antenna'" in res.stderr
+    assert "Traceback" not in res.stderr
