@@ -2,19 +2,49 @@
 
 Runs `gnss-sim run --realtime` (every node in one process, simulated clock at
 wall-clock pace) at RATE Hz for DURATION s of simulated time with every
-system, then prints the epochs without output and the latency from the
-satellite states published to the observations published (median, p99).
+system, then prints the epochs without output, the latency from the
+satellite states published to the observations published (p50, p95, p99) per
+robot and for the worst robot, and the start-up: the configure transition's
+wall time (scene, ephemeris, receivers) and the process's peak memory.
 
-    python bench/bench_realtime.py [--rate 10] [--duration 600] [--processes]
+    python bench/bench_realtime.py [--rate 10] [--duration 600] [--processes] [--robots 1,4]
+
+``--robots 1,4``: one run per count (`gnss-sim run --robots N`: N robots in one graph sharing the ephemeris
+node and the scene).
 """
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import subprocess
 import sys
 import tempfile
 from pathlib import Path
+
+
+def _robot_counts(text: str) -> list[int]:
+    try:
+        counts = [int(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise SystemExit(f"bench_realtime: --robots {text!r}: give robot counts such as 1 or 1,4") from None
+    if not counts:
+        raise SystemExit("bench_realtime: --robots is empty: give robot counts such as 1 or 1,4")
+    return counts
+
+
+def _lat(f: dict) -> str:
+    return f"p50 {f['latency_ms_median']} ms, p95 {f['latency_ms_p95']} ms, p99 {f['latency_ms_p99']} ms"
+
+
+def run_once(rate: float, duration: float, processes: bool, robots: int) -> dict:
+    out = Path(tempfile.mkdtemp(prefix="gnss_sim_rt_"))
+    cmd = [sys.executable, "-m", "gnss_sim_ros2.cli", "run", "--realtime", "--rate", str(rate), "--duration",
+           str(duration), "--systems", "GRECJI", "--out", str(out), "--quiet", "--robots", str(robots)]
+    if processes:
+        cmd.append("--processes")
+    subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
+    return json.loads((out / "summary.json").read_text())
 
 
 def main() -> int:
@@ -22,22 +52,33 @@ def main() -> int:
     ap.add_argument("--rate", type=float, default=10.0)
     ap.add_argument("--duration", type=float, default=600.0)
     ap.add_argument("--processes", action="store_true")
+    ap.add_argument("--robots", default="1", metavar="N[,N...]", help="robots in the graph, one run per count [1]")
     ap.add_argument("--quick", action="store_true", help="60 s instead of the duration")
     a = ap.parse_args()
     duration = 60.0 if a.quick else a.duration
-    out = Path(tempfile.mkdtemp(prefix="gnss_sim_rt_"))
-    cmd = [sys.executable, "-m", "gnss_sim_ros2.cli", "run", "--realtime", "--rate", str(a.rate), "--duration",
-           str(duration), "--systems", "GRECJI", "--out", str(out), "--quiet"]
-    if a.processes:
-        cmd.append("--processes")
-    subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
-    s = json.loads((out / "summary.json").read_text())
-    print(f"{a.rate:g} Hz for {duration:g} s at real-time pace, all systems, "
-          f"{'one process per node' if a.processes else 'composed'}:")
-    print(f"  epochs {s['epochs']}, without output {s['epochs_without_output']}, "
-          f"bag fix messages {s.get('bag_messages', {}).get('/gnss/fix')}")
-    print(f"  latency states -> observations: median {s['latency_ms_median']} ms, p99 {s['latency_ms_p99']} ms")
-    print(f"  satellites tracked per epoch {s['satellites_tracked_mean']}, fix availability {s['fix_availability']}")
+    print(f"load average before: {' '.join(f'{x:.2f}' for x in os.getloadavg())} ({os.cpu_count()} cores)")
+    for n in _robot_counts(a.robots):
+        s = run_once(a.rate, duration, a.processes, n)
+        print(f"{a.rate:g} Hz for {duration:g} s at real-time pace, all systems, {n} robot(s), "
+              f"{'one process per node' if a.processes else 'composed'}:")
+        fix_topic = "/gnss/fix" if n == 1 else "/robot0/gnss/fix"
+        print(f"  epochs {s['epochs']}, without output {s['epochs_without_output']}, "
+              f"bag fix messages {s.get('bag_messages', {}).get(fix_topic)} ({fix_topic})")
+        print(f"  start-up: configure {s['configure_wall_s']} s, peak memory {s['peak_rss_mb']} MB"
+              + (f", scenes built {s['scene_loads']['loaded']}, shared {s['scene_loads']['shared']}"
+                 if n > 1 else ""))
+        per = s.get("per_robot", {"robot0": s})
+        for name, f in per.items():
+            print(f"  {name}: latency states -> observations {_lat(f)}; fix availability {f['fix_availability']}, "
+                  f"without output {f.get('epochs_without_output', s['epochs_without_output'])}")
+        if n > 1:
+            w = s["worst_robot"]
+            print("  worst robot: " + ", ".join(f"{k} {v['value']} ({v['robot']})" for k, v in w.items()))
+        else:
+            print(f"  worst robot: {_lat(s)} (robot0)")
+        print(f"  satellites tracked per epoch {s['satellites_tracked_mean']}, "
+              f"fix availability {s['fix_availability']}")
+        print(f"  load average after: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     return 0
 
 

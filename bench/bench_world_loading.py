@@ -17,6 +17,11 @@ after loading minus before (+MB) and in all (peak MB, the interpreter and import
 Targets (issue 15): 400k triangles under 5 s, 2 M under 1 GB.
 
     .venv/bin/python bench/bench_world_loading.py [--repeat 3] [--fuel-cache DIR]
+    .venv/bin/python bench/bench_world_loading.py --robots 4     # N robots' scenes: shared against not
+
+``--robots N``: the city of ~400k triangles as N composed visibility nodes load it (``load_scene``, the
+Open3D scene built too), each way in a fresh process: ``shared=True`` (gnss-sim run --robots N: one
+scene) against N scenes of their own; load time and +MB.
 """
 from __future__ import annotations
 
@@ -149,6 +154,29 @@ def _measure(args):
             len(rep["skipped"]), rep["mesh_files_read"])
 
 
+def _measure_robots(args):
+    path, env, robots, shared = args
+    os.environ.update(env)
+    from gnss_sim_ros2.core.simulation import load_scene
+
+    warnings.simplefilter("ignore")
+    import open3d  # noqa: F401 - imported before the first figure: the loads alone are measured
+    rss0 = _peak_rss_mb()
+    t0 = time.perf_counter()
+    scenes = [load_scene(path, shared=shared) for _ in range(robots)]
+    t = time.perf_counter() - t0
+    rss1 = _peak_rss_mb()
+    return t, rss1 - rss0, rss1, len({id(x) for x in scenes})
+
+
+def run_robots(path, env, robots: int, ctx):
+    print(f"{robots} robots' scenes, {path.name}: {'':<10} {'load s':>7} {'+MB':>8} {'peak MB':>8} scenes")
+    for shared in (False, True):
+        with ctx.Pool(1) as pool:
+            t, plus, peak, n = pool.apply(_measure_robots, ((str(path), env, robots, shared),))
+        print(f"  {'shared (one scene)' if shared else 'each its own':<34} {t:>7.2f} {plus:>8.0f} {peak:>8.0f} {n}")
+
+
 def run_case(name, path, env, repeat, pool):
     tri, parts, t0, t, mem, counts, skipped, files = pool.apply(_measure, ((str(path), env, repeat),))
     cls = ", ".join(f"{k} {v}" for k, v in counts.items() if v)
@@ -161,14 +189,19 @@ def main(argv=None):
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--fuel-cache", metavar="DIR", help="local Fuel cache for the gz-sim worlds' Fuel models "
                                                        "(e.g. the one test_world_gazebo lays out); default: none")
+    ap.add_argument("--robots", type=int, default=0, metavar="N",
+                    help="only: N robots' scenes of the ~400k city, shared against each its own")
     args = ap.parse_args(argv)
     shared = SHARED.is_dir()
     ctx = mp.get_context("spawn")
-    print(f"{'world':<22} {'triangles':>10} {'parts':>6} {'first s':>7} {'best s':>7} {'+MB':>8} {'peak MB':>8}")
     with tempfile.TemporaryDirectory(prefix="gnss_sim_bench_world_") as tmp:
         tmp = Path(tmp)
         models_path = os.pathsep.join([str(tmp / "c400" / "models")] + ([str(SHARED / "models")] if shared else []))
         c400 = write_city(tmp / "c400", 75, shared)
+        if args.robots > 0:
+            run_robots(c400, {"GZ_SIM_RESOURCE_PATH": models_path}, args.robots, ctx)
+            return
+        print(f"{'world':<22} {'triangles':>10} {'parts':>6} {'first s':>7} {'best s':>7} {'+MB':>8} {'peak MB':>8}")
         models_2m = os.pathsep.join([str(tmp / "c2m" / "models")] + ([str(SHARED / "models")] if shared else []))
         c2m = write_city(tmp / "c2m", 375, shared)
         (tmp / "farm").mkdir()

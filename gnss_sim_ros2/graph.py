@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from gnss_sim_ros2.parameters import INSTANCE_NODE_NAMES, NODE_NAMES
+from gnss_sim_ros2.parameters import INSTANCE_NODE_NAMES, NODE_NAMES, robot_namespace
 
 #: the ROS package, and the scheme of Python classes in its component index (nodes/components.py)
 PACKAGE = "gnss_sim"
@@ -24,10 +24,20 @@ class NodeSpec:
     #: "" for the rover's chain and the rtk node; "base", "antenna2", "heading": an RTK run's other instances
     #: of the class (parameters.INSTANCE_NODE_NAMES)
     instance: str = ""
+    #: ROS namespace without slashes: "" (the root) or "robot<k>" (a run with several robots)
+    namespace: str = ""
+    #: the robot of a run with several robots (its number k), -1: the node is not a robot's own
+    robot: int = -1
 
     @property
     def name(self) -> str:
         return INSTANCE_NODE_NAMES[(self.instance, self.key)] if self.instance else NODE_NAMES[self.key]
+
+    @property
+    def path(self) -> str:
+        """The node's name under its namespace ("robot1/gnss_sim_receiver"; the name in the root namespace):
+        what the lifecycle manager drives (``/<path>/change_state``)."""
+        return f"{self.namespace}/{self.name}" if self.namespace else self.name
 
     @property
     def plugin(self) -> str:
@@ -78,14 +88,55 @@ RECORDED = (
 RECORDED_TOPICS = tuple(t for t, _ in RECORDED)
 
 
-def nodes(with_trajectory_player: bool = True) -> list[NodeSpec]:
-    """The nodes of a run; without the player when Gazebo (ros_gz_bridge) publishes the robot's TF."""
-    return [n for n in NODES if with_trajectory_player or n.key != "trajectory"]
+def nodes(with_trajectory_player: bool = True, robots: int = 1) -> list[NodeSpec]:
+    """The nodes of a run; without the player when Gazebo (ros_gz_bridge) publishes the robot's TF.
+
+    ``robots`` > 1: one ephemeris node and, per robot k, a trajectory player, a visibility and a receiver node
+    in the namespace ``robot<k>`` (ROBOT_KEYS); the players first, then the chain upstream -> downstream."""
+    if robots == 1:
+        return [n for n in NODES if with_trajectory_player or n.key != "trajectory"]
+    by_key = {n.key: n for n in NODES}
+    players = [robot_spec(by_key["trajectory"], k) for k in range(robots)] if with_trajectory_player else []
+    chains = [robot_spec(by_key[key], k) for k in range(robots) for key in ("visibility", "receiver")]
+    return players + [by_key["ephemeris"]] + chains
+
+
+#: the nodes each robot of a run with several robots has of its own (the ephemeris node is shared)
+ROBOT_KEYS = ("trajectory", "visibility", "receiver")
+
+
+def robot_spec(spec: NodeSpec, k: int) -> NodeSpec:
+    from dataclasses import replace
+
+    return replace(spec, namespace=robot_namespace(k), robot=k)
+
+
+def robot_topic(k: int, topic: str) -> str:
+    """Robot k's name of a public topic of REMAPPINGS ("/gnss/fix" -> "/robot<k>/gnss/fix"; one robot: the
+    topic itself); /gnss/satellite_states is every robot's."""
+    return topic if k < 0 or topic == f"{TOPIC_NAMESPACE}/satellite_states" else f"/{robot_namespace(k)}{topic}"
+
+
+def robot_topics(robots: int) -> list[list[str]]:
+    """Per robot, its public topics (REMAPPINGS' targets; /gnss/satellite_states is shared)."""
+    return [[robot_topic(k if robots > 1 else -1, t) for _, t in REMAPPINGS] for k in range(robots)]
+
+
+def recorded(robots: int = 1) -> tuple:
+    """What a run with ``robots`` records: RECORDED, with every robot's topics under its namespace."""
+    if robots == 1:
+        return RECORDED
+    shared = f"{TOPIC_NAMESPACE}/satellite_states"
+    own = [(t, ty) for t, ty in RECORDED if t.startswith(f"{TOPIC_NAMESPACE}/") and t != shared]
+    rest = [(t, ty) for t, ty in RECORDED if (t, ty) not in own]
+    return tuple(rest[:1] + [(robot_topic(k, t), ty) for k in range(robots) for t, ty in own] + rest[1:])
 
 
 def ros_args(spec: NodeSpec, params_file: str | None, use_sim_time: bool) -> list[str]:
     """``--ros-args`` of one node run as its own process."""
     args = ["--ros-args", "-r", f"__node:={spec.name}"]
+    if spec.namespace:
+        args += ["-r", f"__ns:=/{spec.namespace}"]
     for a, b in remappings_of(spec):
         args += ["-r", f"{a}:={b}"]
     if params_file:
@@ -139,7 +190,10 @@ RECORDED_RTK = (
 
 
 def remappings_of(spec: NodeSpec) -> tuple:
-    """The topic remappings of one node: the rover's chain under /gnss, the base station's under /gnss/base."""
+    """The topic remappings of one node: the rover's chain under /gnss, the base station's under /gnss/base,
+    robot k's under /robot<k>/gnss (the satellite states: /gnss/satellite_states, shared)."""
+    if spec.robot >= 0:
+        return tuple((a, robot_topic(spec.robot, b)) for a, b in REMAPPINGS)
     if spec.instance == "base":
         return BASE_REMAPPINGS
     if spec.instance == "antenna2":
@@ -158,10 +212,12 @@ def rtk_nodes(cfg=None) -> list[NodeSpec]:
     return list(RTK_NODES) + (list(HEADING_NODES) if heading else [])
 
 
-def node_parameters(cfg, spec: NodeSpec) -> dict:
+def node_parameters(cfg, spec: NodeSpec, robots: int = 1) -> dict:
     """The parameters of one node of the graph from the configuration (parameters.Config)."""
-    from gnss_sim_ros2.parameters import instance_params
+    from gnss_sim_ros2.parameters import instance_params, robot_params
 
+    if spec.robot >= 0:
+        return robot_params(cfg, spec.robot, robots, spec.key)
     out = instance_params(cfg, spec.instance, spec.key) if spec.instance else cfg.node(spec.key)
     if spec.key == "rtk" and not out["nav_files"]:
         out["nav_files"] = [str(run_navigation_file(cfg))]
@@ -190,3 +246,12 @@ def rtk_parameter_sections(cfg) -> dict:
     """The RTK nodes' sections of a ROS parameter file ({node name: {"ros__parameters": ...}}): the base
     station's, and the rtk node's with the run's navigation file."""
     return {s.name: {"ros__parameters": node_parameters(cfg, s)} for s in rtk_nodes(cfg)}
+
+
+def robot_parameter_sections(cfg, robots: int) -> dict:
+    """With several robots, their nodes' sections of a ROS parameter file ({"/robot<k>/<node>":
+    {"ros__parameters": ...}}; rcl matches a section by the node's full name); {} for one robot."""
+    if robots == 1:
+        return {}
+    return {f"/{s.path}": {"ros__parameters": node_parameters(cfg, s, robots)}
+            for s in nodes(True, robots) if s.robot >= 0}

@@ -262,6 +262,14 @@ NODE_PARAMS: dict[str, list[Param]] = {
               "base_frame [m] (static TF; default 1 m behind the first)"),
         Param("publish_rate_hz", 20.0, "TF publish rate [Hz]", min=0.1, max=1000.0),
         Param("loop", False, "restart the path at its end"),
+        Param("time_offset_s", 0.0, "path time at ROS time 0 [s]: the robot starts this far along its path "
+              "(a convoy's robot k: k * convoy_spacing_s)", min=-1e6, max=1e6),
+        Param("convoy_spacing_s", 5.0, "with several robots (gnss-sim run --robots N, robots:=N) on one path: "
+              "robot k runs k times this far ahead of robot 0 along it [s of path time] (the demo path: 1 m/s)",
+              min=0.0, max=3600.0),
+        Param("robot_trajectory_files", [], "with several robots: one path CSV per robot (robot k takes entry k, "
+              "no convoy offset); empty: the convoy along trajectory_file / waypoints / the demo path",
+              item_type="string"),
     ],
     "rtk": [
         Param("rtkrcv_path", "", "RTKLIB rtkrcv executable; empty: rtkrcv on PATH (Debian package rtklib)"),
@@ -523,3 +531,65 @@ def instance_params(cfg: Config, instance: str, key: str) -> dict:
     else:                                                 # the heading: rtkrcv in moving-base mode
         out.update(rtk_mode="movingbase")
     return validate_node(key, out, f"{where} ({instance})")
+
+
+# ---------------------------------------------------------------------------- several robots (--robots, robots:=)
+#: the most robots one graph takes (each adds a trajectory player, a visibility and a receiver node; a typo such
+#: as 100 would start 300 nodes on one executor)
+MAX_ROBOTS = 16
+#: robot k's ROS namespace and the prefix of its TF frames ("robot0/base_link")
+ROBOT_NAMESPACE = "robot{k}"
+
+
+def check_robots(n, name: str = "option --robots") -> int:
+    """The number of robots of a run, 1..MAX_ROBOTS; ValueError naming ``name`` (the option or launch
+    argument the user typed) otherwise."""
+    try:
+        n_int = int(n)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} is {n!r}; a number of robots 1..{MAX_ROBOTS} is needed") from None
+    if isinstance(n, float) and n != n_int or isinstance(n, bool):
+        raise ValueError(f"{name} is {n!r}; a whole number of robots 1..{MAX_ROBOTS} is needed")
+    if not 1 <= n_int <= MAX_ROBOTS:
+        raise ValueError(f"{name} is {n_int}; a run takes 1..{MAX_ROBOTS} robots (MAX_ROBOTS in "
+                         f"gnss_sim_ros2/parameters.py)")
+    return n_int
+
+
+def robot_namespace(k: int) -> str:
+    return ROBOT_NAMESPACE.format(k=k)
+
+
+def check_robot_config(cfg: Config, n: int, name: str = "option --robots") -> None:
+    """The rules of a run with ``n`` robots between its parameters (robot_trajectory_files: none or one per robot);
+    ValueError naming the parameter and ``name``."""
+    files = cfg.node("trajectory")["robot_trajectory_files"]
+    if files and len(files) != n:
+        raise ValueError(f"{cfg.source}: {NODE_NAMES['trajectory']}: parameter 'robot_trajectory_files' lists "
+                         f"{len(files)} path file(s) and {name} asks for {n} robots: give one file per robot "
+                         f"(or none: a convoy along the path, convoy_spacing_s apart)")
+
+
+def robot_params(cfg: Config, k: int, n: int, key: str) -> dict:
+    """Parameters of robot ``k`` (of ``n``)'s ``trajectory``, ``visibility`` or ``receiver`` node: the
+    configuration's, with the TF frames under ``robot<k>/`` (world_frame shared), the convoy's time offset
+    (robot k: k * convoy_spacing_s ahead) or its own path file (robot_trajectory_files[k]), its own receiver
+    noise and clock (seed + k) and its RINEX in output_dir/robot<k>."""
+    if key not in ("trajectory", "visibility", "receiver"):
+        raise KeyError(f"robot nodes are trajectory, visibility, receiver; not {key!r}")
+    check_robot_config(cfg, n)
+    ns = robot_namespace(k)
+    out = cfg.node(key)
+    out["antenna_frame"] = f"{ns}/{out['antenna_frame']}"
+    if out["antenna2_frame"]:
+        out["antenna2_frame"] = f"{ns}/{out['antenna2_frame']}"
+    if key == "trajectory":
+        out["base_frame"] = f"{ns}/{out['base_frame']}"
+        if out["robot_trajectory_files"]:
+            out.update(trajectory_file=out["robot_trajectory_files"][k], waypoints=[])
+        else:
+            out["time_offset_s"] = out["time_offset_s"] + k * out["convoy_spacing_s"]
+    if key == "receiver":
+        out["seed"] = out["seed"] + k
+        out["output_dir"] = str(Path(out["output_dir"]) / ns) if out["output_dir"] else ""
+    return validate_node(key, out, f"{cfg.source}: {ns}/{NODE_NAMES[key]}")

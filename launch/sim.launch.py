@@ -18,6 +18,10 @@ Arguments:
   autostart:=true|false              configure and activate the nodes (lifecycle manager) [true]
   rtk:=true|false                    RTK: the base station (gnss_sim_base_visibility, gnss_sim_base_receiver at
                                      base_position) and the rtk node (RTKLIB rtkrcv): /gnss/rtk/fix [false]
+  robots:=N                          N robots (1..16): each its trajectory player, visibility and receiver node in
+                                     namespace robot<k> (/robot<k>/gnss/fix, TF frames robot<k>/..., RINEX in
+                                     output_dir/robot<k>), a convoy convoy_spacing_s apart along the path (or
+                                     robot_trajectory_files); one ephemeris node (/gnss/satellite_states) [1]
 
 Every node is a lifecycle node driven by the `lifecycle_manager` process, in
 both modes; `ros2 lifecycle set /gnss_sim_receiver ...` works on each, and
@@ -39,11 +43,12 @@ from launch_ros.actions import ComposableNodeContainer, LifecycleNode, Node
 from launch_ros.descriptions import ComposableNode
 
 from gnss_sim_ros2 import graph
-from gnss_sim_ros2.parameters import load_config
+from gnss_sim_ros2.parameters import check_robot_config, check_robots, load_config
 
 ARGS = {
     "world": "", "mesh": "", "config": "", "composed": "true", "use_sim_time": "true", "trajectory_player": "true",
     "record": "false", "output_dir": "gnss_sim_output", "antenna_frame": "", "autostart": "true", "rtk": "false",
+    "robots": "1",
 }
 CONTAINER = "gnss_sim_container"
 
@@ -63,19 +68,19 @@ def _stop_launch_if_failed(action, what: str):
     return RegisterEventHandler(OnProcessExit(target_action=action, on_exit=on_exit))
 
 
-def _recorder(output_dir: str, rtk: bool = False) -> list:
+def _recorder(output_dir: str, rtk: bool = False, robots: int = 1) -> list:
     bag = os.path.join(output_dir, "bag")
     if os.path.exists(bag):
         raise ValueError(f"record:=true: the bag folder {bag} exists already (rosbag2 does not overwrite); "
                            "choose another output_dir:= or remove it")
     if shutil.which("ros2") and importlib.util.find_spec("ros2bag") is not None:
-        topics = [*graph.RECORDED_TOPICS, *(t for t, _ in graph.RECORDED_RTK if rtk)]
+        topics = [*(t for t, _ in graph.recorded(robots)), *(t for t, _ in graph.RECORDED_RTK if rtk)]
         proc = ExecuteProcess(cmd=["ros2", "bag", "record", "-s", "mcap", "-o", bag, *topics],
                               output="screen")
         return [proc, _stop_launch_if_failed(proc, "ros2 bag record")]
     if importlib.util.find_spec("rosbags") is not None:
         proc = Node(package=graph.PACKAGE, executable="recorder", name="gnss_sim_recorder", output="screen",
-                    parameters=[{"bag_dir": bag, "rtk": rtk}])
+                    parameters=[{"bag_dir": bag, "rtk": rtk, "robots": robots}])
         return [proc, _stop_launch_if_failed(proc, "the gnss_sim recorder")]
     raise RuntimeError("record:=true: nothing can record here: `ros2 bag` (rosbag2, e.g. ros-<distro>-rosbag2) is "
                        "not installed and neither is the Python package rosbags (pip install rosbags) that "
@@ -100,14 +105,20 @@ def _setup(context):
     if a["mesh"]:
         overrides["visibility"] = {"mesh_file": os.path.abspath(a["mesh"]), "world_file": ""}
     rtk = _true(a["rtk"])
+    robots = check_robots(a["robots"], "launch argument robots")
+    if rtk and robots > 1:
+        raise ValueError(f"launch arguments rtk:=true and robots:={robots} do not go together: an RTK run has one "
+                         f"rover (and its base station); use robots:=1 with rtk:=true")
     if rtk:
         overrides["receiver"] = {"rtcm": True}      # the rover's RTCM3 for the rtk node
     cfg = load_config(a["config"] or None, overrides)
+    check_robot_config(cfg, robots, "launch argument robots")
     sim_time = _true(a["use_sim_time"])
-    params = {**cfg.ros_parameter_file_dict(), **(graph.rtk_parameter_sections(cfg) if rtk else {})}
+    params = {**cfg.ros_parameter_file_dict(), **(graph.rtk_parameter_sections(cfg) if rtk else {}),
+              **graph.robot_parameter_sections(cfg, robots)}
     params["/**"] = {"ros__parameters": {"use_sim_time": sim_time}}  # every node, composed or not
     params_file = _write_params(params, "params.yaml")
-    specs = graph.nodes(_true(a["trajectory_player"])) + (graph.rtk_nodes(cfg) if rtk else [])
+    specs = graph.nodes(_true(a["trajectory_player"]), robots) + (graph.rtk_nodes(cfg) if rtk else [])
     node_params = [params_file, {"use_sim_time": sim_time}]
     # launch_ros turns a composable node's parameter file into Parameter messages and rejects empty
     # lists; every list parameter whose value is empty has the empty list as its default: leave them out
@@ -117,23 +128,24 @@ def _setup(context):
                          {"use_sim_time": sim_time}]
     actions = []
     if _true(a["record"]):  # first: a recorder that cannot start fails the launch before any node runs
-        actions += _recorder(shared["output_dir"], rtk)
+        actions += _recorder(shared["output_dir"], rtk, robots)
     if _true(a["composed"]):
         container = ComposableNodeContainer(
             package=graph.PACKAGE, executable="container", name=CONTAINER, namespace="", output="screen",
             parameters=[{"use_sim_time": sim_time}],
             composable_node_descriptions=[
-                ComposableNode(package=graph.PACKAGE, plugin=spec.plugin, name=spec.name, namespace="",
+                ComposableNode(package=graph.PACKAGE, plugin=spec.plugin, name=spec.name, namespace=spec.namespace,
                                parameters=composable_params, remappings=list(graph.remappings_of(spec)))
                 for spec in specs])
         actions += [container, _stop_launch_if_failed(container, "the component container")]
     else:
         for spec in specs:
             actions.append(LifecycleNode(package=graph.PACKAGE, executable=spec.executable, name=spec.name,
-                                         namespace="", output="screen", remappings=list(graph.remappings_of(spec)),
+                                         namespace=spec.namespace, output="screen",
+                                         remappings=list(graph.remappings_of(spec)),
                                          parameters=node_params))
     actions.append(Node(package=graph.PACKAGE, executable="lifecycle_manager", name="gnss_sim_lifecycle_manager",
-                        output="screen", parameters=[{"node_names": [s.name for s in specs],
+                        output="screen", parameters=[{"node_names": [s.path for s in specs],
                                                       "autostart": _true(a["autostart"]),
                                                       "use_sim_time": sim_time}]))
     return actions

@@ -8,6 +8,7 @@ import threading
 import time
 from pathlib import Path
 
+import launch_testing.asserts
 import rclpy
 from builtin_interfaces.msg import Time
 from lifecycle_msgs.msg import Transition
@@ -145,3 +146,15 @@ def rinex_obs_epochs(path: Path) -> tuple[dict, list[float]]:
             f = line[1:].split()
             epochs.append(int(f[3]) * 3600 + int(f[4]) * 60 + float(f[5]))
     return header, epochs
+
+
+class ExitsCleanly:
+    """Post-shutdown checks of a launch test (mixed into its ``@launch_testing.post_shutdown_test()`` class):
+    after SIGINT every process exits 0 and none printed a traceback."""
+
+    def test_exit_codes_zero(self, proc_info):
+        launch_testing.asserts.assertExitCodes(proc_info)
+
+    def test_no_traceback(self, proc_output):
+        for info in proc_output:
+            self.assertNotIn("Traceback", info.text.decode(errors="replace"), info.process_name)

@@ -27,12 +27,11 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # launch_helpers
 import launch  # noqa: E402
 import launch_testing  # noqa: E402
 import launch_testing.actions  # noqa: E402
-import launch_testing.asserts  # noqa: E402
 import numpy as np  # noqa: E402
 import yaml  # noqa: E402
 from ament_index_python.packages import get_package_share_directory  # noqa: E402
 from launch.launch_description_sources import PythonLaunchDescriptionSource  # noqa: E402
-from launch_helpers import NODES, Probe, stamp_s  # noqa: E402
+from launch_helpers import NODES, ExitsCleanly, Probe, stamp_s  # noqa: E402
 from sensor_msgs.msg import NavSatFix, NavSatStatus  # noqa: E402
 from std_msgs.msg import UInt8MultiArray  # noqa: E402
 from test_rtk_engine import rtkrcv_and_faketime  # noqa: E402
@@ -124,14 +123,7 @@ class TestRtkLaunch(unittest.TestCase):
 
 
 @launch_testing.post_shutdown_test()
-class TestAfterSigint(unittest.TestCase):
-    def test_exit_codes_zero(self, proc_info):
-        launch_testing.asserts.assertExitCodes(proc_info)
-
-    def test_no_traceback(self, proc_output):
-        for info in proc_output:
-            self.assertNotIn("Traceback", info.text.decode(errors="replace"), info.process_name)
-
+class TestAfterSigint(ExitsCleanly, unittest.TestCase):
     def test_no_rtkrcv_left(self):
         """The rtkrcv the rtk node started ends with the container."""
         for pid in RTKRCV_PIDS:

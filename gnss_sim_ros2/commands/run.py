@@ -44,6 +44,11 @@ def add_arguments(p):
     p.add_argument("--rtk", action="store_true",
                    help="RTK: a base station at base_position and the rtk node (RTKLIB rtkrcv) on the rover's and "
                         "the base's RTCM3; /gnss/rtk/fix recorded, RTK figures in the summary")
+    p.add_argument("--robots", type=int, default=1, metavar="N",
+                   help="N robots in one graph (1..16): each its own TF frames (robot<k>/...), path (a convoy "
+                        "convoy_spacing_s apart along the path, or robot_trajectory_files), visibility and receiver "
+                        "node in namespace robot<k> (/robot<k>/gnss/fix, RINEX in OUT/robot<k>), one ephemeris node "
+                        "and one scene for all [1]")
     p.add_argument("--quiet", action="store_true")
 
 
@@ -74,14 +79,20 @@ def _overrides(args) -> dict:
 
 def run(args) -> int:
     from gnss_sim_ros2 import graph
-    from gnss_sim_ros2.parameters import load_config
+    from gnss_sim_ros2.parameters import check_robot_config, check_robots, load_config
     from gnss_sim_ros2.run_isolation import OutputBusy, OutputFolder, choose_domain_id
 
     folder = OutputFolder(Path(args.out))
     try:
+        args.robots = check_robots(args.robots, "option --robots")
+        if args.rtk and args.robots > 1:
+            raise ValueError(f"options --rtk and --robots {args.robots} do not go together: an RTK run has one "
+                             f"rover (and its base station); run RTK with --robots 1")
         ov = _overrides(args)
         ov["/**"]["output_dir"] = str(folder.staging)
         cfg = load_config(args.config, ov, OPTION_PARAMS)
+        check_robot_config(cfg, args.robots, "option --robots")
+        robot_sections = graph.robot_parameter_sections(cfg, args.robots)   # a robot's bad path file stops here
         # the base station's (and moving baseline's) sections: a bad base_position stops here, before any start
         rtk_sections = graph.rtk_parameter_sections(cfg) if args.rtk else {}
         if args.domain_id is not None and not 0 <= args.domain_id <= 232:
@@ -103,7 +114,8 @@ def run(args) -> int:
     import yaml
 
     params_file = staging / "params.yaml"
-    params_file.write_text(yaml.safe_dump({**cfg.ros_parameter_file_dict(), **rtk_sections}, sort_keys=False))
+    params_file.write_text(yaml.safe_dump({**cfg.ros_parameter_file_dict(), **rtk_sections, **robot_sections},
+                                          sort_keys=False))
     runner = Runner(cfg, staging, params_file, args)
     runner.domain_id = domain
     for old in folder.stale:
@@ -145,6 +157,8 @@ class Runner:
         self.epochs_done = 0
         self.domain_id = None
         self.foreign: dict = {}
+        self.configure_wall_s = self.peak_rss_mb = None
+        self.robots: list[RobotOutputs] = []
 
     def log(self, text: str):
         if not self.args.quiet:
@@ -177,8 +191,8 @@ class Runner:
         if not self.args.no_record:
             from gnss_sim_ros2.recorder import BagRecorder
 
-            self.recorder = BagRecorder(self.driver, self.out / "bag",
-                                        graph.RECORDED + (graph.RECORDED_RTK if self.args.rtk else ()))
+            self.recorder = BagRecorder(self.driver, self.out / "bag", graph.recorded(self.args.robots)
+                                        + (graph.RECORDED_RTK if self.args.rtk else ()))
         specs = self.specs()
         if self.args.processes:
             from gnss_sim_ros2.run_isolation import die_with_parent
@@ -187,7 +201,7 @@ class Runner:
             for spec in specs:
                 cmd = [sys.executable, "-m", spec.module] + graph.ros_args(spec, str(self.params_file), True)
                 self.procs.append(subprocess.Popen(cmd, env=env, preexec_fn=die_with_parent))
-            self.manager = RemoteNodes(self.driver, [s.name for s in specs], self.executor)
+            self.manager = RemoteNodes(self.driver, [s.path for s in specs], self.executor)
             self.manager.wait_for_services()
         else:
             import importlib
@@ -197,7 +211,7 @@ class Runner:
             for spec in specs:
                 cls = getattr(importlib.import_module(spec.module), spec.cls)
                 overrides = [Parameter("use_sim_time", value=True)] + [
-                    Parameter(k, value=v) for k, v in graph.node_parameters(self.cfg, spec).items()
+                    Parameter(k, value=v) for k, v in graph.node_parameters(self.cfg, spec, self.args.robots).items()
                     if not (isinstance(v, list) and not v)]
                 node = cls(parameter_overrides=overrides, cli_args=graph.ros_args(spec, None, True)[:-2])
                 self.local.append(node)
@@ -206,51 +220,32 @@ class Runner:
         self.started = True
 
     def _subscribe_outputs(self):
-        from gnss_sim_msgs.msg import Observations, ReceiverStatus, SatelliteStates, Visibility
-        from sensor_msgs.msg import NavSatFix
+        from gnss_sim_msgs.msg import SatelliteStates
 
-        self.t_states, self.t_obs, self.status, self.fix, self.truth = {}, {}, {}, {}, {}
-        self.last_vis = None
-
-        def key(m):
-            return m.header.stamp.sec + m.header.stamp.nanosec * 1e-9
-
-        def raw_stamp(data: bytes) -> float:
-            # CDR: 4-byte encapsulation header, then std_msgs/Header.stamp (int32 sec, uint32 nanosec);
-            # reading only the stamp keeps the latency probe from deserialising 100+ satellites
-            sec, nsec = struct.unpack_from("<iI" if data[1] == 1 else ">iI", data, 4)
-            return sec + nsec * 1e-9
+        self.t_states = {}
 
         def on_states(data):
             self.t_states[raw_stamp(data)] = time.perf_counter()
 
-        def on_obs(data):
-            self.t_obs[raw_stamp(data)] = time.perf_counter()
-
-        def on_status(m):
-            self.status[key(m)] = m
-
-        def on_fix(m):
-            self.fix[key(m)] = m
-
-        def on_vis(m):
-            self.truth[key(m)] = np.array([m.antenna_ecef_m.x, m.antenna_ecef_m.y, m.antenna_ecef_m.z])
-            self.last_vis = m
-
-        d = self.driver
-        self._subs = [d.create_subscription(SatelliteStates, "/gnss/satellite_states", on_states, 100, raw=True),
-                      d.create_subscription(Observations, "/gnss/observations", on_obs, 100, raw=True),
-                      d.create_subscription(ReceiverStatus, "/gnss/status", on_status, 100),
-                      d.create_subscription(NavSatFix, "/gnss/fix", on_fix, 100),
-                      d.create_subscription(Visibility, "/gnss/visibility", on_vis, 100)]
+        self._subs = [self.driver.create_subscription(SatelliteStates, "/gnss/satellite_states", on_states, 100,
+                                                      raw=True)]
+        n = self.args.robots
+        self.robots = [RobotOutputs(self.driver, k if n > 1 else -1) for k in range(n)]
+        r0 = self.robots[0]              # one robot: the run's outputs (the RTK figures use its truth)
+        self.status, self.fix, self.truth, self.t_obs = r0.status, r0.fix, r0.truth, r0.t_obs
         if self.args.rtk:
             self._subscribe_rtk()
+
+    @property
+    def last_vis(self):
+        return self.robots[0].last_vis
 
     def specs(self):
         """The nodes of this run (graph.nodes, and the RTK ones with --rtk)."""
         from gnss_sim_ros2 import graph
 
-        return graph.nodes(not self.args.no_trajectory_player) + (graph.rtk_nodes(self.cfg) if self.args.rtk else [])
+        return (graph.nodes(not self.args.no_trajectory_player, self.args.robots)
+                + (graph.rtk_nodes(self.cfg) if self.args.rtk else []))
 
     def _subscribe_rtk(self):
         from diagnostic_msgs.msg import DiagnosticStatus
@@ -329,6 +324,7 @@ class Runner:
 
     # ------------------------------------------------------------------ run
     def run(self, stop) -> int:
+        from gnss_sim_ros2 import graph
         from gnss_sim_ros2.nodes.manager import TransitionFailed
 
         eph = self.cfg.node("ephemeris")
@@ -345,7 +341,12 @@ class Runner:
                 while not stop["flag"]:
                     self.spin(0.1)
                 return 0
+            t_configure = time.perf_counter()
             self.manager.transition("configure")
+            self.configure_wall_s = time.perf_counter() - t_configure
+            self.peak_rss_mb = _peak_rss_mb()
+            self.log(f"{self.args.robots} robot(s) configured in {self.configure_wall_s:.2f} s (scene, ephemeris, "
+                     f"receivers), peak memory of this process {self.peak_rss_mb:.0f} MB")
             self.manager.transition("activate")
         except TransitionFailed as exc:
             print(f"gnss-sim run: error: {exc}", file=sys.stderr)
@@ -369,12 +370,14 @@ class Runner:
             self.set_clock(t_s)
             t_wait = time.monotonic()
             deadline = t_wait + max(10.0, tf_timeout_s + 2.0)
-            while (not any(abs(s - t_s) < 1e-6 for s in list(self.status)[-3:]) and time.monotonic() < deadline
+            while (not all(r.answered(t_s) for r in self.robots) and time.monotonic() < deadline
                    and not stop["flag"]):
                 self.executor.spin_once(timeout_sec=0.001)
-                if (time.monotonic() - t_wait > tf_timeout_s + 1.0
-                        and not any(abs(s - t_s) < 1e-6 for s in list(self.truth)[-3:])):
-                    vis = self.cfg.node("visibility")
+                late = [r for r in self.robots if not r.cast(t_s)] if time.monotonic() - t_wait > tf_timeout_s + 1.0 \
+                    else []
+                if late:
+                    vis = graph.node_parameters(self.cfg, late[0].spec("visibility"), self.args.robots) \
+                        if late[0].k >= 0 else self.cfg.node("visibility")
                     print(f"\ngnss-sim run: error: no transform from '{vis['world_frame']}' to "
                           f"'{vis['antenna_frame']}' in TF within tf_timeout_s = {tf_timeout_s:g} s (wall time) at "
                           f"epoch {k} (t = {t_s:g} s): nothing publishes the robot's TF (the trajectory player, "
@@ -382,10 +385,11 @@ class Runner:
                           f"antenna_frame)", file=sys.stderr)
                     self.epochs_done = k_done
                     return 1
-            if stop["flag"] and not any(abs(s - t_s) < 1e-6 for s in self.status):
+            answered = [r.answered(t_s, every=True) for r in self.robots]
+            if stop["flag"] and not all(answered):
                 self.log(f"stopped after {k_done} epochs")
                 break
-            if not any(abs(s - t_s) < 1e-6 for s in self.status):
+            if not all(answered):
                 dropped += 1
             self.wait_rtk(t_s, period, stop)
             k_done = k + 1
@@ -409,7 +413,7 @@ class Runner:
 
         ours = {s.name for s in graph.nodes() + graph.rtk_nodes(self.cfg)} | {"gnss_sim_run"}
         out = {}
-        for _, topic in graph.REMAPPINGS:
+        for topic in dict.fromkeys(t for topics in graph.robot_topics(self.args.robots) for t in topics):
             others = sorted({f"{i.node_namespace.rstrip('/')}/{i.node_name}"
                              for i in self.driver.get_publishers_info_by_topic(topic) if i.node_name not in ours})
             if others:
@@ -440,38 +444,34 @@ class Runner:
         return scenes[0].sky_grid(at) if at is not None and scenes else None
 
     def summary(self, n_epochs, dropped, wall_s, period) -> dict:
-        from gnss_sim_ros2.core.frames import ecef_to_enu, ecef_to_geodetic, geodetic_to_ecef
-
-        tracked = [m.satellites_tracked for m in self.status.values()]
-        fixes = [m for m in self.fix.values() if m.status.status >= 0]
-        err = []
-        for t, f in self.fix.items():
-            if f.status.status < 0 or t not in self.truth:
-                continue
-            est = np.array(geodetic_to_ecef(f.latitude, f.longitude, f.altitude))
-            tru = self.truth[t]
-            lat, lon, h = ecef_to_geodetic(*tru)
-            d = ecef_to_enu(est, lat, lon, h)
-            err.append(float(np.hypot(d[0], d[1])))
-        lat_ms = [1e3 * (self.t_obs[t] - self.t_states[t]) for t in self.t_obs if t in self.t_states]
-        rinex = sorted(str(p.name) for p in self.out.glob("*.rnx"))
+        per_robot = [r.samples(self.t_states) for r in self.robots]
+        pooled = {key: [x for one in per_robot for x in one[key]] for key in per_robot[0]}
+        n = len(self.robots)
+        figures = _figures(pooled, n_epochs * n)
+        rinex = sorted(str(p.relative_to(self.out)) for p in self.out.glob("*.rnx"))
+        if n > 1:
+            rinex += sorted(str(p.relative_to(self.out)) for p in self.out.glob("robot*/*.rnx"))
         out = {
             "epochs": n_epochs, "epochs_without_output": dropped, "wall_s": round(wall_s, 3),
             "realtime_factor": round(n_epochs * period / wall_s, 2) if wall_s > 0 else None,
-            "satellites_tracked_mean": round(float(np.mean(tracked)), 2) if tracked else 0,
-            "satellites_tracked_min": int(min(tracked)) if tracked else 0,
-            "satellites_tracked_max": int(max(tracked)) if tracked else 0,
-            "fix_availability": round(len(fixes) / max(n_epochs, 1), 4),
-            "horizontal_error_rms_m": round(float(np.sqrt(np.mean(np.square(err)))), 3) if err else None,
-            "horizontal_error_p95_m": round(float(np.percentile(err, 95)), 3) if err else None,
-            "latency_ms_median": round(float(np.median(lat_ms)), 3) if lat_ms else None,
-            "latency_ms_p99": round(float(np.percentile(lat_ms, 99)), 3) if lat_ms else None,
+            **figures,
             "mode": "processes" if self.args.processes else "composed",
             "ros_domain_id": self.domain_id,
             "foreign_publishers": self.foreign,
             "pace": "realtime" if self.args.realtime else "as fast as the chain answers",
             "rinex_files": rinex,
+            "configure_wall_s": round(self.configure_wall_s, 3) if self.configure_wall_s is not None else None,
+            "peak_rss_mb": round(self.peak_rss_mb, 1) if self.peak_rss_mb is not None else None,
         }
+        if n > 1:
+            from gnss_sim_ros2.core.simulation import SCENE_LOADS
+
+            out["robots"] = n
+            out["scene_loads"] = dict(SCENE_LOADS)     # this process's: one world for every composed robot
+            out["per_robot"] = {r.name: {"epochs_without_output": n_epochs - r.epochs_answered(n_epochs, period),
+                                         **_figures(one, n_epochs)}
+                                for r, one in zip(self.robots, per_robot)}
+            out["worst_robot"] = _worst(out["per_robot"])
         if self.args.rtk:
             out.update(self.rtk_summary(n_epochs, period))
         if self.recorder is not None:
@@ -593,5 +593,140 @@ def _summary_markdown(s: dict) -> str:
     for k, v in s.items():
         if k == "bag_messages":
             v = ", ".join(f"{t}: {n}" for t, n in sorted(v.items()))
+        if k == "per_robot":
+            continue
         lines.append(f"| {k} | {v} |")
+    if "per_robot" in s:
+        cols = list(next(iter(s["per_robot"].values())))
+        lines += ["", "| robot | " + " | ".join(cols) + " |", "|---" * (len(cols) + 1) + "|"]
+        lines += [f"| {name} | " + " | ".join(str(f[c]) for c in cols) + " |" for name, f in s["per_robot"].items()]
     return "\n".join(lines) + "\n"
+
+
+def raw_stamp(data: bytes) -> float:
+    """The header stamp of a serialized message [s]. CDR: a 4-byte encapsulation header, then
+    std_msgs/Header.stamp (int32 sec, uint32 nanosec); reading only the stamp keeps the latency probe from
+    deserialising 100+ satellites."""
+    sec, nsec = struct.unpack_from("<iI" if data[1] == 1 else ">iI", data, 4)
+    return sec + nsec * 1e-9
+
+
+def _stamp_s(m) -> float:
+    return m.header.stamp.sec + m.header.stamp.nanosec * 1e-9
+
+
+class RobotOutputs:
+    """What the run reads of one robot's receiver chain: the observations' arrival (latency), status, fix and
+    the visibility's true antenna position, on the robot's topics (graph.robot_topic: /robot<k>/gnss/...;
+    ``k`` = -1: the one robot of a run, /gnss/...)."""
+
+    def __init__(self, driver, k: int):
+        from gnss_sim_msgs.msg import Observations, ReceiverStatus, Visibility
+        from sensor_msgs.msg import NavSatFix
+
+        from gnss_sim_ros2 import graph
+        from gnss_sim_ros2.parameters import robot_namespace
+
+        self.k = k
+        self.name = robot_namespace(max(k, 0))
+        self.t_obs, self.status, self.fix, self.truth = {}, {}, {}, {}
+        self.last_vis = None
+
+        def on_obs(data):
+            self.t_obs[raw_stamp(data)] = time.perf_counter()
+
+        def on_status(m):
+            self.status[_stamp_s(m)] = m
+
+        def on_fix(m):
+            self.fix[_stamp_s(m)] = m
+
+        def on_vis(m):
+            self.truth[_stamp_s(m)] = np.array([m.antenna_ecef_m.x, m.antenna_ecef_m.y, m.antenna_ecef_m.z])
+            self.last_vis = m
+
+        def topic(t):
+            return graph.robot_topic(k, f"{graph.TOPIC_NAMESPACE}/{t}")
+
+        self.subs = [driver.create_subscription(Observations, topic("observations"), on_obs, 100, raw=True),
+                     driver.create_subscription(ReceiverStatus, topic("status"), on_status, 100),
+                     driver.create_subscription(NavSatFix, topic("fix"), on_fix, 100),
+                     driver.create_subscription(Visibility, topic("visibility"), on_vis, 100)]
+
+    def spec(self, key: str):
+        """This robot's node of ``key`` (graph.ROBOT_KEYS)."""
+        from gnss_sim_ros2 import graph
+
+        return graph.robot_spec(next(n for n in graph.NODES if n.key == key), self.k)
+
+    def answered(self, t_s: float, every: bool = False) -> bool:
+        """The receiver's status of the epoch at t_s came (``every``: searched among all, else the last 3)."""
+        stamps = self.status if every else list(self.status)[-3:]
+        return any(abs(s - t_s) < 1e-6 for s in stamps)
+
+    def cast(self, t_s: float) -> bool:
+        """The visibility of the epoch at t_s came (the antenna's TF was there)."""
+        return any(abs(s - t_s) < 1e-6 for s in list(self.truth)[-3:])
+
+    def epochs_answered(self, n_epochs: int, period: float) -> int:
+        return len({int(round(t / period)) for t in self.status} & set(range(n_epochs)))
+
+    def samples(self, t_states: dict) -> dict:
+        """Per-epoch samples: satellites tracked, fixes, horizontal errors against the true antenna [m],
+        latency states -> observations [ms]."""
+        from gnss_sim_ros2.core.frames import ecef_to_enu, ecef_to_geodetic, geodetic_to_ecef
+
+        err = []
+        for t, f in self.fix.items():
+            if f.status.status < 0 or t not in self.truth:
+                continue
+            est = np.array(geodetic_to_ecef(f.latitude, f.longitude, f.altitude))
+            lat, lon, h = ecef_to_geodetic(*self.truth[t])
+            d = ecef_to_enu(est, lat, lon, h)
+            err.append(float(np.hypot(d[0], d[1])))
+        return {"tracked": [m.satellites_tracked for m in self.status.values()],
+                "fixes": [1 for m in self.fix.values() if m.status.status >= 0], "err": err,
+                "lat_ms": [1e3 * (self.t_obs[t] - t_states[t]) for t in self.t_obs if t in t_states]}
+
+
+def _figures(x: dict, n_epochs: int) -> dict:
+    """The run's figures from RobotOutputs.samples (of one robot, or pooled over several)."""
+    tracked, err, lat_ms = x["tracked"], x["err"], x["lat_ms"]
+
+    def r(v, nd=3):
+        return round(float(v), nd)
+
+    return {
+        "satellites_tracked_mean": r(np.mean(tracked), 2) if tracked else 0,
+        "satellites_tracked_min": int(min(tracked)) if tracked else 0,
+        "satellites_tracked_max": int(max(tracked)) if tracked else 0,
+        "fix_availability": round(len(x["fixes"]) / max(n_epochs, 1), 4),
+        "horizontal_error_rms_m": r(np.sqrt(np.mean(np.square(err)))) if err else None,
+        "horizontal_error_p95_m": r(np.percentile(err, 95)) if err else None,
+        "latency_ms_median": r(np.median(lat_ms)) if lat_ms else None,
+        "latency_ms_p95": r(np.percentile(lat_ms, 95)) if lat_ms else None,
+        "latency_ms_p99": r(np.percentile(lat_ms, 99)) if lat_ms else None,
+    }
+
+
+#: figures of the worst robot: the lowest (min) or highest (max) value among the robots
+WORST_BY = {"fix_availability": min, "horizontal_error_rms_m": max, "latency_ms_median": max,
+            "latency_ms_p95": max, "latency_ms_p99": max, "epochs_without_output": max}
+
+
+def _worst(per_robot: dict) -> dict:
+    """{figure: {"robot": name, "value": v}} of the worst robot per figure (WORST_BY)."""
+    out = {}
+    for key, pick in WORST_BY.items():
+        have = {name: f[key] for name, f in per_robot.items() if f.get(key) is not None}
+        if have:
+            name = pick(have, key=have.get)
+            out[key] = {"robot": name, "value": have[name]}
+    return out
+
+
+def _peak_rss_mb() -> float:
+    """Peak resident memory of this process [MB] (Linux ru_maxrss: kB): every node when composed."""
+    import resource
+
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0

@@ -168,12 +168,18 @@ def demo_trajectory(loop: bool = False) -> Trajectory:
 
 def robot_path(p: dict, where: str = "node gnss_sim_trajectory_player") -> Trajectory:
     """The robot's (base frame's) path from the trajectory player's parameters: ``trajectory_file``, else
-    ``waypoints``, else the demo path; ``loop``."""
+    ``waypoints``, else the demo path; ``loop``; ``time_offset_s`` (the path time at run time 0: the robot
+    starts that far along it, as a convoy's robots do)."""
     if p["trajectory_file"]:
-        return Trajectory.from_csv(p["trajectory_file"], loop=p["loop"])
-    if p["waypoints"]:
-        return Trajectory.from_waypoints(p["waypoints"], loop=p["loop"], where=f"{where}: parameter 'waypoints'")
-    return demo_trajectory(loop=p["loop"])
+        path = Trajectory.from_csv(p["trajectory_file"], loop=p["loop"])
+    elif p["waypoints"]:
+        path = Trajectory.from_waypoints(p["waypoints"], loop=p["loop"], where=f"{where}: parameter 'waypoints'")
+    else:
+        path = demo_trajectory(loop=p["loop"])
+    offset_s = float(p.get("time_offset_s", 0.0))
+    if offset_s:
+        path.t_s = path.t_s - offset_s
+    return path
 
 
 def antenna_path(base: Trajectory, offset_m) -> Trajectory:

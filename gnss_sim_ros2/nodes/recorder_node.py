@@ -1,8 +1,8 @@
 """``ros2 run gnss_sim recorder --ros-args -p bag_dir:=DIR``: the project's rosbag2 (MCAP) recorder
 (gnss_sim_ros2/recorder.py) as a node of a launch, where ``ros2 bag`` does not exist.
 
-Records graph.RECORDED until SIGINT/SIGTERM, then closes the bag (exit 0).  A
-bag folder that exists already, or no ``bag_dir``, is an error (exit 2).
+Records graph.recorded(robots) (every robot's topics, parameter ``robots``) until SIGINT/SIGTERM,
+then closes the bag (exit 0).  A bag folder that exists already, or no ``bag_dir``, is an error (exit 2).
 """
 from __future__ import annotations
 
@@ -20,16 +20,19 @@ def main(args=None) -> int:
     node = rclpy.create_node("gnss_sim_recorder")
     bag_dir = node.declare_parameter("bag_dir", "").value
     rtk = node.declare_parameter("rtk", False).value        # also the RTK topics (graph.RECORDED_RTK)
+    robots = node.declare_parameter("robots", 1).value      # every robot's topics (graph.recorded)
     executor = SingleThreadedExecutor()
     executor.add_node(node)
     recorder = None
     try:
         if not bag_dir:
             raise ValueError("node gnss_sim_recorder: parameter 'bag_dir' is empty (the bag folder to write)")
-        from gnss_sim_ros2.graph import RECORDED, RECORDED_RTK
+        from gnss_sim_ros2.graph import RECORDED_RTK, recorded
+        from gnss_sim_ros2.parameters import check_robots
         from gnss_sim_ros2.recorder import BagRecorder
 
-        recorder = BagRecorder(node, Path(bag_dir), RECORDED + (RECORDED_RTK if rtk else ()))
+        topics = recorded(check_robots(robots, "node gnss_sim_recorder: parameter 'robots'"))
+        recorder = BagRecorder(node, Path(bag_dir), topics + (RECORDED_RTK if rtk else ()))
         node.get_logger().info(f"recording into {bag_dir}")
         spin_until_stopped(executor, stop)
     except ValueError as exc:

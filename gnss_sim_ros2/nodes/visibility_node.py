@@ -55,7 +55,7 @@ class VisibilityNode(GnssSimNode):
         try:
             self.options = VisibilityOptions.from_params(p)
             world = p["world_file"] if p["world_file"] or p["mesh_file"] else str(demo_world_path())
-            self.scene = load_scene(world, p["mesh_file"], p["materials_file"], self.options)
+            self.scene = load_scene(world, p["mesh_file"], p["materials_file"], self.options, shared=True)
         except ValueError as exc:
             raise ValueError(f"node {self.get_name()}: {exc}") from None
         if self.scene.spherical is None:

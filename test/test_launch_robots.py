@@ -1,0 +1,136 @@
+"""launch_testing: `ros2 launch gnss_sim sim.launch.py robots:=2 record:=true` with the real launch tools.
+
+    launch_test test/test_launch_robots.py     # a ROS 2 install, or .venv-launch (make test)
+
+Composed (the nodes as components of gnss_sim's container) on a simulated clock that the test
+publishes 4x faster than real time, two robots in a convoy along the demo path.  Checked: every node
+active (one ephemeris node; robot<k>/gnss_sim_trajectory_player, robot<k>/gnss_sim_visibility,
+robot<k>/gnss_sim_receiver), fixes on /robot0/gnss/fix and /robot1/gnss/fix on the epoch grid, none on
+/gnss/fix, the two robots' fixes apart by about the convoy spacing; then SIGINT: every process exits 0
+without a traceback, each robot's RINEX in output_dir/robot<k>, the bag (recorder) holds both robots'
+fixes and one /gnss/satellite_states.
+
+Under plain pytest (the main suite) this module is skipped: launch tests run with `launch_test`.
+"""
+import os
+import sys
+import tempfile
+import threading
+import unittest
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("launch_testing", reason="launch_testing is not installed here: `make test` runs this file "
+                    "with launch_test in .venv-launch (../shared/ros2-tools); on a ROS install: launch_test FILE")
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # launch_helpers (launch_test adds no path)
+import launch  # noqa: E402
+import launch_testing  # noqa: E402
+import launch_testing.actions  # noqa: E402
+import numpy as np  # noqa: E402
+import pymap3d  # noqa: E402
+import yaml  # noqa: E402
+from ament_index_python.packages import get_package_share_directory  # noqa: E402
+from launch.launch_description_sources import PythonLaunchDescriptionSource  # noqa: E402
+from launch_helpers import ExitsCleanly, Probe, rinex_obs_epochs, stamp_s  # noqa: E402
+from sensor_msgs.msg import NavSatFix, NavSatStatus  # noqa: E402
+
+from gnss_sim_ros2 import graph  # noqa: E402
+
+ROBOTS = 2
+SPEED = 4.0                     # simulated seconds per wall second
+RUN_S = 25.0                    # demo path: open ground south of the block (1 m/s northwards) up to here
+SPACING_S = 5.0                 # convoy_spacing_s of the test's configuration: 5 m apart on the demo path
+NODE_PATHS = tuple(s.path for s in graph.nodes(True, ROBOTS))
+OUT = Path(tempfile.mkdtemp(prefix="gnss_sim_launch_robots_"))
+MARKER = "LTRB"
+
+
+@pytest.mark.launch_test
+def generate_test_description():
+    cfg = OUT / "config.yaml"
+    cfg.write_text(yaml.safe_dump({"/**": {"ros__parameters": {"rate_hz": 1.0, "marker_name": MARKER}},
+                                   "gnss_sim_trajectory_player": {"ros__parameters": {
+                                       "convoy_spacing_s": SPACING_S}}}))
+    sim = launch.actions.IncludeLaunchDescription(
+        PythonLaunchDescriptionSource(os.path.join(get_package_share_directory("gnss_sim"), "launch",
+                                                   "sim.launch.py")),
+        launch_arguments={"robots": str(ROBOTS), "record": "true", "config": str(cfg),
+                          "output_dir": str(OUT / "out")}.items())
+    return launch.LaunchDescription([sim, launch_testing.actions.ReadyToTest()])
+
+
+class TestRobotsLaunch(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.probe = Probe(SPEED)
+        cls.lock = threading.Lock()
+        cls.fixes = {k: [] for k in range(ROBOTS)}
+        for k in range(ROBOTS):
+            cls.probe.node.create_subscription(NavSatFix, f"/robot{k}/gnss/fix",
+                                               lambda m, k=k: cls._on_fix(k, m), 100)
+
+    @classmethod
+    def _on_fix(cls, k, m):
+        with cls.lock:
+            cls.fixes[k].append(m)
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.probe.close()
+
+    def _copy(self):
+        with self.lock:
+            return {k: list(v) for k, v in self.fixes.items()}
+
+    def test_1_every_node_active(self):
+        probe = self.probe
+        ok = probe.wait_for(lambda: all(probe.state_or_none(n) == "active" for n in NODE_PATHS), 180.0)
+        self.assertTrue(ok, {n: probe.state_or_none(n) for n in NODE_PATHS})
+        self.assertEqual(sum(1 for n in NODE_PATHS if n.endswith("gnss_sim_ephemeris")), 1)
+        probe.start_clock()
+
+    def test_2_each_robot_its_fixes(self):
+        probe = self.probe
+        got = probe.wait_for(lambda: all(f and stamp_s(f[-1].header.stamp) >= RUN_S for f in self._copy().values()),
+                             RUN_S / SPEED + 90.0)
+        fixes = self._copy()
+        self.assertTrue(got, {k: len(f) for k, f in fixes.items()})
+        self.assertEqual(probe.fixes_copy(), [], "fixes on /gnss/fix: the robots' topics are their own")
+        by_stamp = []
+        for k in range(ROBOTS):
+            t = np.array([stamp_s(f.header.stamp) for f in fixes[k]])
+            self.assertTrue(np.allclose(np.diff(t), 1.0, atol=1e-6), f"robot{k}: fix intervals {np.diff(t)}")
+            valid = [f for f in fixes[k] if f.status.status != NavSatStatus.STATUS_NO_FIX]
+            self.assertGreater(len(valid), 0.8 * len(fixes[k]), f"robot{k}")
+            by_stamp.append({round(stamp_s(f.header.stamp), 3): f for f in valid})
+        common = sorted(set(by_stamp[0]) & set(by_stamp[1]))
+        self.assertGreater(len(common), 10)
+        gaps = []
+        for t in common:
+            a, b = by_stamp[0][t], by_stamp[1][t]
+            e, n, _ = pymap3d.geodetic2enu(b.latitude, b.longitude, b.altitude, a.latitude, a.longitude, a.altitude)
+            gaps.append(float(np.hypot(e, n)))
+        # 1 m/s on open ground: SPACING_S seconds apart is SPACING_S metres, the fixes good to a few metres
+        self.assertAlmostEqual(float(np.median(gaps)), SPACING_S, delta=3.0, msg=f"gaps {np.round(gaps, 1)}")
+
+
+@launch_testing.post_shutdown_test()
+class TestAfterSigint(ExitsCleanly, unittest.TestCase):
+    def test_rinex_per_robot(self):
+        for k in range(ROBOTS):
+            files = sorted((OUT / "out" / f"robot{k}").glob(f"{MARKER}*_MO.rnx"))
+            self.assertEqual(len(files), 1, sorted(p.name for p in (OUT / "out").rglob("*")))
+            header, epochs = rinex_obs_epochs(files[0])
+            self.assertEqual(header["MARKER NAME"].strip(), MARKER)
+            self.assertGreaterEqual(len(epochs), 10)
+        self.assertFalse(list((OUT / "out").glob("*_MO.rnx")), "no observation file outside the robots' folders")
+
+    def test_bag_has_both_robots(self):
+        meta = yaml.safe_load((OUT / "out" / "bag" / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+        counts = {t["topic_metadata"]["name"]: t["message_count"] for t in meta["topics_with_message_count"]}
+        for k in range(ROBOTS):
+            self.assertGreater(counts.get(f"/robot{k}/gnss/fix", 0), 10, counts)
+            self.assertGreater(counts.get(f"/robot{k}/gnss/observations", 0), 10, counts)
+        self.assertGreater(counts.get("/gnss/satellite_states", 0), 10, counts)
+        self.assertEqual(counts.get("/gnss/fix", 0), 0, counts)
