@@ -355,3 +355,45 @@ def run_drive(drive: Drive, scene, provider, nav_files, real_obs, workdir, *, mu
     out["wall_s"] = res.wall_s
     out["real_part"] = real
     return out
+
+
+def tracked_counts(view: FileView) -> dict:
+    """Per system letter and "all": the (K,) number of satellites ``view`` tracks at each epoch (above the mask,
+    servable), to see whether a channel budget caps them (issue 16)."""
+    sys_ = np.array([s[0] for s in view.sv])
+    out = {s: view.tracked[:, sys_ == s].sum(axis=1) for s in sorted(set(sys_))}
+    out["all"] = view.tracked.sum(axis=1)
+    return out
+
+
+def clear_sky_shares(drive: Drive, scene, provider, view: FileView, *, mask_deg: float = 15.0,
+                     split_el_deg: float = 35.0, az_bin_deg: float = 45.0, every: int = 1):
+    """What ``view`` tracks of the satellites the model leaves in the line of sight (cast from the placed antenna,
+    every satellite the ephemeris serves, above the mask): (shares, clear, tracked_clear) where ``shares`` maps
+    (elevation band 0: below ``split_el_deg`` / 1: above, azimuth bin start [deg]) -> (tracked share, satellite-
+    epochs) and ``clear``, ``tracked_clear`` are (K, S) bool on ``view.sv`` (epochs not visited: False).  A sky
+    sector the file leaves untracked where the model is clear points at what the model lacks there."""
+    from ..receiver.chain import VisibilityOptions
+
+    opts = VisibilityOptions(mask_deg=mask_deg)
+    col = {s: j for j, s in enumerate(view.sv)}
+    clear = np.zeros(view.tracked.shape, bool)
+    acc: dict = {}
+    for d in range(0, len(drive.t), max(1, int(every))):
+        st = provider.states(drive.t[d], systems="".join(sorted({s[0] for s in view.sv})))
+        if len(st) == 0:
+            continue
+        state, _, v = opts.cast(scene, drive.antenna_world_m[d], st.pos_ecef_m)
+        ok = (state != int(VisibilityState.BLOCKED)) & (v.el_deg >= mask_deg)
+        for s, el, az, c in zip(st.sv, v.el_deg, v.az_deg, ok):
+            if not c:
+                continue
+            j = col.get(s)
+            t = bool(view.tracked[d, j]) if j is not None else False
+            if j is not None:
+                clear[d, j] = True
+            key = (int(el >= split_el_deg), float(az_bin_deg * np.floor((az % 360.0) / az_bin_deg)))
+            n, m = acc.get(key, (0, 0))
+            acc[key] = (n + 1, m + int(t))
+    shares = {key: (m / n, n) for key, (n, m) in sorted(acc.items())}
+    return shares, clear, clear & view.tracked
