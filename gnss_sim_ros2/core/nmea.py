@@ -110,8 +110,10 @@ def utc_time_fields(t: GnssTime, decimals: int = 2) -> tuple[str, str]:
     return hms, d.strftime("%d%m%y")
 
 
+@functools.lru_cache(maxsize=512)
 def nmea_satellite(sv: str) -> tuple[str, int]:
-    """(GSV talker, NMEA satellite number) of a RINEX id like ``G05``, ``R07``, ``S20``."""
+    """(GSV talker, NMEA satellite number) of a RINEX id like ``G05``, ``R07``, ``S20`` (cached: the same
+    satellites come back every epoch)."""
     if not isinstance(sv, str) or len(sv) != 3 or sv[0] not in GSV_TALKER or not sv[1:].isdigit():
         raise ValueError(f"satellite id {sv!r} is not a RINEX id like 'G05'")
     s, n = sv[0], int(sv[1:])
@@ -123,9 +125,10 @@ def nmea_satellite(sv: str) -> tuple[str, int]:
 
 
 def _dop(x) -> str:
-    if x is None or not np.isfinite(x):
+    if x is None:
         return ""
-    return f"{min(float(x), 99.9):.1f}"
+    x = float(x)
+    return f"{min(x, 99.9):.1f}" if math.isfinite(x) else ""
 
 
 def _talker(systems) -> str:

@@ -218,8 +218,17 @@ def _as_array(name, x, n, shape_tail=()):
 def _spd_inverses(a: np.ndarray) -> np.ndarray:
     """Inverses of symmetric positive definite matrices (K, U, U), numpy's batched inverse symmetrised
     (one path for one epoch and many)."""
-    inv = np.linalg.inv(a)
+    return _symmetrised(np.linalg.inv(a))
+
+
+def _symmetrised(inv: np.ndarray) -> np.ndarray:
     return 0.5 * (inv + np.swapaxes(inv, 1, 2))
+
+
+#: ||N||_F ||N^-1||_F below which a normal matrix passes the geometry check without its eigenvalues
+#: (_solve_positions): 100 times below the limit of 1e14, so that neither the rounding of the computed
+#: inverse nor that of the matrix can make a difference
+_SURE_COND = 1e12
 
 
 def _clock_group(sv_list, groups: Mapping[str, str]) -> np.ndarray:
@@ -544,12 +553,25 @@ def _solve_positions(lay: _Layout, rows: np.ndarray, valid: np.ndarray, x0: np.n
         ok = ~few
         cond = np.full(a.size, np.nan)
         finite = ok & np.all(np.isfinite(nmat), axis=(1, 2))
+        inv_f = None
         if finite.any():
-            # 2-norm condition number of the symmetric normal matrix: its extreme eigenvalues (its singular
-            # values; eigvalsh costs less than np.linalg.cond's SVD), inf when not positive definite
-            eig = np.linalg.eigvalsh(nmat[finite])
-            lo, hi = eig[:, 0], eig[:, -1]
-            cond[finite] = np.where(lo > 0, hi / np.where(lo > 0, lo, 1.0), np.inf)
+            nf = nmat if finite.all() else nmat[finite]
+            # the geometry check: the 2-norm condition number of the symmetric normal matrix (inf when not
+            # positive definite) must not exceed 1e14.  ||N||_F ||N^-1||_F bounds it from above, so below
+            # _SURE_COND the matrix passes (and a Gram matrix that well conditioned is positive definite);
+            # the others get their extreme eigenvalues (eigvalsh: its singular values), as before
+            try:
+                inv_f = np.linalg.inv(nf)
+                bound = np.sqrt(np.einsum("kij,kij->k", nf, nf) * np.einsum("kij,kij->k", inv_f, inv_f))
+                sure = bound <= _SURE_COND                      # NaN: not sure
+            except np.linalg.LinAlgError:
+                inv_f, sure = None, np.zeros(len(nf), dtype=bool)
+            cond_f = np.where(sure, bound if inv_f is not None else 0.0, np.nan)
+            if not sure.all():
+                eig = np.linalg.eigvalsh(nf[~sure])
+                lo, hi = eig[:, 0], eig[:, -1]
+                cond_f[~sure] = np.where(lo > 0, hi / np.where(lo > 0, lo, 1.0), np.inf)
+            cond[finite] = cond_f
         bad = ok & ~(cond <= 1e14)                              # also NaN
         for j in (np.flatnonzero(bad).tolist() if bad.any() else ()):
             i = int(a[j])
@@ -561,7 +583,10 @@ def _solve_positions(lay: _Layout, rows: np.ndarray, valid: np.ndarray, x0: np.n
             continue
         gi = a[good]
         try:
-            cov = _spd_inverses(nmat[good])
+            if inv_f is not None and good.size == inv_f.shape[0]:      # good = finite: their inverses
+                cov = _symmetrised(inv_f)
+            else:
+                cov = _spd_inverses(nmat[good])
         except np.linalg.LinAlgError:       # one epoch whose matrix is not positive definite after all
             for i in gi.tolist():
                 out[i] = _no_fix(n_of[i], f"singular geometry with {int(n_use[good][0])} satellites (normal "
