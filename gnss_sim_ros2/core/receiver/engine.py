@@ -421,7 +421,8 @@ class Receiver:
             iono_model = iono_base = np.zeros(m)
         if cfg.troposphere == "saastamoinen":
             doy = np.array([self._day_of_year(t) for t in ts])
-            tropo = prop.tropo_slant_delay_m(np.maximum(el, 1.0), lat, h, doy[0] if k_n == 1 else doy[e_sat])[sat_i]
+            # the zenith delays and mapping coefficients per epoch, the mapping per satellite
+            tropo = prop.tropo_slant_delay_m(np.maximum(el, 1.0), lat_ep, h_ep, doy, epoch_of_row=e_sat)[sat_i]
         else:
             tropo = np.zeros(m)
         frac = cfg.iono_error_frac.get(self.iono_truth, 0.0)
