@@ -496,12 +496,17 @@ def _solve_positions(lay: _Layout, rows: np.ndarray, valid: np.ndarray, x0: np.n
         a = np.flatnonzero(active)
         if a.size == 0:
             break
+        whole = a.size == k_n       # every epoch still iterates: their arrays as they are (no copies)
+
+        def at(arr, whole=whole, a=a):
+            return arr if whole else arr[a]
+
         xa = x[a]
-        d = sat[a] - xa[:, None, :]
+        d = at(sat) - xa[:, None, :]
         rho = np.sqrt(np.einsum("kni,kni->kn", d, d))
         rho_safe = np.where(rho > 0, rho, 1.0)
         e = d / rho_safe[..., None]
-        placed = (np.sqrt(np.einsum("ki,ki->k", xa, xa)) > _NEAR_CENTRE_M) & (last_step[a] < _PLACED_STEP_M)
+        placed = (np.sqrt(np.einsum("ki,ki->k", xa, xa)) > _NEAR_CENTRE_M) & (at(last_step) < _PLACED_STEP_M)
         if placed.all():
             enu = np.einsum("kni,kji->knj", d, _rotations_at(xa))
             el = np.degrees(np.arcsin(np.minimum(np.maximum(enu[..., 2] / rho_safe, -1.0), 1.0)))
@@ -512,9 +517,10 @@ def _solve_positions(lay: _Layout, rows: np.ndarray, valid: np.ndarray, x0: np.n
                 enu[placed] = np.einsum("kni,kji->knj", d[placed], _rotations_at(xa[placed]))
                 el[placed] = np.degrees(np.arcsin(np.minimum(np.maximum(enu[placed, :, 2] / rho_safe[placed],
                                                                         -1.0), 1.0)))
-        use = valid[a] & (~placed[:, None] | (el >= mask_deg))
-        same = have_prev[a] & np.all(use == prev_use[a], axis=1)
-        present = np.einsum("kn,kng->kg", use.astype(float), onehot[a]) > 0
+        use = at(valid) & (~placed[:, None] | (el >= mask_deg))
+        same = at(have_prev) & np.all(use == at(prev_use), axis=1)
+        onehot_a = at(onehot)
+        present = np.einsum("kn,kng->kg", use.astype(float), onehot_a) > 0
         n_unk = 3 + present.sum(axis=1)
         n_use = use.sum(axis=1)
         few = n_use < n_unk
@@ -527,19 +533,20 @@ def _solve_positions(lay: _Layout, rows: np.ndarray, valid: np.ndarray, x0: np.n
                                       f"data or excluded), need {n_unk[j]} (3 position + {len(cs)} clock"
                                       f"{'s' if len(cs) != 1 else ''}: {'/'.join(cs) or '-'})", it)
             active[i] = False
-        h = np.concatenate([-e, onehot[a]], axis=2) * use[..., None]
+        h = np.concatenate([-e, onehot_a], axis=2) * use[..., None]
         ai = a
-        sig_rows = has_sig[ai]
+        sig_rows = at(has_sig)
+        any_sig = bool(sig_rows.any())
         model = ~sig_rows
-        if not sig_rows.any() and cfg.weighting == "elevation":     # the usual case, without masks
+        if not any_sig and cfg.weighting == "elevation":     # the usual case, without masks
             sin_el = np.sin(np.radians(np.minimum(np.maximum(el, 1.0), 90.0)))
-            var = (cfg.sigma_a_m**2 + cfg.sigma_b_m**2 / sin_el**2) * fac2[ai]
-            model = sig_rows
+            var = (cfg.sigma_a_m**2 + cfg.sigma_b_m**2 / sin_el**2) * at(fac2)
+            model = None
         else:
             var = np.ones(rho.shape)
-        if sig_rows.any():
+        if any_sig:
             var[sig_rows] = lay.sig[rows[ai[sig_rows]]] ** 2
-        if model.any():
+        if model is not None and model.any():
             if cfg.weighting == "elevation":   # pseudorange_sigma_m, inline, system factors looked up once
                 sin_el = np.sin(np.radians(np.minimum(np.maximum(el[model], 1.0), 90.0)))
                 var[model] = (cfg.sigma_a_m**2 + cfg.sigma_b_m**2 / sin_el**2) * fac2[ai[model]]
@@ -549,7 +556,7 @@ def _solve_positions(lay: _Layout, rows: np.ndarray, valid: np.ndarray, x0: np.n
         w = np.where(use, 1.0 / var, 0.0)
         hw = h * w[..., None]
         nmat = _filled(np.einsum("kni,knj->kij", hw, h), present)
-        resid = np.where(use, y[a] - rho, 0.0)
+        resid = np.where(use, at(y) - rho, 0.0)
         ok = ~few
         cond = np.full(a.size, np.nan)
         finite = ok & np.all(np.isfinite(nmat), axis=(1, 2))
@@ -593,17 +600,23 @@ def _solve_positions(lay: _Layout, rows: np.ndarray, valid: np.ndarray, x0: np.n
                                           f"matrix not invertible)", it)
                 active[i] = False
             continue
-        sol = np.einsum("kij,kj->ki", cov, np.einsum("kni,kn->ki", hw[good], resid[good]))
+        all_good = good.size == a.size
+
+        def ok_of(arr, all_good=all_good, good=good):
+            return arr if all_good else arr[good]
+
+        sol = np.einsum("kij,kj->ki", cov, np.einsum("kni,kn->ki", ok_of(hw), ok_of(resid)))
         dx = sol[:, :3]
         x[gi] = x[gi] + dx
         step = np.sqrt(np.einsum("ki,ki->k", dx, dx))
         last_step[gi] = step
-        prev_use[gi] = use[good]
-        same_g = same[good]
+        prev_use[gi] = ok_of(use)
+        same_g = ok_of(same)
         have_prev[gi] = True
         it_of[gi] = it
         fin[it] = (gi, good, h, cov, sol, use, el, enu, var, w, present)
-        conv = (step < cfg.convergence_m) & (same_g | ~placed[good] | (it == 1)) & placed[good]
+        placed_g = ok_of(placed)
+        conv = (step < cfg.convergence_m) & (same_g | ~placed_g | (it == 1)) & placed_g
         active[gi[conv]] = False
         for i in gi[conv].tolist():
             out[i] = "converged"
