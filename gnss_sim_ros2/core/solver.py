@@ -558,28 +558,27 @@ def _solve_positions(lay: _Layout, rows: np.ndarray, valid: np.ndarray, x0: np.n
         nmat = _filled(np.einsum("kni,knj->kij", hw, h), present)
         resid = np.where(use, at(y) - rho, 0.0)
         ok = ~few
-        cond = np.full(a.size, np.nan)
         finite = ok & np.all(np.isfinite(nmat), axis=(1, 2))
         inv_f = None
+        bad = ok & ~finite                          # a normal matrix that is not finite: singular geometry
         if finite.any():
             nf = nmat if finite.all() else nmat[finite]
             # the geometry check: the 2-norm condition number of the symmetric normal matrix (inf when not
             # positive definite) must not exceed 1e14.  ||N||_F ||N^-1||_F bounds it from above, so below
             # _SURE_COND the matrix passes (and a Gram matrix that well conditioned is positive definite);
-            # the others get their extreme eigenvalues (eigvalsh: its singular values), as before
+            # the others get their extreme eigenvalues (eigvalsh: its singular values)
             try:
                 inv_f = np.linalg.inv(nf)
                 bound = np.sqrt(np.einsum("kij,kij->k", nf, nf) * np.einsum("kij,kij->k", inv_f, inv_f))
                 sure = bound <= _SURE_COND                      # NaN: not sure
             except np.linalg.LinAlgError:
                 inv_f, sure = None, np.zeros(len(nf), dtype=bool)
-            cond_f = np.where(sure, bound if inv_f is not None else 0.0, np.nan)
             if not sure.all():
                 eig = np.linalg.eigvalsh(nf[~sure])
                 lo, hi = eig[:, 0], eig[:, -1]
+                cond_f = np.zeros(len(nf))
                 cond_f[~sure] = np.where(lo > 0, hi / np.where(lo > 0, lo, 1.0), np.inf)
-            cond[finite] = cond_f
-        bad = ok & ~(cond <= 1e14)                              # also NaN
+                bad[np.flatnonzero(finite)[~(cond_f <= 1e14)]] = True       # also NaN
         for j in (np.flatnonzero(bad).tolist() if bad.any() else ()):
             i = int(a[j])
             out[i] = _no_fix(n_of[i], f"singular geometry with {n_use[j]} satellites (normal matrix not "

@@ -406,7 +406,7 @@ class Receiver:
         ddts = st.clock_drift_sps[sat_i]
 
         # atmosphere (per satellite; the ionosphere scaled to each signal's frequency)
-        lat, lon, h = lat_ep[e_sat], lon_ep[e_sat], h_ep[e_sat]
+        lat, lon = lat_ep[e_sat], lon_ep[e_sat]
         if self.iono_truth != "none":
             l1_delay = prop.klobuchar_l1_delay_s(t_true_sat, lat, lon, az, el, self.iono_alpha, self.iono_beta)
             iono_model = prop.iono_code_delay_m(l1_delay[sat_i], freq)
