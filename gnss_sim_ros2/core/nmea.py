@@ -202,14 +202,16 @@ def gsv(talker: str, satellites: Sequence[tuple[int, float, float, float | None]
     C/N0 [dB-Hz] or None when not tracked), 4 per sentence; (NMEA 4.10) signal ID last."""
     sats = list(satellites)
     n_msg = max(1, math.ceil(len(sats) / 4))
+    # each satellite's four fields (number, elevation, azimuth, C/N0 or empty) as one piece of the sentence
+    blocks = []
+    for num, el, az, snr in sats:
+        el_i = max(min(int(round(float(el))), 90), 0)
+        az_i = int(round(float(az))) % 360
+        snr_s = "" if snr is None or not math.isfinite(snr) else f"{int(round(min(max(snr, 0), 99))):02d}"
+        blocks.append(f"{int(num):02d},{el_i:02d},{az_i:03d},{snr_s}")
     out = []
     for m in range(n_msg):
-        fields = [n_msg, m + 1, f"{len(sats):02d}"]
-        for num, el, az, snr in sats[4 * m:4 * m + 4]:
-            el_i = int(round(float(el)))
-            az_i = int(round(float(az))) % 360
-            snr_s = None if snr is None or not math.isfinite(snr) else f"{int(round(min(max(snr, 0), 99))):02d}"
-            fields += [f"{int(num):02d}", f"{max(min(el_i, 90), 0):02d}", f"{az_i:03d}", snr_s]
+        fields = [n_msg, m + 1, f"{len(sats):02d}"] + blocks[4 * m:4 * m + 4]
         if signal_id is not None:
             fields.append(f"{int(signal_id):X}")
         out.append(sentence(talker, "GSV", fields))
