@@ -270,3 +270,19 @@ def test_day_of_year():
     assert prop.day_of_year(GnssTime.from_iso("2022-01-01T12:00:00")) == pytest.approx(1.5)
     lat, lon, h = 45.0, 7.0, 300.0
     assert np.all(np.isfinite(geodetic_to_ecef(lat, lon, h)))
+
+
+def test_slant_tropo_delay_per_epoch_equals_per_row():
+    """Latitude, height and day of year given once per epoch (epoch_of_row) give every row the same delay,
+    to the bit, as the per-row values (the receiver's block and one-epoch paths)."""
+    rng = np.random.default_rng(4)
+    k, n = 7, 60
+    lat = rng.uniform(-80.0, 80.0, k)
+    h = rng.uniform(-50.0, 3000.0, k)
+    doy = rng.uniform(1.0, 366.0, k)
+    e = np.sort(rng.integers(0, k, n))
+    el = rng.uniform(-2.0, 90.0, n)
+    a = prop.tropo_slant_delay_m(np.maximum(el, 1.0), lat, h, doy, epoch_of_row=e)
+    b = prop.tropo_slant_delay_m(np.maximum(el, 1.0), lat[e], h[e], doy[e])
+    np.testing.assert_array_equal(a, b)
+    assert np.all(np.isfinite(a)) and np.all(a > 1.0)      # >= the zenith delay at 3 km

@@ -99,3 +99,47 @@ def test_street_canyon_nlos_batch_equals_epoch_by_epoch(tmp_path, canyon_eph):
     _assert_same(a, b, 91)
     refl = sum(int(np.sum(o.sat_vis_state == VisibilityState.REFLECTED_ONLY)) for o, _ in a)
     assert refl > 0
+
+
+def test_stepped_epochs_reach_the_rinex_file_one_second_at_a_time(tmp_path):
+    """ReceiverChain.step (a node) above 1 Hz writes the RINEX epochs of each second together: after 9
+    steps at 10 Hz nothing, after 10 the ten, after 15 still ten, at close all 15; the file is the one the
+    same epochs give in one block (step_block)."""
+    from gnss_sim_ros2.core.receiver.chain import ChainSettings, ReceiverChain
+
+    rcv = load_config(overrides={"/**": {"rate_hz": 10.0}}).node("receiver")
+    t0 = GnssTime.from_iso(rcv["start_time"])
+    prov, _ = open_ephemeris("synthetic", t0, 60.0, rcv["systems"], workdir=tmp_path / "eph")
+    ecef = np.array([4027894.0, 307045.6, 4919474.9])
+    ts = [t0 + 0.1 * k for k in range(15)]
+    states = [prov.states(t, systems=rcv["systems"]) for t in ts]
+
+    def chain(name):
+        return ReceiverChain(ChainSettings.from_params({**rcv, "output_dir": str(tmp_path / name)}), None,
+                             nmea=True)
+
+    def epochs_in(c):
+        return sum(line.startswith("> ") for line in c.obs_path.read_text().splitlines()) if c.obs_path else 0
+
+    stepped = chain("stepped")
+    counts = []
+    for t, st in zip(ts, states):
+        stepped.step(t, ecef, st)
+        counts.append(epochs_in(stepped))
+    assert counts[8] == 0 and counts[9] == 10 and counts[14] == 10
+    stepped.close()
+    assert epochs_in(stepped) == 15
+    block = chain("block")
+    rows = [st.select(np.arange(len(st))) for st in states]
+    for st, t in zip(rows, ts):
+        st.t = t
+    from gnss_sim_ros2.core.ephemeris.states import SatelliteStates
+
+    stacked = SatelliteStates(t=ts[0], source=rows[0].source, **{
+        name: np.concatenate([getattr(st, name) for st in rows]) for name in
+        ("sv", "pos_ecef_m", "vel_ecef_mps", "acc_ecef_mps2", "clock_bias_s", "clock_drift_sps", "relativistic_s",
+         "tgd_s", "health", "iode", "age_s", "glo_channel")})
+    block.step_block(ts, np.tile(ecef, (15, 1)), stacked, np.repeat(np.arange(15), [len(st) for st in rows]))
+    block.close()
+    la, lb = (c.obs_path.read_text().splitlines() for c in (stepped, block))
+    assert [x for x in la if "PGM / RUN BY" not in x] == [x for x in lb if "PGM / RUN BY" not in x]

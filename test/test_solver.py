@@ -13,7 +13,13 @@ import numpy as np
 import pymap3d
 import pytest
 
-from gnss_sim_ros2.core.solver import SolverConfig, pseudorange_sigma_m, range_rate_from_doppler, solve_pvt
+from gnss_sim_ros2.core.solver import (
+    SolverConfig,
+    pseudorange_sigma_m,
+    range_rate_from_doppler,
+    solve_pvt,
+    solve_pvt_many,
+)
 
 C = 299792458.0
 
@@ -313,3 +319,26 @@ def test_chi2_quantile_table_is_scipys():
         assert _chi2_threshold(1e-3, dof) == v
     assert _chi2_threshold(1e-3, 200) == float(chdtri(200, 1e-3))
     assert _chi2_threshold(0.01, 5) == float(chdtri(5, 0.01))
+
+
+@pytest.mark.parametrize("spread", [0.0, 1e-9])
+def test_singular_geometry_is_no_fix(spread):
+    """Satellites all in one direction (exactly, or within 1e-9 rad): the normal matrix fails the geometry
+    check (condition number above 1e14; the norm bound does not let it pass) and the epoch has no fix,
+    alone and in a block with a good epoch, which keeps its fix."""
+    rng = np.random.default_rng(5)
+    rx = np.array([4027894.0, 307045.6, 4919474.9])
+    up = rx / np.linalg.norm(rx)
+    dirs = up + spread * rng.normal(size=(7, 3))
+    sat = rx + 2.2e7 * dirs / np.linalg.norm(dirs, axis=1)[:, None]
+    bad = dict(sv=[f"G{i + 1:02d}" for i in range(7)], sat_pos_ecef_m=sat,
+               pseudorange_m=np.linalg.norm(sat - rx, axis=1) + 10.0, prior_ecef_m=rx + 5.0)
+    good_dirs = rng.normal(size=(7, 3))
+    good_dirs = good_dirs / np.linalg.norm(good_dirs, axis=1)[:, None] + 1.5 * up
+    good_sat = rx + 2.2e7 * good_dirs / np.linalg.norm(good_dirs, axis=1)[:, None]
+    good = dict(bad, sat_pos_ecef_m=good_sat, pseudorange_m=np.linalg.norm(good_sat - rx, axis=1) + 10.0)
+    alone = solve_pvt(**bad)
+    assert alone.status == "no_fix" and "singular geometry" in alone.reason
+    s_bad, s_good = solve_pvt_many([bad, good])
+    assert s_bad.status == "no_fix" and "singular geometry" in s_bad.reason
+    assert s_good.is_fix and np.linalg.norm(s_good.pos_ecef_m - rx) < 1e-3

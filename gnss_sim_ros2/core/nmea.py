@@ -22,7 +22,9 @@ field then holds the ellipsoidal height, and the separation field says 0).
 from __future__ import annotations
 
 import datetime as _dt
+import functools
 import math
+import operator
 from collections.abc import Sequence
 
 import numpy as np
@@ -49,10 +51,7 @@ MAX_SENTENCE_CHARS = 82
 
 def checksum(body: str) -> str:
     """Two hex digits: XOR of the characters of ``body`` (between "$" and "*")."""
-    c = 0
-    for b in body.encode("ascii"):
-        c ^= b
-    return f"{c:02X}"
+    return f"{functools.reduce(operator.xor, body.encode('ascii'), 0):02X}"
 
 
 def sentence(talker: str, kind: str, fields: Sequence) -> str:
@@ -111,8 +110,10 @@ def utc_time_fields(t: GnssTime, decimals: int = 2) -> tuple[str, str]:
     return hms, d.strftime("%d%m%y")
 
 
+@functools.lru_cache(maxsize=512)
 def nmea_satellite(sv: str) -> tuple[str, int]:
-    """(GSV talker, NMEA satellite number) of a RINEX id like ``G05``, ``R07``, ``S20``."""
+    """(GSV talker, NMEA satellite number) of a RINEX id like ``G05``, ``R07``, ``S20`` (cached: the same
+    satellites come back every epoch)."""
     if not isinstance(sv, str) or len(sv) != 3 or sv[0] not in GSV_TALKER or not sv[1:].isdigit():
         raise ValueError(f"satellite id {sv!r} is not a RINEX id like 'G05'")
     s, n = sv[0], int(sv[1:])
@@ -124,9 +125,10 @@ def nmea_satellite(sv: str) -> tuple[str, int]:
 
 
 def _dop(x) -> str:
-    if x is None or not np.isfinite(x):
+    if x is None:
         return ""
-    return f"{min(float(x), 99.9):.1f}"
+    x = float(x)
+    return f"{min(x, 99.9):.1f}" if math.isfinite(x) else ""
 
 
 def _talker(systems) -> str:
@@ -200,14 +202,16 @@ def gsv(talker: str, satellites: Sequence[tuple[int, float, float, float | None]
     C/N0 [dB-Hz] or None when not tracked), 4 per sentence; (NMEA 4.10) signal ID last."""
     sats = list(satellites)
     n_msg = max(1, math.ceil(len(sats) / 4))
+    # each satellite's four fields (number, elevation, azimuth, C/N0 or empty) as one piece of the sentence
+    blocks = []
+    for num, el, az, snr in sats:
+        el_i = max(min(int(round(float(el))), 90), 0)
+        az_i = int(round(float(az))) % 360
+        snr_s = "" if snr is None or not math.isfinite(snr) else f"{int(round(min(max(snr, 0), 99))):02d}"
+        blocks.append(f"{int(num):02d},{el_i:02d},{az_i:03d},{snr_s}")
     out = []
     for m in range(n_msg):
-        fields = [n_msg, m + 1, f"{len(sats):02d}"]
-        for num, el, az, snr in sats[4 * m:4 * m + 4]:
-            el_i = int(round(float(el)))
-            az_i = int(round(float(az))) % 360
-            snr_s = None if snr is None or not np.isfinite(snr) else f"{int(round(min(max(snr, 0), 99))):02d}"
-            fields += [f"{int(num):02d}", f"{max(min(el_i, 90), 0):02d}", f"{az_i:03d}", snr_s]
+        fields = [n_msg, m + 1, f"{len(sats):02d}"] + blocks[4 * m:4 * m + 4]
         if signal_id is not None:
             fields.append(f"{int(signal_id):X}")
         out.append(sentence(talker, "GSV", fields))
@@ -244,17 +248,26 @@ def epoch_sentences(t: GnssTime, *, lat_deg: float, lon_deg: float, h_m: float, 
     sig = dict(DEFAULT_SIGNAL_ID, **(signal_id or {}))
     by_talker: dict[str, list] = {}
     first_sys: dict[str, str] = {}
-    for i, sv in enumerate(sv_in_view):
-        if not np.isfinite(el_deg[i]) or el_deg[i] < 0:
+    # Python numbers (the same values) instead of numpy scalars, element by element
+    el_l, az_l = _as_list(el_deg), _as_list(az_deg)
+    cn0_l = None if cn0_dbhz is None else _as_list(cn0_dbhz)
+    for i, sv in enumerate(_as_list(sv_in_view)):
+        el = el_l[i]
+        if not math.isfinite(el) or el < 0:
             continue
         tk, num = nmea_satellite(sv)
-        c = None if cn0_dbhz is None else cn0_dbhz[i]
-        by_talker.setdefault(tk, []).append((num, el_deg[i], az_deg[i], c))
+        c = None if cn0_l is None else cn0_l[i]
+        by_talker.setdefault(tk, []).append((num, el, az_l[i], c))
         first_sys.setdefault(tk, sv[0])
     for tk in ("GP", "GL", "GA", "GB", "GQ", "GI"):
         if tk in by_talker:
             out += gsv(tk, sorted(by_talker[tk]), signal_id=sig[first_sys[tk]])
     return out
+
+
+def _as_list(x) -> list:
+    """A sequence's elements as Python objects (numpy arrays through ``tolist``: the same values)."""
+    return x.tolist() if isinstance(x, np.ndarray) else list(x)
 
 
 def sentences_from_solution(t: GnssTime, sol, cn0_dbhz: Sequence[float] | None = None,
@@ -266,8 +279,8 @@ def sentences_from_solution(t: GnssTime, sol, cn0_dbhz: Sequence[float] | None =
     ``fix_status`` overrides the GGA quality key (default: "fix" or "no_fix").
     """
     quality = FIX_QUALITY[fix_status or ("fix" if sol.status == "fix" else "no_fix")]
-    sv = list(sol.sv)
-    used = [s for s, u in zip(sv, sol.used) if u]
+    sv = _as_list(sol.sv)
+    used = [s for s, u in zip(sv, _as_list(sol.used)) if u]
     lat, lon, h = (sol.lat_deg, sol.lon_deg, sol.h_m) if quality else (0.0, 0.0, 0.0)
     return epoch_sentences(
         t, lat_deg=lat, lon_deg=lon, h_m=h, fix_quality=quality, sv_used=used,

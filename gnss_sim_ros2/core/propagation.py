@@ -400,12 +400,15 @@ def saastamoinen_zenith_m(lat_deg, h_m, humidity=TROPO_HUMIDITY_DEFAULT, temp0_c
     return zhd, zwd
 
 
-def niell_mapping(el_deg, lat_deg, h_m, doy):
+def niell_mapping(el_deg, lat_deg, h_m, doy, epoch_of_row=None):
     """(hydrostatic, wet) Niell mapping functions (Niell 1996; as RTKLIB nmf()).
 
     ``doy``: day of year (fractional allowed); southern latitudes shift by half a
     year.  ``h_m``: ellipsoidal height (RTKLIB also uses it for the height
-    correction).  Elevations below 1 deg are evaluated at 1 deg.
+    correction).  Elevations below 1 deg are evaluated at 1 deg.  ``epoch_of_row``:
+    ``lat_deg``, ``h_m`` and ``doy`` are given per epoch (K,) and ``el_deg`` per row,
+    row j at epoch ``epoch_of_row[j]``: the coefficients are computed once per epoch
+    (element by element, so the values per row are the same).
     """
     el = np.radians(np.maximum(np.asarray(el_deg, dtype=np.float64), 1.0))
     lat = np.asarray(lat_deg, dtype=np.float64)
@@ -417,8 +420,11 @@ def niell_mapping(el_deg, lat_deg, h_m, doy):
         avg, amp, wet = _nmf_interp(np.abs(lat))
     ah = [avg[i] - amp[i] * cosy for i in range(3)]
     aw = list(wet)
+    h = np.asarray(h_m, dtype=np.float64)
+    if epoch_of_row is not None:
+        ah, aw, h = [a[epoch_of_row] for a in ah], [a[epoch_of_row] for a in aw], h[epoch_of_row]
     s = np.sin(el)
-    dm = (1.0 / s - _mapf(s, *_NMF_HT)) * np.asarray(h_m, dtype=np.float64) / 1e3
+    dm = (1.0 / s - _mapf(s, *_NMF_HT)) * h / 1e3
     return _mapf(s, *ah) + dm, _mapf(s, *aw)
 
 
@@ -433,13 +439,17 @@ def _nmf_rows(alat: float):
     return _nmf_interp(np.float64(alat))
 
 
-def tropo_slant_delay_m(el_deg, lat_deg, h_m, doy, humidity=TROPO_HUMIDITY_DEFAULT):
-    """Slant tropospheric delay [m] (same on code and carrier): ZHD m_h + ZWD m_w."""
+def tropo_slant_delay_m(el_deg, lat_deg, h_m, doy, humidity=TROPO_HUMIDITY_DEFAULT, epoch_of_row=None):
+    """Slant tropospheric delay [m] (same on code and carrier): ZHD m_h + ZWD m_w.  ``epoch_of_row``:
+    ``lat_deg``, ``h_m`` and ``doy`` per epoch, ``el_deg`` per row (niell_mapping): the zenith delays and the
+    mapping coefficients once per epoch."""
     if np.ndim(lat_deg) == 0 and np.ndim(h_m) == 0 and np.ndim(humidity) == 0:   # one receiver: cached
         zhd, zwd = _zenith_cached(float(lat_deg), float(h_m), float(humidity))
     else:
         zhd, zwd = saastamoinen_zenith_m(lat_deg, h_m, humidity)
-    mh, mw = niell_mapping(el_deg, lat_deg, h_m, doy)
+        if epoch_of_row is not None:
+            zhd, zwd = zhd[epoch_of_row], zwd[epoch_of_row]
+    mh, mw = niell_mapping(el_deg, lat_deg, h_m, doy, epoch_of_row)
     return zhd * mh + zwd * mw
 
 

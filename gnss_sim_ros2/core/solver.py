@@ -218,8 +218,17 @@ def _as_array(name, x, n, shape_tail=()):
 def _spd_inverses(a: np.ndarray) -> np.ndarray:
     """Inverses of symmetric positive definite matrices (K, U, U), numpy's batched inverse symmetrised
     (one path for one epoch and many)."""
-    inv = np.linalg.inv(a)
+    return _symmetrised(np.linalg.inv(a))
+
+
+def _symmetrised(inv: np.ndarray) -> np.ndarray:
     return 0.5 * (inv + np.swapaxes(inv, 1, 2))
+
+
+#: ||N||_F ||N^-1||_F below which a normal matrix passes the geometry check without its eigenvalues
+#: (_solve_positions): 100 times below the limit of 1e14, so that neither the rounding of the computed
+#: inverse nor that of the matrix can make a difference
+_SURE_COND = 1e12
 
 
 def _clock_group(sv_list, groups: Mapping[str, str]) -> np.ndarray:
@@ -487,12 +496,17 @@ def _solve_positions(lay: _Layout, rows: np.ndarray, valid: np.ndarray, x0: np.n
         a = np.flatnonzero(active)
         if a.size == 0:
             break
+        whole = a.size == k_n       # every epoch still iterates: their arrays as they are (no copies)
+
+        def at(arr, whole=whole, a=a):
+            return arr if whole else arr[a]
+
         xa = x[a]
-        d = sat[a] - xa[:, None, :]
+        d = at(sat) - xa[:, None, :]
         rho = np.sqrt(np.einsum("kni,kni->kn", d, d))
         rho_safe = np.where(rho > 0, rho, 1.0)
         e = d / rho_safe[..., None]
-        placed = (np.sqrt(np.einsum("ki,ki->k", xa, xa)) > _NEAR_CENTRE_M) & (last_step[a] < _PLACED_STEP_M)
+        placed = (np.sqrt(np.einsum("ki,ki->k", xa, xa)) > _NEAR_CENTRE_M) & (at(last_step) < _PLACED_STEP_M)
         if placed.all():
             enu = np.einsum("kni,kji->knj", d, _rotations_at(xa))
             el = np.degrees(np.arcsin(np.minimum(np.maximum(enu[..., 2] / rho_safe, -1.0), 1.0)))
@@ -503,9 +517,10 @@ def _solve_positions(lay: _Layout, rows: np.ndarray, valid: np.ndarray, x0: np.n
                 enu[placed] = np.einsum("kni,kji->knj", d[placed], _rotations_at(xa[placed]))
                 el[placed] = np.degrees(np.arcsin(np.minimum(np.maximum(enu[placed, :, 2] / rho_safe[placed],
                                                                         -1.0), 1.0)))
-        use = valid[a] & (~placed[:, None] | (el >= mask_deg))
-        same = have_prev[a] & np.all(use == prev_use[a], axis=1)
-        present = np.einsum("kn,kng->kg", use.astype(float), onehot[a]) > 0
+        use = at(valid) & (~placed[:, None] | (el >= mask_deg))
+        same = at(have_prev) & np.all(use == at(prev_use), axis=1)
+        onehot_a = at(onehot)
+        present = np.einsum("kn,kng->kg", use.astype(float), onehot_a) > 0
         n_unk = 3 + present.sum(axis=1)
         n_use = use.sum(axis=1)
         few = n_use < n_unk
@@ -518,19 +533,20 @@ def _solve_positions(lay: _Layout, rows: np.ndarray, valid: np.ndarray, x0: np.n
                                       f"data or excluded), need {n_unk[j]} (3 position + {len(cs)} clock"
                                       f"{'s' if len(cs) != 1 else ''}: {'/'.join(cs) or '-'})", it)
             active[i] = False
-        h = np.concatenate([-e, onehot[a]], axis=2) * use[..., None]
+        h = np.concatenate([-e, onehot_a], axis=2) * use[..., None]
         ai = a
-        sig_rows = has_sig[ai]
+        sig_rows = at(has_sig)
+        any_sig = bool(sig_rows.any())
         model = ~sig_rows
-        if not sig_rows.any() and cfg.weighting == "elevation":     # the usual case, without masks
+        if not any_sig and cfg.weighting == "elevation":     # the usual case, without masks
             sin_el = np.sin(np.radians(np.minimum(np.maximum(el, 1.0), 90.0)))
-            var = (cfg.sigma_a_m**2 + cfg.sigma_b_m**2 / sin_el**2) * fac2[ai]
-            model = sig_rows
+            var = (cfg.sigma_a_m**2 + cfg.sigma_b_m**2 / sin_el**2) * at(fac2)
+            model = None
         else:
             var = np.ones(rho.shape)
-        if sig_rows.any():
+        if any_sig:
             var[sig_rows] = lay.sig[rows[ai[sig_rows]]] ** 2
-        if model.any():
+        if model is not None and model.any():
             if cfg.weighting == "elevation":   # pseudorange_sigma_m, inline, system factors looked up once
                 sin_el = np.sin(np.radians(np.minimum(np.maximum(el[model], 1.0), 90.0)))
                 var[model] = (cfg.sigma_a_m**2 + cfg.sigma_b_m**2 / sin_el**2) * fac2[ai[model]]
@@ -540,17 +556,29 @@ def _solve_positions(lay: _Layout, rows: np.ndarray, valid: np.ndarray, x0: np.n
         w = np.where(use, 1.0 / var, 0.0)
         hw = h * w[..., None]
         nmat = _filled(np.einsum("kni,knj->kij", hw, h), present)
-        resid = np.where(use, y[a] - rho, 0.0)
+        resid = np.where(use, at(y) - rho, 0.0)
         ok = ~few
-        cond = np.full(a.size, np.nan)
         finite = ok & np.all(np.isfinite(nmat), axis=(1, 2))
+        inv_f = None
+        bad = ok & ~finite                          # a normal matrix that is not finite: singular geometry
         if finite.any():
-            # 2-norm condition number of the symmetric normal matrix: its extreme eigenvalues (its singular
-            # values; eigvalsh costs less than np.linalg.cond's SVD), inf when not positive definite
-            eig = np.linalg.eigvalsh(nmat[finite])
-            lo, hi = eig[:, 0], eig[:, -1]
-            cond[finite] = np.where(lo > 0, hi / np.where(lo > 0, lo, 1.0), np.inf)
-        bad = ok & ~(cond <= 1e14)                              # also NaN
+            nf = nmat if finite.all() else nmat[finite]
+            # the geometry check: the 2-norm condition number of the symmetric normal matrix (inf when not
+            # positive definite) must not exceed 1e14.  ||N||_F ||N^-1||_F bounds it from above, so below
+            # _SURE_COND the matrix passes (and a Gram matrix that well conditioned is positive definite);
+            # the others get their extreme eigenvalues (eigvalsh: its singular values)
+            try:
+                inv_f = np.linalg.inv(nf)
+                bound = np.sqrt(np.einsum("kij,kij->k", nf, nf) * np.einsum("kij,kij->k", inv_f, inv_f))
+                sure = bound <= _SURE_COND                      # NaN: not sure
+            except np.linalg.LinAlgError:
+                inv_f, sure = None, np.zeros(len(nf), dtype=bool)
+            if not sure.all():
+                eig = np.linalg.eigvalsh(nf[~sure])
+                lo, hi = eig[:, 0], eig[:, -1]
+                cond_f = np.zeros(len(nf))
+                cond_f[~sure] = np.where(lo > 0, hi / np.where(lo > 0, lo, 1.0), np.inf)
+                bad[np.flatnonzero(finite)[~(cond_f <= 1e14)]] = True       # also NaN
         for j in (np.flatnonzero(bad).tolist() if bad.any() else ()):
             i = int(a[j])
             out[i] = _no_fix(n_of[i], f"singular geometry with {n_use[j]} satellites (normal matrix not "
@@ -561,24 +589,33 @@ def _solve_positions(lay: _Layout, rows: np.ndarray, valid: np.ndarray, x0: np.n
             continue
         gi = a[good]
         try:
-            cov = _spd_inverses(nmat[good])
+            if inv_f is not None and good.size == inv_f.shape[0]:      # good = finite: their inverses
+                cov = _symmetrised(inv_f)
+            else:
+                cov = _spd_inverses(nmat[good])
         except np.linalg.LinAlgError:       # one epoch whose matrix is not positive definite after all
             for i in gi.tolist():
                 out[i] = _no_fix(n_of[i], f"singular geometry with {int(n_use[good][0])} satellites (normal "
                                           f"matrix not invertible)", it)
                 active[i] = False
             continue
-        sol = np.einsum("kij,kj->ki", cov, np.einsum("kni,kn->ki", hw[good], resid[good]))
+        all_good = good.size == a.size
+
+        def ok_of(arr, all_good=all_good, good=good):
+            return arr if all_good else arr[good]
+
+        sol = np.einsum("kij,kj->ki", cov, np.einsum("kni,kn->ki", ok_of(hw), ok_of(resid)))
         dx = sol[:, :3]
         x[gi] = x[gi] + dx
         step = np.sqrt(np.einsum("ki,ki->k", dx, dx))
         last_step[gi] = step
-        prev_use[gi] = use[good]
-        same_g = same[good]
+        prev_use[gi] = ok_of(use)
+        same_g = ok_of(same)
         have_prev[gi] = True
         it_of[gi] = it
         fin[it] = (gi, good, h, cov, sol, use, el, enu, var, w, present)
-        conv = (step < cfg.convergence_m) & (same_g | ~placed[good] | (it == 1)) & placed[good]
+        placed_g = ok_of(placed)
+        conv = (step < cfg.convergence_m) & (same_g | ~placed_g | (it == 1)) & placed_g
         active[gi[conv]] = False
         for i in gi[conv].tolist():
             out[i] = "converged"

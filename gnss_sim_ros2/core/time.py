@@ -256,6 +256,15 @@ class GnssTime:
     def __add__(self, dt_s):
         if isinstance(dt_s, GnssTime):
             raise TypeError("cannot add two instants")
+        if type(self.sec) is int and np.ndim(dt_s) == 0:
+            # a scalar instant and a finite scalar offset: the same doubles as the array path below, in
+            # Python numbers (integer parts exact, the fractions the same IEEE operations)
+            d = float(dt_s)
+            if math.isfinite(d):
+                whole = math.floor(d)
+                f = self.frac + (d - whole)
+                fl = math.floor(f)
+                return GnssTime(self.sec + whole + fl, f - fl)
         d = np.asarray(dt_s, dtype=np.float64)
         whole = np.floor(d)
         sec = np.asarray(self.sec) + whole.astype(np.int64)

@@ -200,7 +200,10 @@ class ReceiverChain:
         self._writer = None
         self._fix_file = None
         self._fix_csv = None
-        self._rinex_pending = None
+        #: RINEX epochs formatted and written together: a block's (step_block), or up to one second of
+        #: epochs stepped one by one (step; at 1 Hz and slower every epoch is written at once)
+        self._rinex_pending: list = []
+        self._rinex_batch = max(1, int(round(1.0 / settings.interval_s))) if settings.interval_s > 0 else 1
         self._nmea_file = None
         if settings.output_dir is not None:
             settings.output_dir.mkdir(parents=True, exist_ok=True)   # an unwritable folder fails the start
@@ -255,7 +258,10 @@ class ReceiverChain:
             self.rx = self._receiver(states)
         obs = self.rx.epoch(t, ecef, states, vis_state, attenuation_db, antenna_vel_ecef_mps=antenna_vel_ecef_mps,
                             multipath=multipath)
-        return self._products(t, ecef, states, obs)
+        products = self._products(t, ecef, states, obs)
+        if len(self._rinex_pending) >= self._rinex_batch:
+            self._flush_rinex()
+        return products
 
     def step_block(self, ts, antenna_ecef_m, states, epoch_of_row, vis_state=None, attenuation_db=None,
                    multipath=None) -> list[EpochProducts]:
@@ -272,13 +278,10 @@ class ReceiverChain:
         # solutions as starting at the previous epoch's, to the solver's convergence of 0.1 mm)
         fix_obs = self._smoothed_many(obs) if self.settings.smoothing_s > 0 else obs
         sols = position_fixes(fix_obs, self.settings.receiver.profile, self.prior_ecef_m, self.settings.solver)
-        self._rinex_pending = []          # the block's RINEX epochs, formatted and written together
         try:
             return [self._products(t, p, states, o, sol) for t, p, o, sol in zip(ts, ecef, obs, sols)]
         finally:
-            pending, self._rinex_pending = self._rinex_pending, None
-            if pending:
-                self._writer.write_epochs([t for t, _ in pending], [a for _, a in pending])
+            self._flush_rinex()           # the block's RINEX epochs, formatted and written together
 
     def _products(self, t, ecef, states, obs, sol=None) -> EpochProducts:
         """The fix (unless given), NMEA, files and RTCM of one epoch's observables."""
@@ -422,16 +425,20 @@ class ReceiverChain:
         else:
             self._fix_csv.writerow([stamp, "", "", "", sol.n_used, "no_fix"])
         if arrays is not None:
-            if self._rinex_pending is not None:
-                self._rinex_pending.append((t, arrays))
-            else:
-                self._writer.write_epoch(t, arrays)
+            self._rinex_pending.append((t, arrays))
         if self._nmea_file is not None:
             self._nmea_file.write(nmea_text)
 
+    def _flush_rinex(self):
+        """Format and write the RINEX epochs pending (one vectorised pass, one system call)."""
+        pending, self._rinex_pending = self._rinex_pending, []
+        if pending:
+            self._writer.write_epochs([t for t, _ in pending], [a for _, a in pending])
+
     def close(self):
-        """Close the files (RINEX gets its TIME OF LAST OBS); idempotent."""
+        """Close the files (RINEX gets its epochs still pending and its TIME OF LAST OBS); idempotent."""
         if self._writer is not None:
+            self._flush_rinex()
             self._writer.close()
             self._writer = None
         if self._rtcm is not None:

@@ -316,16 +316,28 @@ class Tracker:
                 return
             idx = self._idx_prev
             k_r = len(run)
-            tt = np.repeat(np.array([t_s[b] for b in run]), len(idx))
-            rows = np.concatenate([np.arange(seg[b], seg[b + 1]) for b in run])
+
+            def tile(x):                  # the run's keys epoch after epoch (one epoch: as they are)
+                return x if k_r == 1 else np.tile(x, k_r)
+
+            if k_r == 1:
+                tt = t_s[run[0]]
+                rows = slice(seg[run[0]], seg[run[0] + 1])
+            else:
+                tt = np.repeat(np.array([t_s[b] for b in run]), len(idx))
+                rows = np.concatenate([np.arange(seg[b], seg[b + 1]) for b in run])
             if c.random_slips and held.any():
                 self.rng.random(len(idx) * k_r)      # the draws update makes (every slip probability is 0)
-            on = np.tile(held, k_r)
+            on = tile(held)
             tracked[rows] = on
-            amb[rows] = np.tile(self._amb[idx], k_r)
-            lock[rows] = np.where(on, tt - np.tile(self._lock_start[idx], k_r), 0.0)
-            idx_rows = np.tile(idx, k_r)
-            lli[rows[self._half_cycle_open(idx_rows, on, tt, self._track_start[idx_rows])]] = LLI_HALF_CYCLE
+            amb[rows] = tile(self._amb[idx])
+            lock[rows] = np.where(on, tt - tile(self._lock_start[idx]), 0.0)
+            idx_rows = tile(idx)
+            half = self._half_cycle_open(idx_rows, on, tt, self._track_start[idx_rows])
+            if k_r == 1:
+                lli[rows][half] = LLI_HALF_CYCLE        # a view of the epoch's rows
+            else:
+                lli[rows[half]] = LLI_HALF_CYCLE
             self._cand_since[idx] = np.nan
             self._t_prev = t_s[run[-1]]
             run.clear()
