@@ -104,6 +104,43 @@ def test_two_robots_one_process_per_node(tmp_path):
         assert list((out / f"robot{k}").glob("*_MO.rnx"))
 
 
+@pytest.mark.slow
+def test_two_robots_one_process_per_robot(tmp_path):
+    """--layout robot: each robot's player, visibility and receiver in a process of its own, the one ephemeris
+    node in the run's: every robot's outputs, one publisher of the satellite states, no scene in the run's
+    process, each robot process busy with its epochs."""
+    out = tmp_path / "r"
+    epochs = 7
+    res = _run(out, "--robots", "2", "--duration", "6", "--systems", "GE", "--layout", "robot")
+    assert res.returncode == 0, res.stderr[-3000:]
+    s = json.loads((out / "summary.json").read_text())
+    assert s["mode"] == "robot_processes" and s["epochs"] == epochs and s["epochs_without_output"] == 0
+    counts = s["bag_messages"]
+    assert counts["/gnss/satellite_states"] == epochs                 # one ephemeris node for both
+    for k in (0, 1):
+        for t in ("fix", "observations", "status", "vel", "nmea", "visibility"):
+            assert counts.get(f"/robot{k}/gnss/{t}") == epochs, (k, t, counts)
+        obs = list((out / f"robot{k}").glob("*_MO.rnx"))
+        assert len(obs) == 1, list(out.rglob("*.rnx"))
+        assert s["per_robot"][f"robot{k}"]["fix_availability"] > 0.9
+    assert len(list(out.glob("*_MN.rnx"))) == 1 and not list(out.glob("*_MO.rnx"))
+    assert s["scene_loads"]["loaded"] == 0            # the visibility nodes are not in the run's process
+    assert set(s["processes"]) == {"gnss_sim_run", "robot0", "robot1"}
+    for k in (0, 1):
+        assert s["processes"][f"robot{k}"]["cpu_ms_per_epoch"] > 0, s["processes"]
+        assert s["processes"][f"robot{k}"]["peak_rss_mb"] > 0
+    assert s["satellite_states_publishers"] == ["/gnss_sim_ephemeris"]
+
+
+def test_layout_and_processes_refused_together(tmp_path):
+    res = _run(tmp_path / "o", "--layout", "robot", "--processes", "--duration", "2", "--no-record")
+    assert res.returncode == 2, res.stderr
+    assert "--processes" in res.stderr and "--layout robot" in res.stderr
+    assert not (tmp_path / "o").exists()
+    bad = _run(tmp_path / "o", "--layout", "container", "--duration", "2", "--no-record")
+    assert bad.returncode == 2 and "--layout" in bad.stderr and "robot" in bad.stderr
+
+
 @pytest.mark.parametrize("count", ["0", "-2", "17"])
 def test_bad_robot_count_refused_naming_the_option(tmp_path, count):
     res = _run(tmp_path / "o", "--robots", count, "--duration", "2", "--no-record")

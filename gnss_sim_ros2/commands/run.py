@@ -400,6 +400,9 @@ class Runner:
             return 3
         self.spin(0.3)  # let the recorder find the topics and TF static latch
         self.foreign = self.foreign_publishers()
+        self.states_publishers = sorted(
+            f"{i.node_namespace.rstrip('/')}/{i.node_name}"
+            for i in self.driver.get_publishers_info_by_topic(f"{graph.TOPIC_NAMESPACE}/satellite_states"))
         for topic, nodes in self.foreign.items():
             self.warn(f"warning: {topic} has publishers outside this run's graph: {', '.join(nodes)}")
         wall0 = time.perf_counter()
@@ -527,6 +530,7 @@ class Runner:
             "processes": getattr(self, "process_figures", {}),
             "ros_domain_id": self.domain_id,
             "foreign_publishers": self.foreign,
+            "satellite_states_publishers": getattr(self, "states_publishers", None),
             "pace": "realtime" if self.args.realtime else "as fast as the chain answers",
             "rinex_files": rinex,
             "configure_wall_s": round(self.configure_wall_s, 3) if self.configure_wall_s is not None else None,
