@@ -2,7 +2,8 @@
 
 Builds the node graph of gnss_sim_ros2/graph.py (trajectory player, ephemeris,
 visibility, receiver) with the parameters of one file, in this process
-(composed) or one process per node, brings every node through configure and
+(composed), one process per robot (its player, visibility and receiver; the
+ephemeris node here) or one process per node, brings every node through configure and
 activate, drives the simulated clock (/clock) epoch by epoch as fast as the
 chain answers (or at real-time pace), records a rosbag2 (MCAP) bag, and
 writes into the output folder: RINEX observation and navigation files, the
