@@ -105,6 +105,37 @@ def nodes(with_trajectory_player: bool = True, robots: int = 1) -> list[NodeSpec
 ROBOT_KEYS = ("trajectory", "visibility", "receiver")
 
 
+#: process layouts (gnss-sim run --layout, the launch file's composed:=): every node in one process
+#: ("composed"), one process per robot (its player, visibility and receiver; the shared nodes, ephemeris and
+#: RTK, in the main one: "robot"), one process per node ("node")
+LAYOUTS = ("composed", "robot", "node")
+#: the component container of a robot in the "robot" layout (in the robot's namespace: /robot<k>/...)
+ROBOT_CONTAINER = "gnss_sim_robot_container"
+
+
+def robot_of(spec: NodeSpec) -> int | None:
+    """The robot whose process holds the node in the "robot" layout: k for robot k's nodes (0 for the player,
+    visibility and receiver of a one-robot run), None for the shared ones (ephemeris, the RTK nodes)."""
+    if spec.robot >= 0:
+        return spec.robot
+    return 0 if spec.key in ROBOT_KEYS and not spec.instance else None
+
+
+def robot_groups(specs) -> dict[int, list[NodeSpec]]:
+    """{robot k: its nodes of ``specs``, in their order} (the "robot" layout's processes beside the main one)."""
+    out: dict[int, list[NodeSpec]] = {}
+    for s in specs:
+        k = robot_of(s)
+        if k is not None:
+            out.setdefault(k, []).append(s)
+    return out
+
+
+def robot_container_namespace(k: int, robots: int) -> str:
+    """The namespace of robot k's container: robot<k>, the root for the one robot of a run."""
+    return robot_namespace(k) if robots > 1 else ""
+
+
 def robot_spec(spec: NodeSpec, k: int) -> NodeSpec:
     from dataclasses import replace
 

@@ -1,4 +1,4 @@
-"""ros2 launch gnss_sim sim.launch.py [world:=...] [config:=...] [composed:=true] ...
+"""ros2 launch gnss_sim sim.launch.py [world:=...] [config:=...] [composed:=true|false|robot] ...
 
 The same node graph as `gnss-sim run` (gnss_sim_ros2/graph.py), with the
 parameters of one file (config:=, default the package's config/gnss_sim.yaml)
@@ -7,8 +7,12 @@ merged with these launch arguments by gnss_sim_ros2.parameters.load_config.
 Arguments:
   world:=FILE.sdf | mesh:=FILE.ply   scene (default: the demo courtyard)
   config:=FILE.yaml                  gnss_sim parameter file
-  composed:=true|false               the nodes as components of one container (gnss_sim's Python
-                                     container, composition_interfaces), or one process per node [true]
+  composed:=true|false|robot         the nodes as components of one container (gnss_sim's Python
+                                     container, composition_interfaces), one process per node (false), or
+                                     one container per robot (robot: /robot<k>/gnss_sim_robot_container with
+                                     the robot's player, visibility and receiver; /gnss_sim_robot_container
+                                     for one robot) beside /gnss_sim_container with the shared nodes
+                                     (ephemeris, RTK) [true]
   use_sim_time:=true|false           follow /clock (Gazebo) [true]
   trajectory_player:=true|false      move the robot along a path here; false when Gazebo publishes TF [true]
   record:=true|false                 record the gnss_sim topics into output_dir/bag (MCAP): `ros2 bag record`
@@ -94,6 +98,32 @@ def _write_params(params: dict, name: str) -> str:
     return path
 
 
+#: composed:= values -> process layout (gnss_sim_ros2.graph.LAYOUTS)
+COMPOSED_LAYOUTS = {**dict.fromkeys(("true", "1", "yes", "on"), "composed"),
+                    **dict.fromkeys(("false", "0", "no", "off"), "node"), "robot": "robot"}
+
+
+def layout_of(composed: str) -> str:
+    """The process layout of the composed:= argument; ValueError naming it."""
+    layout = COMPOSED_LAYOUTS.get(composed.strip().lower())
+    if layout is None:
+        raise ValueError(f"launch argument composed is {composed!r}; one of true (one container), false (one "
+                         f"process per node), robot (one container per robot)")
+    return layout
+
+
+def _container(name: str, namespace: str, specs, params, sim_time: bool) -> list:
+    container = ComposableNodeContainer(
+        package=graph.PACKAGE, executable="container", name=name, namespace=namespace, output="screen",
+        parameters=[{"use_sim_time": sim_time}],
+        composable_node_descriptions=[
+            ComposableNode(package=graph.PACKAGE, plugin=spec.plugin, name=spec.name, namespace=spec.namespace,
+                           parameters=params, remappings=list(graph.remappings_of(spec)))
+            for spec in specs])
+    where = f"/{namespace}/{name}" if namespace else f"/{name}"
+    return [container, _stop_launch_if_failed(container, f"the component container {where}")]
+
+
 def _setup(context):
     a = {k: LaunchConfiguration(k).perform(context) for k in ARGS}
     shared = {"output_dir": os.path.abspath(a["output_dir"])}
@@ -104,6 +134,7 @@ def _setup(context):
         overrides["visibility"] = {"world_file": os.path.abspath(a["world"]), "mesh_file": ""}
     if a["mesh"]:
         overrides["visibility"] = {"mesh_file": os.path.abspath(a["mesh"]), "world_file": ""}
+    layout = layout_of(a["composed"])
     rtk = _true(a["rtk"])
     robots = check_robots(a["robots"], "launch argument robots")
     if rtk and robots > 1:
@@ -129,15 +160,14 @@ def _setup(context):
     actions = []
     if _true(a["record"]):  # first: a recorder that cannot start fails the launch before any node runs
         actions += _recorder(shared["output_dir"], rtk, robots)
-    if _true(a["composed"]):
-        container = ComposableNodeContainer(
-            package=graph.PACKAGE, executable="container", name=CONTAINER, namespace="", output="screen",
-            parameters=[{"use_sim_time": sim_time}],
-            composable_node_descriptions=[
-                ComposableNode(package=graph.PACKAGE, plugin=spec.plugin, name=spec.name, namespace=spec.namespace,
-                               parameters=composable_params, remappings=list(graph.remappings_of(spec)))
-                for spec in specs])
-        actions += [container, _stop_launch_if_failed(container, "the component container")]
+    if layout == "composed":
+        actions += _container(CONTAINER, "", specs, composable_params, sim_time)
+    elif layout == "robot":
+        actions += _container(CONTAINER, "", [s for s in specs if graph.robot_of(s) is None], composable_params,
+                              sim_time)
+        for k, group in graph.robot_groups(specs).items():
+            actions += _container(graph.ROBOT_CONTAINER, graph.robot_container_namespace(k, robots), group,
+                                  composable_params, sim_time)
     else:
         for spec in specs:
             actions.append(LifecycleNode(package=graph.PACKAGE, executable=spec.executable, name=spec.name,

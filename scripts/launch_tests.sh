@@ -43,4 +43,6 @@ log "launch_test test/test_launch_rtk.py on ROS_DOMAIN_ID=$(domain 2)"
 ROS_DOMAIN_ID=$(domain 2) "$LAYER/bin/launch_test" test/test_launch_rtk.py
 log "launch_test test/test_launch_robots.py on ROS_DOMAIN_ID=$(domain 3)"
 ROS_DOMAIN_ID=$(domain 3) "$LAYER/bin/launch_test" test/test_launch_robots.py
+log "launch_test test/test_launch_robot_layout.py on ROS_DOMAIN_ID=$(domain 4)"
+ROS_DOMAIN_ID=$(domain 4) "$LAYER/bin/launch_test" test/test_launch_robot_layout.py
 log "passed in $((SECONDS - t0)) s"

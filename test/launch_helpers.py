@@ -126,6 +126,39 @@ class Probe:
         rclpy.try_shutdown(context=self.context)
 
 
+class RobotFixes:
+    """Each robot's fixes (/robot<k>/gnss/fix), gathered on the probe's node."""
+
+    def __init__(self, probe: Probe, robots: int):
+        self.lock = threading.Lock()
+        self.fixes: dict[int, list[NavSatFix]] = {k: [] for k in range(robots)}
+        for k in range(robots):
+            probe.node.create_subscription(NavSatFix, f"/robot{k}/gnss/fix", lambda m, k=k: self._on_fix(k, m), 100)
+
+    def _on_fix(self, k: int, m: NavSatFix):
+        with self.lock:
+            self.fixes[k].append(m)
+
+    def copy(self) -> dict[int, list[NavSatFix]]:
+        with self.lock:
+            return {k: list(v) for k, v in self.fixes.items()}
+
+    def all_reached(self, t_s: float) -> bool:
+        """Every robot has a fix stamped t_s or later."""
+        return all(f and stamp_s(f[-1].header.stamp) >= t_s for f in self.copy().values())
+
+
+def check_robot_rinex(case, out: Path, robots: int, marker: str, min_epochs: int):
+    """After the launch: one observation file per robot in out/robot<k> under the marker, none outside."""
+    for k in range(robots):
+        files = sorted((out / f"robot{k}").glob(f"{marker}*_MO.rnx"))
+        case.assertEqual(len(files), 1, sorted(p.name for p in out.rglob("*")))
+        header, epochs = rinex_obs_epochs(files[0])
+        case.assertEqual(header["MARKER NAME"].strip(), marker)
+        case.assertGreaterEqual(len(epochs), min_epochs)
+    case.assertFalse(list(out.glob("*_MO.rnx")), "no observation file outside the robots' folders")
+
+
 def ros2(*args: str, timeout_s: float = 60.0) -> str:
     """Run the ``ros2`` command line of this environment; its stdout (fails on a non-zero exit)."""
     proc = subprocess.run(["ros2", *args], capture_output=True, text=True, timeout=timeout_s, env=os.environ.copy())

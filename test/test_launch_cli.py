@@ -101,6 +101,24 @@ def test_record_with_no_recorder_at_all_is_an_error(monkeypatch):
         mod._recorder("/tmp/gnss_sim_no_such_output_dir")
 
 
+def _launch_module():
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(
+        "sim_launch", Path(get_package_share_directory("gnss_sim")) / "launch" / "sim.launch.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_composed_argument_layouts_and_refusal():
+    mod = _launch_module()
+    assert [mod.layout_of(v) for v in ("true", "False", "robot", "1", "off")] == \
+        ["composed", "node", "robot", "composed", "node"]
+    with pytest.raises(ValueError, match="launch argument composed is 'container'.*robot"):
+        mod.layout_of("container")
+
+
 @pytest.mark.parametrize("exe, args, sig", [
     ("container", [], signal.SIGTERM),
     ("container", [], signal.SIGINT),

@@ -15,7 +15,6 @@ Under plain pytest (the main suite) this module is skipped: launch tests run wit
 import os
 import sys
 import tempfile
-import threading
 import unittest
 from pathlib import Path
 
@@ -32,8 +31,8 @@ import pymap3d  # noqa: E402
 import yaml  # noqa: E402
 from ament_index_python.packages import get_package_share_directory  # noqa: E402
 from launch.launch_description_sources import PythonLaunchDescriptionSource  # noqa: E402
-from launch_helpers import ExitsCleanly, Probe, rinex_obs_epochs, stamp_s  # noqa: E402
-from sensor_msgs.msg import NavSatFix, NavSatStatus  # noqa: E402
+from launch_helpers import ExitsCleanly, Probe, RobotFixes, check_robot_rinex, stamp_s  # noqa: E402
+from sensor_msgs.msg import NavSatStatus  # noqa: E402
 
 from gnss_sim_ros2 import graph  # noqa: E402
 
@@ -64,24 +63,11 @@ class TestRobotsLaunch(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
         cls.probe = Probe(SPEED)
-        cls.lock = threading.Lock()
-        cls.fixes = {k: [] for k in range(ROBOTS)}
-        for k in range(ROBOTS):
-            cls.probe.node.create_subscription(NavSatFix, f"/robot{k}/gnss/fix",
-                                               lambda m, k=k: cls._on_fix(k, m), 100)
-
-    @classmethod
-    def _on_fix(cls, k, m):
-        with cls.lock:
-            cls.fixes[k].append(m)
+        cls.robot_fixes = RobotFixes(cls.probe, ROBOTS)
 
     @classmethod
     def tearDownClass(cls):
         cls.probe.close()
-
-    def _copy(self):
-        with self.lock:
-            return {k: list(v) for k, v in self.fixes.items()}
 
     def test_1_every_node_active(self):
         probe = self.probe
@@ -92,9 +78,9 @@ class TestRobotsLaunch(unittest.TestCase):
 
     def test_2_each_robot_its_fixes(self):
         probe = self.probe
-        got = probe.wait_for(lambda: all(f and stamp_s(f[-1].header.stamp) >= RUN_S for f in self._copy().values()),
+        got = probe.wait_for(lambda: self.robot_fixes.all_reached(RUN_S),
                              RUN_S / SPEED + 90.0)
-        fixes = self._copy()
+        fixes = self.robot_fixes.copy()
         self.assertTrue(got, {k: len(f) for k, f in fixes.items()})
         self.assertEqual(probe.fixes_copy(), [], "fixes on /gnss/fix: the robots' topics are their own")
         by_stamp = []
@@ -118,13 +104,7 @@ class TestRobotsLaunch(unittest.TestCase):
 @launch_testing.post_shutdown_test()
 class TestAfterSigint(ExitsCleanly, unittest.TestCase):
     def test_rinex_per_robot(self):
-        for k in range(ROBOTS):
-            files = sorted((OUT / "out" / f"robot{k}").glob(f"{MARKER}*_MO.rnx"))
-            self.assertEqual(len(files), 1, sorted(p.name for p in (OUT / "out").rglob("*")))
-            header, epochs = rinex_obs_epochs(files[0])
-            self.assertEqual(header["MARKER NAME"].strip(), MARKER)
-            self.assertGreaterEqual(len(epochs), 10)
-        self.assertFalse(list((OUT / "out").glob("*_MO.rnx")), "no observation file outside the robots' folders")
+        check_robot_rinex(self, OUT / "out", ROBOTS, MARKER, 10)
 
     def test_bag_has_both_robots(self):
         meta = yaml.safe_load((OUT / "out" / "bag" / "metadata.yaml").read_text())["rosbag2_bagfile_information"]

@@ -42,6 +42,22 @@ def test_robots_share_the_ephemeris_and_have_their_own_chain():
     assert {s.key for s in without_player} == {"ephemeris", "visibility", "receiver"}
 
 
+def test_robot_layout_groups_each_robot_its_player_visibility_receiver():
+    """--layout robot / composed:=robot: one process per robot with its own nodes, the shared ones apart."""
+    specs = graph.nodes(True, 3) + graph.rtk_nodes()
+    groups = graph.robot_groups(specs)
+    assert sorted(groups) == [0, 1, 2]
+    for k, group in groups.items():
+        assert [s.key for s in group] == list(graph.ROBOT_KEYS) and {s.namespace for s in group} == {f"robot{k}"}
+        assert graph.robot_container_namespace(k, 3) == f"robot{k}"
+    shared = [s for s in specs if graph.robot_of(s) is None]
+    assert [s.key for s in shared] == ["ephemeris", "visibility", "receiver", "rtk"]    # + the base station's
+    assert all(s.instance or s.key == "rtk" for s in shared[1:])
+    one = graph.robot_groups(graph.nodes(True, 1) + graph.rtk_nodes())
+    assert list(one) == [0] and [s.path for s in one[0]] == [NODE_NAMES[k] for k in graph.ROBOT_KEYS]
+    assert graph.robot_container_namespace(0, 1) == ""
+
+
 def test_robot_remappings_and_recorded_topics():
     spec = next(s for s in graph.nodes(True, 2) if s.robot == 1 and s.key == "receiver")
     remap = dict(graph.remappings_of(spec))

@@ -42,22 +42,13 @@ def _bag_messages(bag: Path, topics) -> dict:
     return out
 
 
-def _stamp(m) -> float:
-    return m.header.stamp.sec + m.header.stamp.nanosec * 1e-9
-
-
-@pytest.mark.slow
-def test_two_robots_each_its_namespace_one_ephemeris(tmp_path):
+def _each_robot_its_outputs(out: Path, s: dict, epochs: int):
+    """Two robots' topics in the bag at every epoch, one observation file each in out/robot<k>, one
+    navigation file, one /gnss/satellite_states per epoch (one ephemeris node for both)."""
     import georinex
 
-    out = tmp_path / "o"
-    res = _run(out, "--robots", "2", "--duration", "10", "--systems", "GE")
-    assert res.returncode == 0, res.stderr[-3000:]
-    s = json.loads((out / "summary.json").read_text())
-    epochs = 11
-    assert s["epochs"] == epochs and s["epochs_without_output"] == 0 and s["robots"] == 2
     counts = s["bag_messages"]
-    assert counts["/gnss/satellite_states"] == epochs               # one ephemeris node for both
+    assert counts["/gnss/satellite_states"] == epochs
     for k in (0, 1):
         for t in ("fix", "observations", "status", "vel", "nmea", "visibility"):
             assert counts.get(f"/robot{k}/gnss/{t}") == epochs, (k, t, counts)
@@ -67,8 +58,22 @@ def test_two_robots_each_its_namespace_one_ephemeris(tmp_path):
         assert s["per_robot"][f"robot{k}"]["fix_availability"] > 0.9
         assert s["per_robot"][f"robot{k}"]["epochs_without_output"] == 0
     assert "/gnss/fix" not in counts
-    assert len(list(out.glob("*_MN.rnx"))) == 1                        # the one navigation file
-    assert not list(out.glob("*_MO.rnx"))
+    assert len(list(out.glob("*_MN.rnx"))) == 1 and not list(out.glob("*_MO.rnx"))
+
+
+def _stamp(m) -> float:
+    return m.header.stamp.sec + m.header.stamp.nanosec * 1e-9
+
+
+@pytest.mark.slow
+def test_two_robots_each_its_namespace_one_ephemeris(tmp_path):
+    out = tmp_path / "o"
+    res = _run(out, "--robots", "2", "--duration", "10", "--systems", "GE")
+    assert res.returncode == 0, res.stderr[-3000:]
+    s = json.loads((out / "summary.json").read_text())
+    epochs = 11
+    assert s["epochs"] == epochs and s["epochs_without_output"] == 0 and s["robots"] == 2
+    _each_robot_its_outputs(out, s, epochs)
     assert s["scene_loads"]["loaded"] == 1 and s["scene_loads"]["shared"] >= 1    # one world for both
     per = s["per_robot"]
     worst = s["worst_robot"]
@@ -102,6 +107,35 @@ def test_two_robots_one_process_per_node(tmp_path):
     for k in (0, 1):
         assert s["bag_messages"].get(f"/robot{k}/gnss/fix") == 5
         assert list((out / f"robot{k}").glob("*_MO.rnx"))
+
+
+@pytest.mark.slow
+def test_two_robots_one_process_per_robot(tmp_path):
+    """--layout robot: each robot's player, visibility and receiver in a process of its own, the one ephemeris
+    node in the run's: every robot's outputs, one publisher of the satellite states, no scene in the run's
+    process, each robot process busy with its epochs."""
+    out = tmp_path / "r"
+    epochs = 7
+    res = _run(out, "--robots", "2", "--duration", "6", "--systems", "GE", "--layout", "robot")
+    assert res.returncode == 0, res.stderr[-3000:]
+    s = json.loads((out / "summary.json").read_text())
+    assert s["mode"] == "robot_processes" and s["epochs"] == epochs and s["epochs_without_output"] == 0
+    _each_robot_its_outputs(out, s, epochs)
+    assert s["scene_loads"]["loaded"] == 0            # the visibility nodes are not in the run's process
+    assert set(s["processes"]) == {"gnss_sim_run", "robot0", "robot1"}
+    for k in (0, 1):
+        assert s["processes"][f"robot{k}"]["cpu_ms_per_epoch"] > 0, s["processes"]
+        assert s["processes"][f"robot{k}"]["peak_rss_mb"] > 0
+    assert s["satellite_states_publishers"] == ["/gnss_sim_ephemeris"]
+
+
+def test_layout_and_processes_refused_together(tmp_path):
+    res = _run(tmp_path / "o", "--layout", "robot", "--processes", "--duration", "2", "--no-record")
+    assert res.returncode == 2, res.stderr
+    assert "--processes" in res.stderr and "--layout robot" in res.stderr
+    assert not (tmp_path / "o").exists()
+    bad = _run(tmp_path / "o", "--layout", "container", "--duration", "2", "--no-record")
+    assert bad.returncode == 2 and "--layout" in bad.stderr and "robot" in bad.stderr
 
 
 @pytest.mark.parametrize("count", ["0", "-2", "17"])

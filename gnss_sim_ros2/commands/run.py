@@ -2,7 +2,8 @@
 
 Builds the node graph of gnss_sim_ros2/graph.py (trajectory player, ephemeris,
 visibility, receiver) with the parameters of one file, in this process
-(composed) or one process per node, brings every node through configure and
+(composed), one process per robot (its player, visibility and receiver; the
+ephemeris node here) or one process per node, brings every node through configure and
 activate, drives the simulated clock (/clock) epoch by epoch as fast as the
 chain answers (or at real-time pace), records a rosbag2 (MCAP) bag, and
 writes into the output folder: RINEX observation and navigation files, the
@@ -21,6 +22,21 @@ from pathlib import Path
 
 import numpy as np
 
+from gnss_sim_ros2.graph import LAYOUTS
+
+#: summary.json "mode" of each layout ("processes": one per node, as before --layout)
+LAYOUT_MODES = {"composed": "composed", "robot": "robot_processes", "node": "processes"}
+LAYOUT_WORDS = {"composed": "all nodes in one process", "robot": "one process per robot",
+                "node": "one process per node"}
+
+
+def layout_of(args) -> str:
+    """The process layout of --layout and --processes (an alias of --layout node); ValueError naming both."""
+    if args.processes and args.layout not in (None, "node"):
+        raise ValueError(f"options --processes (one process per node) and --layout {args.layout} do not go "
+                         f"together: give one of them")
+    return "node" if args.processes else (args.layout or "composed")
+
 
 def add_arguments(p):
     p.add_argument("--config", help="gnss_sim parameter file (the one the launch file takes)")
@@ -31,7 +47,11 @@ def add_arguments(p):
     p.add_argument("--duration", type=float, default=None, metavar="S", help="simulated seconds [from config]")
     p.add_argument("--rate", type=float, default=None, metavar="HZ", help="epoch rate [from config]")
     p.add_argument("--systems", default=None, help="GNSS systems, letters of GRECJI")
-    p.add_argument("--processes", action="store_true", help="one process per node (default: all in this one)")
+    p.add_argument("--layout", choices=LAYOUTS, default=None,
+                   help="processes: composed (every node in this one), robot (one process per robot: its player, "
+                        "visibility and receiver; the ephemeris node and the recorder in this one), node (one "
+                        "process per node) [composed]")
+    p.add_argument("--processes", action="store_true", help="one process per node: --layout node")
     p.add_argument("--realtime", action="store_true", help="simulated time at wall-clock pace")
     p.add_argument("--no-record", action="store_true", help="do not record a bag")
     p.add_argument("--no-autostart", action="store_true",
@@ -85,6 +105,8 @@ def run(args) -> int:
     folder = OutputFolder(Path(args.out))
     try:
         args.robots = check_robots(args.robots, "option --robots")
+        args.layout = layout_of(args)
+        args.processes = args.layout == "node"
         if args.rtk and args.robots > 1:
             raise ValueError(f"options --rtk and --robots {args.robots} do not go together: an RTK run has one "
                              f"rover (and its base station); run RTK with --robots 1")
@@ -159,6 +181,8 @@ class Runner:
         self.foreign: dict = {}
         self.configure_wall_s = self.peak_rss_mb = None
         self.robots: list[RobotOutputs] = []
+        self.proc_names: list[str] = []     # of self.procs: the node's path, or robot<k> (--layout robot)
+        self.cpu0: dict = {}
 
     def log(self, text: str):
         if not self.args.quiet:
@@ -194,29 +218,51 @@ class Runner:
             self.recorder = BagRecorder(self.driver, self.out / "bag", graph.recorded(self.args.robots)
                                         + (graph.RECORDED_RTK if self.args.rtk else ()))
         specs = self.specs()
-        if self.args.processes:
+        layout = self.args.layout
+        elsewhere = {"composed": [], "node": specs,
+                     "robot": [s for s in specs if graph.robot_of(s) is not None]}[layout]
+        if elsewhere:
             from gnss_sim_ros2.run_isolation import die_with_parent
 
+            params = str(self.params_file)
+            if layout == "node":
+                cmds = {s.path: [sys.executable, "-m", s.module] + graph.ros_args(s, params, True) for s in specs}
+            else:       # one process per robot: its nodes in one executor (nodes/group.py)
+                cmds = {}
+                for k, group in graph.robot_groups(specs).items():
+                    cmds[robot_process_name(k, self.args.robots)] = [
+                        sys.executable, "-m", "gnss_sim_ros2.nodes.group",
+                        *(a for s in group
+                          for a in ["--node", f"{s.module}:{s.cls}", *graph.ros_args(s, params, True)])]
             env = dict(os.environ)
-            for spec in specs:
-                cmd = [sys.executable, "-m", spec.module] + graph.ros_args(spec, str(self.params_file), True)
+            for name, cmd in cmds.items():
                 self.procs.append(subprocess.Popen(cmd, env=env, preexec_fn=die_with_parent))
-            self.manager = RemoteNodes(self.driver, [s.path for s in specs], self.executor)
-            self.manager.wait_for_services()
-        else:
-            import importlib
+                self.proc_names.append(name)
+        import importlib
 
-            from rclpy.parameter import Parameter
+        from rclpy.parameter import Parameter
 
-            for spec in specs:
-                cls = getattr(importlib.import_module(spec.module), spec.cls)
-                overrides = [Parameter("use_sim_time", value=True)] + [
-                    Parameter(k, value=v) for k, v in graph.node_parameters(self.cfg, spec, self.args.robots).items()
-                    if not (isinstance(v, list) and not v)]
-                node = cls(parameter_overrides=overrides, cli_args=graph.ros_args(spec, None, True)[:-2])
-                self.local.append(node)
-                self.executor.add_node(node)
+        for spec in specs:
+            if spec in elsewhere:
+                continue
+            cls = getattr(importlib.import_module(spec.module), spec.cls)
+            overrides = [Parameter("use_sim_time", value=True)] + [
+                Parameter(k, value=v) for k, v in graph.node_parameters(self.cfg, spec, self.args.robots).items()
+                if not (isinstance(v, list) and not v)]
+            node = cls(parameter_overrides=overrides, cli_args=graph.ros_args(spec, None, True)[:-2])
+            self.local.append(node)
+            self.executor.add_node(node)
+        if layout == "composed":
             self.manager = LocalNodes(self.local)
+        else:           # in the graph's order, wherever each node is
+            local = iter(self.local)
+            parts = [RemoteNodes(self.driver, [s.path], self.executor) if s in elsewhere else LocalNodes([next(local)])
+                     for s in specs]
+            for part in parts:
+                if isinstance(part, RemoteNodes):
+                    part.wait_for_services()
+                    _answers(part)
+            self.manager = OrderedNodes(parts)
         self.started = True
 
     def _subscribe_outputs(self):
@@ -332,7 +378,7 @@ class Runner:
         period = 1.0 / eph["rate_hz"]
         n_epochs = int(np.floor(duration / period + 1e-9)) + 1
         tf_timeout_s = self.cfg.node("visibility")["tf_timeout_s"]
-        self.log(f"starting {'one process per node' if self.args.processes else 'all nodes in one process'}; "
+        self.log(f"starting {LAYOUT_WORDS[self.args.layout]}; "
                  f"{n_epochs} epochs of {period:g} s; ROS_DOMAIN_ID={self.domain_id}; output {self.out}")
         try:
             self.start()
@@ -353,9 +399,13 @@ class Runner:
             return 3
         self.spin(0.3)  # let the recorder find the topics and TF static latch
         self.foreign = self.foreign_publishers()
+        self.states_publishers = sorted(
+            f"{i.node_namespace.rstrip('/')}/{i.node_name}"
+            for i in self.driver.get_publishers_info_by_topic(f"{graph.TOPIC_NAMESPACE}/satellite_states"))
         for topic, nodes in self.foreign.items():
             self.warn(f"warning: {topic} has publishers outside this run's graph: {', '.join(nodes)}")
         wall0 = time.perf_counter()
+        self.cpu0 = self.cpu_s()
         dropped = 0
         k_done = 0
         for k in range(n_epochs):
@@ -404,8 +454,28 @@ class Runner:
             print(file=sys.stderr)
         self.spin(0.3)
         wall = time.perf_counter() - wall0
+        self.process_figures = self._process_figures(k_done)
         self.finish(k_done, dropped, wall, period)
         return 0
+
+    def cpu_s(self) -> dict:
+        """CPU time [s] (user + system) so far of this process and of each node process (None: unknown)."""
+        out = {"gnss_sim_run": time.process_time()}
+        for name, p in zip(self.proc_names, self.procs):
+            out[name] = _proc_cpu_s(p.pid)
+        return out
+
+    def _process_figures(self, n_epochs: int) -> dict:
+        """{process: CPU time per epoch [ms] over the epochs, peak memory [MB]} of this process and its node
+        processes (before they stop)."""
+        cpu1 = self.cpu_s()
+        pids = {"gnss_sim_run": os.getpid(), **{n: p.pid for n, p in zip(self.proc_names, self.procs)}}
+        out = {}
+        for name, pid in pids.items():
+            a, b = self.cpu0.get(name), cpu1.get(name)
+            out[name] = {"cpu_ms_per_epoch": round(1e3 * (b - a) / n_epochs, 2) if None not in (a, b) and n_epochs
+                         else None, "peak_rss_mb": _proc_peak_rss_mb(pid)}
+        return out
 
     def foreign_publishers(self) -> dict[str, list[str]]:
         """{topic: nodes} of publishers on the run's topics that are not nodes of its graph."""
@@ -455,9 +525,11 @@ class Runner:
             "epochs": n_epochs, "epochs_without_output": dropped, "wall_s": round(wall_s, 3),
             "realtime_factor": round(n_epochs * period / wall_s, 2) if wall_s > 0 else None,
             **figures,
-            "mode": "processes" if self.args.processes else "composed",
+            "mode": LAYOUT_MODES[self.args.layout],
+            "processes": getattr(self, "process_figures", {}),
             "ros_domain_id": self.domain_id,
             "foreign_publishers": self.foreign,
+            "satellite_states_publishers": getattr(self, "states_publishers", None),
             "pace": "realtime" if self.args.realtime else "as fast as the chain answers",
             "rinex_files": rinex,
             "configure_wall_s": round(self.configure_wall_s, 3) if self.configure_wall_s is not None else None,
@@ -723,6 +795,78 @@ def _worst(per_robot: dict) -> dict:
             name = pick(have, key=have.get)
             out[key] = {"robot": name, "value": have[name]}
     return out
+
+
+def robot_process_name(k: int, robots: int) -> str:
+    """The name of robot k's process in the summary (--layout robot)."""
+    from gnss_sim_ros2.parameters import robot_namespace
+
+    return robot_namespace(k) if robots > 1 else "robot"
+
+
+class OrderedNodes:
+    """The run's nodes wherever each is (nodes.manager LocalNodes or RemoteNodes, one per node, in the graph's
+    order), driven like one manager: configure upstream first, activate downstream first.
+
+    A node in another process whose change_state answer is lost (Fast DDS: "failed to send response
+    (timeout)" while a busy process's client is still being discovered) but whose state is the transition's
+    goal has made the transition: the run goes on."""
+
+    def __init__(self, parts):
+        self.parts = list(parts)
+
+    def transition(self, name: str):
+        from lifecycle_msgs.srv import GetState
+
+        from gnss_sim_ros2.nodes.manager import TRANSITIONS, RemoteNodes, TransitionFailed
+
+        for part in reversed(self.parts) if name == "activate" else self.parts:
+            try:
+                part.transition(name)
+            except TransitionFailed:
+                if not isinstance(part, RemoteNodes):
+                    raise
+                state = part._call(part.get[part.names[0]], GetState.Request(), 10.0)
+                if state is None or state.current_state.label != TRANSITIONS[name][1]:
+                    raise
+
+
+#: wall seconds a node process has to answer its first get_state (each try, and in all) before any transition
+FIRST_ANSWER_S = (2.0, 30.0)
+
+
+def _answers(part) -> None:
+    """Until the node of ``part`` (nodes.manager.RemoteNodes of one node) answers a get_state: its service is
+    discovered before its answers reach this process, and a change_state whose answer is lost would wait for
+    it for the transition's whole timeout."""
+    from lifecycle_msgs.srv import GetState
+
+    from gnss_sim_ros2.nodes.manager import TransitionFailed
+
+    end = time.monotonic() + FIRST_ANSWER_S[1]
+    while part._call(part.get[part.names[0]], GetState.Request(), FIRST_ANSWER_S[0]) is None:
+        if time.monotonic() > end:
+            raise TransitionFailed(f"{part.names[0]}: no answer to get_state within {FIRST_ANSWER_S[1]:g} s")
+
+
+def _proc_cpu_s(pid: int) -> float | None:
+    """CPU time [s] (user + system) of a process so far (Linux /proc/<pid>/stat: fields 14, 15 in clock ticks)."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return None
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def _proc_peak_rss_mb(pid: int) -> float | None:
+    """Peak resident memory of a process [MB] (Linux /proc/<pid>/status VmHWM, kB)."""
+    try:
+        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+            if line.startswith("VmHWM:"):
+                return round(int(line.split()[1]) / 1024.0, 1)
+    except OSError:
+        pass
+    return None
 
 
 def _peak_rss_mb() -> float:
