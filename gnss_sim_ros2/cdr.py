@@ -62,6 +62,9 @@ class _Block:
                 self.offsets[r, k] = p - r
                 p += _SIZES[c]
             self.sizes[r] = p - r
+        self.dtypes = [np.dtype({"names": self.names, "formats": [_dtype(c) for c in self.codes],
+                                 "offsets": [int(o) for o in self.offsets[r]], "itemsize": self.sizes[r]})
+                       for r in range(8)]
 
 
 class _Struct:
@@ -84,10 +87,34 @@ class _Struct:
                 self.steps.append(("seq", name, elem if isinstance(elem, str) else _Struct(elem)))
         if run:
             self.steps.append(("block", _Block(run)))
+        self.flat = all(step[0] != "seq" for step in self.steps)
+        self._templates: dict = {}
         # a structure of primitives only, whose elements follow each other at one stride
         only = self.steps[0][1] if len(self.steps) == 1 and self.steps[0][0] == "block" else None
         self.uniform = only if only is not None and only.sizes[0] % only.align == 0 and max(
             _SIZES[c] for c in only.codes) == only.align else None
+
+
+    def template(self, lengths: tuple):
+        """(element size, offsets of the steps from the element's start) for each start offset modulo 8, of a
+        flat structure whose strings have these lengths (NUL included)."""
+        got = self._templates.get(lengths)
+        if got is None:
+            sizes, offs = [0] * 8, np.zeros((8, len(self.steps)), dtype=np.int64)
+            for r in range(8):
+                p, k = r, 0
+                for j, step in enumerate(self.steps):
+                    if step[0] == "block":
+                        offs[r, j] = p - r
+                        p += step[1].sizes[p & 7]
+                    else:
+                        p = (p + 3) & -4
+                        offs[r, j] = p - r
+                        p += 4 + lengths[k]
+                        k += 1
+                sizes[r] = p - r
+            got = self._templates[lengths] = (sizes, offs)
+        return got
 
 
 def _flatten(schema, prefix: str):
@@ -144,6 +171,63 @@ def _scan(st: _Struct, n: int, pos: int, lay: Layout, src) -> int:
     i0 = 0
     if not reading:
         i0, src.next = src.next, src.next + n
+    if st.flat and n > 2:
+        end = _scan_flat(st, n, pos, lay, src, i0)
+        if end is not None:
+            return end
+    return _scan_each(st, n, pos, lay, src, i0)
+
+
+def _scan_flat(st: _Struct, n: int, pos: int, lay: Layout, src, i0: int):
+    """_scan of a structure without sequences whose strings have one length in every element (sv "G05"):
+    the layout repeats with the start offset modulo 8, so it is computed once per residue. None when the
+    strings differ in length (then each element is laid out in turn)."""
+    names = [step[1] for step in st.steps if step[0] == "str"]
+    if isinstance(src, _Prep):
+        lengths = []
+        for name in names:
+            b = src.strs[name]
+            first = len(b[i0])
+            if any(len(x) != first for x in b[i0:i0 + n]):
+                return None
+            lengths.append(first)
+    else:
+        first = Layout()
+        _scan_each(st, 1, pos, first, src, 0)
+        lengths = [first.lengths[name][0] for name in names]
+    sizes, offs = st.template(tuple(lengths))
+    starts = [0] * n
+    p = pos
+    for i in range(n):
+        starts[i] = p
+        p += sizes[p & 7]
+    s = np.array(starts, dtype=np.int64)
+    at = s[:, None] + offs[s & 7]               # (n, steps)
+    if not isinstance(src, _Prep):
+        if p > len(src):
+            raise CdrError("message shorter than its contents")
+        arr = np.frombuffer(src, np.uint8)
+        k = 0
+        for j, step in enumerate(st.steps):
+            if step[0] == "str":
+                if np.any(_gather(arr, at[:, j], "u4") != lengths[k]):
+                    return None
+                k += 1
+    k = 0
+    for j, step in enumerate(st.steps):
+        if step[0] == "block":
+            lay.blocks.setdefault(id(step[1]), [step[1], []])[1].extend(at[:, j].tolist())
+        else:
+            lay.strings.setdefault(step[1], []).extend(at[:, j].tolist())
+            lay.lengths.setdefault(step[1], []).extend([lengths[k]] * n)
+            k += 1
+    return p
+
+
+def _scan_each(st: _Struct, n: int, pos: int, lay: Layout, src, i0: int) -> int:
+    """_scan element by element (strings of any length, nested sequences)."""
+    reading = not isinstance(src, _Prep)
+    size = len(src) if reading else 0
     steps = []
     for step in st.steps:
         if step[0] == "block":
@@ -225,10 +309,14 @@ def _strings(body: bytes, arr: np.ndarray, offsets: list, lengths: list) -> np.n
             raise CdrError("string without its NUL")
         if first == 1:
             return np.full(len(offsets), "", dtype="<U1")
+        raw = chars[:, :-1].copy().view(f"S{first - 1}").ravel()
         try:
-            return np.char.decode(chars[:, :-1].copy().view(f"S{first - 1}").ravel(), "utf-8")
-        except UnicodeDecodeError as exc:
-            raise CdrError(f"string not UTF-8: {exc}") from None
+            return raw.astype(f"<U{first - 1}")       # ASCII (satellite ids, signal codes): one cast
+        except UnicodeDecodeError:
+            try:
+                return np.char.decode(raw, "utf-8")
+            except UnicodeDecodeError as exc:
+                raise CdrError(f"string not UTF-8: {exc}") from None
     out = []
     for p, length in zip(offsets, lengths):
         if body[p + 3 + length] != 0:
@@ -248,12 +336,30 @@ def _seq_offsets(counts: np.ndarray, starts, size: int) -> np.ndarray:
     return np.repeat(np.asarray(starts, dtype=np.int64), c) + size * (np.arange(int(c.sum())) - np.repeat(np.cumsum(c) - c, c))
 
 
+def _residue_groups(starts):
+    """(starts array, [(residue, element indices or None for all)]) of blocks starting at ``starts``."""
+    s = np.asarray(starts, dtype=np.int64)
+    r = s & 7
+    if not len(s) or np.all(r == r[0]):
+        return s, [(int(r[0]) if len(s) else 0, None)]
+    return s, [(int(q), np.flatnonzero(r == q)) for q in np.unique(r)]
+
+
 def _columns(lay: Layout, body: bytes, arr: np.ndarray) -> dict:
     out: dict = {}
     for block, starts in lay.blocks.values():
-        off = _offsets(block, starts) if starts else np.zeros((0, len(block.names)), dtype=np.int64)
-        for k, (name, code) in enumerate(zip(block.names, block.codes)):
-            out[name] = _gather(arr, off[:, k], code)
+        s, groups = _residue_groups(starts)
+        if len(groups) > 1:
+            for name, code in zip(block.names, block.codes):
+                out[name] = np.empty(len(s), dtype=_dtype(code))
+        for r, idx in groups:
+            at = s if idx is None else s[idx]
+            rec = arr[at[:, None] + np.arange(block.sizes[r])].view(block.dtypes[r]).reshape(-1)
+            for name in block.names:
+                if idx is None:
+                    out[name] = rec[name].copy()
+                else:
+                    out[name][idx] = rec[name]
     for name, offsets in lay.strings.items():
         out[name] = _strings(body, arr, offsets, lay.lengths[name])
     for name, (counts, _, sub) in lay.seqs.items():
@@ -307,22 +413,39 @@ def _scatter(body: np.ndarray, off: np.ndarray, values, code: str):
         body[off[:, None] + np.arange(size)] = raw.reshape(-1, size)
 
 
-def _write(lay: Layout, prep: _Prep, body: np.ndarray):
+def _write(lay: Layout, prep: _Prep, body: np.ndarray, pad: int):
     cols = prep.cols
     for block, starts in lay.blocks.values():
-        if starts:
-            off = _offsets(block, starts)
-            for k, (name, code) in enumerate(zip(block.names, block.codes)):
-                _scatter(body, off[:, k], cols[name], code)
+        if not starts:
+            continue
+        s, groups = _residue_groups(starts)
+        values = {name: np.asarray(cols[name]).reshape(-1) for name in block.names}
+        for name, v in values.items():
+            if len(v) != len(s):
+                raise ValueError(f"column {name}: {len(v)} values for {len(s)} elements")
+        for r, idx in groups:
+            at = s if idx is None else s[idx]
+            rec = np.empty(len(at), dtype=block.dtypes[r])
+            raw = rec.view(np.uint8).reshape(len(at), block.sizes[r])
+            raw[:] = pad             # the padding inside the block
+            for name, v in values.items():
+                rec[name] = v if idx is None else v[idx]
+            body[at[:, None] + np.arange(block.sizes[r])] = raw
     for name, offsets in lay.strings.items():
         _scatter(body, np.asarray(offsets, dtype=np.int64), lay.lengths[name], "u4")
-        for p, b in zip(offsets, prep.strs[name]):
-            body[p + 4:p + 4 + len(b)] = np.frombuffer(b, np.uint8)
+        strs = prep.strs[name]
+        lengths = lay.lengths[name]
+        if lengths and lengths.count(lengths[0]) == len(lengths):      # one length: one scatter
+            chars = np.frombuffer(b"".join(strs), np.uint8).reshape(len(strs), lengths[0])
+            body[np.asarray(offsets, dtype=np.int64)[:, None] + 4 + np.arange(lengths[0])] = chars
+        else:
+            for p, b in zip(offsets, strs):
+                body[p + 4:p + 4 + len(b)] = np.frombuffer(b, np.uint8)
     for name, (counts, count_pos, sub) in lay.seqs.items():
         _scatter(body, np.asarray(count_pos, dtype=np.int64), counts, "u4")
         child = prep.child[name]
         if isinstance(sub, Layout):
-            _write(sub, child, body)
+            _write(sub, child, body, pad)
         elif sub[1]:
             _scatter(body, _seq_offsets(np.asarray(counts, dtype=np.int64), sub[1], _SIZES[sub[0]]), child, sub[0])
 
@@ -356,7 +479,7 @@ class Codec:
         lay = Layout()
         end = _scan(self.root, 1, 0, lay, prep)
         body = np.full(_align(end, 4), pad, dtype=np.uint8)
-        _write(lay, prep, body)
+        _write(lay, prep, body, pad)
         return HEADER_LE + body.tobytes()
 
     @property
