@@ -22,7 +22,8 @@ import tempfile
 import time
 from pathlib import Path
 
-#: (label, module, attribute path): the entry points timed; a missing one is skipped (old or new code)
+#: (label, module, attribute path): the entry points timed; a missing one is skipped (old or new code); an empty
+#: label adds to the stage above
 STAGES = [
     ("ephemeris node: one epoch published", "gnss_sim_ros2.nodes.ephemeris_node", "EphemerisNode.publish_epoch"),
     ("  provider.states (core)", "gnss_sim_ros2.core.ephemeris.broadcast", "BroadcastEphemeris.states"),
@@ -30,16 +31,20 @@ STAGES = [
     ("  states -> CDR bytes (codec)", "gnss_sim_ros2.nodes.ephemeris_node", "encode_states"),
     ("visibility node: one epoch", "gnss_sim_ros2.nodes.visibility_node", "VisibilityNode.process"),
     ("  message -> states (visibility)", "gnss_sim_ros2.nodes.visibility_node", "states_from_msg"),
-    ("  CDR bytes -> states (codec, visibility)", "gnss_sim_ros2.nodes.visibility_node", "decode_states"),
+    ("  CDR bytes -> states (codec, visibility)", "gnss_sim_ros2.nodes.visibility_node", "states_from_cdr"),
     ("  cast (core VisibilityOptions.cast)", "gnss_sim_ros2.core.receiver.chain", "VisibilityOptions.cast"),
     ("  visibility -> CDR bytes (codec)", "gnss_sim_ros2.nodes.visibility_node", "encode_visibility"),
     ("receiver node: one epoch", "gnss_sim_ros2.nodes.receiver_node", "ReceiverNode.process"),
     ("  message -> states (receiver)", "gnss_sim_ros2.nodes.receiver_node", "states_from_msg"),
-    ("  CDR bytes -> states (codec, receiver)", "gnss_sim_ros2.nodes.receiver_node", "decode_states"),
+    ("  CDR bytes -> states (codec, receiver)", "gnss_sim_ros2.nodes.receiver_node", "states_from_cdr"),
     ("  message -> reflected paths", "gnss_sim_ros2.nodes.receiver_node", "paths_from_msg"),
-    ("  CDR bytes -> visibility (codec)", "gnss_sim_ros2.nodes.receiver_node", "decode_visibility"),
+    ("  CDR bytes -> visibility (codec)", "gnss_sim_ros2.nodes.receiver_node", "visibility_from_cdr"),
+    ("  visibility columns -> chain inputs", "gnss_sim_ros2.nodes.receiver_node", "chain_inputs_from_visibility"),
     ("  chain step (core ReceiverChain.step)", "gnss_sim_ros2.core.receiver.chain", "ReceiverChain.step"),
     ("  observations message", "gnss_sim_ros2.nodes.receiver_node", "ReceiverNode._observations_msg"),
+    ("  fix, vel, status messages", "gnss_sim_ros2.nodes.receiver_node", "ReceiverNode._fix_msg"),
+    ("", "gnss_sim_ros2.nodes.receiver_node", "ReceiverNode._vel_msg"),
+    ("", "gnss_sim_ros2.nodes.receiver_node", "ReceiverNode._status_msg"),
     ("  observations -> CDR bytes (codec)", "gnss_sim_ros2.nodes.receiver_node", "encode_observations"),
     ("rclpy Publisher.publish (all, serialisation included)", "rclpy.publisher", "Publisher.publish"),
     ("rclpy take (SingleThreadedExecutor: deserialisation)", "rclpy.executors", "Executor._take_subscription"),
@@ -63,7 +68,8 @@ class StageClock:
         inner = getattr(owner, name, None) if owner is not None else None
         if inner is None:
             return False
-        self.cpu[label], self.calls[label] = 0.0, 0
+        self.cpu.setdefault(label, 0.0)
+        self.calls.setdefault(label, 0)
 
         @functools.wraps(inner)      # the same signature: executors look at it (a timer's TimerInfo)
         def timed(*args, **kwargs):
@@ -118,11 +124,14 @@ def main() -> int:
 
     clock = StageClock()
     shown = []
+    previous = ""
     for label, module, path in STAGES:
+        label = previous = label or previous       # "": more entry points of the stage above
         if "spin_once" in path:
             clock.wrap_executor(label)
-            shown.append(label)
-        elif clock.wrap(label, module, path):
+        elif not clock.wrap(label, module, path):
+            continue
+        if label not in shown:
             shown.append(label)
     out = Path(tempfile.mkdtemp(prefix="gnss_sim_prof_"))
     argv = ["run", "--realtime", "--rate", str(a.rate), "--duration", str(a.duration), "--systems", "GRECJI",

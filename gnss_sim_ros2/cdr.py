@@ -139,7 +139,7 @@ class _Prep:
     """What encoding needs before laying out one structure level: the strings' bytes, the sequences'
     counts and child levels, flat over the level's elements; ``next``: the next element to lay out."""
 
-    def __init__(self, st: "_Struct", cols: dict, n: int):
+    def __init__(self, st: _Struct, cols: dict, n: int):
         self.cols, self.next = cols, 0
         self.strs: dict[str, list] = {}
         self.counts: dict[str, np.ndarray] = {}
@@ -166,10 +166,8 @@ class _Prep:
 def _scan(st: _Struct, n: int, pos: int, lay: Layout, src) -> int:
     """Lay out ``n`` elements of ``st`` from body offset ``pos``; lengths and counts read from ``src``
     (bytes: decoding) or taken from it (_Prep: encoding). Returns the end offset."""
-    reading = not isinstance(src, _Prep)
-    size = len(src) if reading else 0
     i0 = 0
-    if not reading:
+    if isinstance(src, _Prep):
         i0, src.next = src.next, src.next + n
     if st.flat and n > 2:
         end = _scan_flat(st, n, pos, lay, src, i0)
@@ -333,7 +331,8 @@ def _seq_offsets(counts: np.ndarray, starts, size: int) -> np.ndarray:
     c = counts[counts > 0]
     if not len(c):
         return np.zeros(0, dtype=np.int64)
-    return np.repeat(np.asarray(starts, dtype=np.int64), c) + size * (np.arange(int(c.sum())) - np.repeat(np.cumsum(c) - c, c))
+    first = np.repeat(np.asarray(starts, dtype=np.int64), c)
+    return first + size * (np.arange(int(c.sum())) - np.repeat(np.cumsum(c) - c, c))
 
 
 def _residue_groups(starts):

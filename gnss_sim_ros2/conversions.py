@@ -42,6 +42,23 @@ def states_to_msg(states: SatelliteStates, t: GnssTime, header, iono: dict | Non
     return msg
 
 
+def observations_to_msg(header, t: GnssTime, obs):
+    """``gnss_sim_msgs/Observations`` of one epoch: one SignalObservation per signal of ``obs``
+    (core.receiver EpochObservations); encode_observations writes its bytes."""
+    from gnss_sim_msgs.msg import Observations, SignalObservation
+
+    week, tow = t.week_tow()
+    msg = Observations(header=header, gps_week=int(week), gps_tow_s=float(tow),
+                       receiver_clock_offset_s=float(obs.clock_bias_s))
+    msg.observations = [SignalObservation(
+        sv=str(obs.sv[j]), code=str(obs.code[j]), frequency_hz=float(obs.frequency_hz[j]),
+        pseudorange_m=float(obs.pseudorange_m[j]), carrier_phase_cycles=float(obs.carrier_phase_cyc[j]),
+        doppler_hz=float(obs.doppler_hz[j]), cn0_dbhz=float(obs.cn0_dbhz[j]),
+        lock_time_s=float(obs.lock_time_s[j]), lli=int(obs.lli[j]), loss_of_lock=bool(obs.lli[j] & 1),
+        half_cycle_ambiguity=bool(obs.lli[j] & 2)) for j in range(len(obs.sv))]
+    return msg
+
+
 def iono_from_msg(msg) -> dict | None:
     """The navigation header's ionosphere coefficients carried by a ``SatelliteStates`` message (the dict
     states_to_msg takes: "GPSA"/"GPSB" Klobuchar, "GAL" NeQuick-G), None when it carries none."""
@@ -196,12 +213,15 @@ def decode_states(data: bytes) -> tuple[tuple[int, int], GnssTime, SatelliteStat
 
 
 def encode_visibility(stamp, frame_id: str, antenna_world_m, antenna_ecef_m, sv, az_deg, el_deg, state,
-                      attenuation_db, extra_path_m, fraction_blocked, paths=None) -> bytes:
+                      attenuation_db, extra_path_m, fraction_blocked, paths=None, path_rows=None) -> bytes:
     """The CDR bytes of a gnss_sim_msgs/Visibility with one SatelliteVisibility per row (what the visibility
-    node's message gave: the reflections of each row of ``paths`` as reflections_to_msgs gives them)."""
+    node's message gave: the reflections of row ``path_rows[i]`` of ``paths`` (all rows when None) as
+    reflections_to_msgs gives them)."""
     from gnss_sim_ros2.cdr import VISIBILITY_CODEC
 
     n = len(sv)
+    if paths is not None and path_rows is not None:
+        paths = _Rows(paths, path_rows)
     if paths is None:
         counts = np.zeros(n, dtype=np.int64)
         refl = {k: np.zeros(0) for k in ("excess_path_m", "gamma_co_re", "gamma_co_im", "gamma_cross_re",
@@ -220,6 +240,14 @@ def encode_visibility(stamp, frame_id: str, antenna_world_m, antenna_ecef_m, sv,
     return VISIBILITY_CODEC.encode({
         **_header(stamp, frame_id), "antenna_world_m.x": w[0], "antenna_world_m.y": w[1], "antenna_world_m.z": w[2],
         "antenna_ecef_m.x": e[0], "antenna_ecef_m.y": e[1], "antenna_ecef_m.z": e[2], "satellites": ([n], sats)})
+
+
+class _Rows:
+    """The rows ``rows`` of a ScenePaths' (N, K) arrays."""
+
+    def __init__(self, paths, rows):
+        self.excess_m, self.gamma_co = paths.excess_m[rows], np.asarray(paths.gamma_co)[rows]
+        self.gamma_cross, self.arrival_el_deg = np.asarray(paths.gamma_cross)[rows], paths.arrival_el_deg[rows]
 
 
 def decode_visibility(data: bytes) -> dict:
@@ -269,8 +297,7 @@ def _complex(re, im) -> np.ndarray:
 
 
 def encode_observations(stamp, frame_id: str, t: GnssTime, obs) -> bytes:
-    """The CDR bytes of the receiver node's gnss_sim_msgs/Observations of one epoch (one SignalObservation per
-    signal of ``obs``, core.receiver EpochObservations)."""
+    """The CDR bytes of observations_to_msg(Header(stamp, frame_id), t, obs)."""
     from gnss_sim_ros2.cdr import OBSERVATIONS_CODEC
 
     week, tow = t.week_tow()
@@ -282,3 +309,59 @@ def encode_observations(stamp, frame_id: str, t: GnssTime, obs) -> bytes:
     return OBSERVATIONS_CODEC.encode({**_header(stamp, frame_id), "gps_week": int(week), "gps_tow_s": float(tow),
                                       "receiver_clock_offset_s": float(obs.clock_bias_s),
                                       "observations": ([len(cols["sv"])], cols)})
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Received bytes: the codec, or rclpy's deserialisation for bytes it does not read (big endian from another
+# machine's middleware): the same result either way.
+
+def states_from_cdr(data: bytes) -> tuple[tuple[int, int], GnssTime, SatelliteStates, dict | None]:
+    """decode_states, falling back to rclpy's deserialize_message + states_from_msg / iono_from_msg."""
+    from gnss_sim_ros2.cdr import CdrError
+
+    try:
+        return decode_states(data)
+    except CdrError:
+        from gnss_sim_msgs.msg import SatelliteStates as Msg
+        from rclpy.serialization import deserialize_message
+
+        msg = deserialize_message(data, Msg)
+        t, states = states_from_msg(msg)
+        return (msg.header.stamp.sec, msg.header.stamp.nanosec), t, states, iono_from_msg(msg)
+
+
+def visibility_from_cdr(data: bytes) -> dict:
+    """decode_visibility, falling back to rclpy's deserialize_message (then the message's columns)."""
+    from gnss_sim_ros2.cdr import CdrError
+
+    try:
+        return decode_visibility(data)
+    except CdrError:
+        from gnss_sim_msgs.msg import Visibility
+        from rclpy.serialization import deserialize_message
+
+        return visibility_columns(deserialize_message(data, Visibility))
+
+
+def visibility_columns(msg) -> dict:
+    """decode_visibility's columns of a gnss_sim_msgs/Visibility message object."""
+    from gnss_sim_ros2.cdr import REFLECTED_PATH
+
+    sats = msg.satellites
+    refl = [r for s in sats for r in s.reflections]
+    h = msg.header
+    cols = {"header.stamp.sec": np.array([h.stamp.sec]), "header.stamp.nanosec": np.array([h.stamp.nanosec]),
+            "header.frame_id": np.array([h.frame_id])}
+    for name in ("antenna_world_m", "antenna_ecef_m"):
+        for a in "xyz":
+            cols[f"{name}.{a}"] = np.array([getattr(getattr(msg, name), a)], dtype=float)
+    sat_cols = {"sv": np.array([s.sv for s in sats], dtype=str)}
+    for f in ("azimuth_deg", "elevation_deg", "attenuation_db", "extra_path_m"):
+        sat_cols[f] = np.array([getattr(s, f) for s in sats], dtype=float)
+    sat_cols["state"] = np.array([s.state for s in sats], dtype=np.uint8)
+    sat_cols["fraction_blocked"] = np.array([s.fraction_blocked for s in sats], dtype=np.float32)
+    sat_cols["reflections"] = (np.array([len(s.reflections) for s in sats], dtype=np.int64),
+                               {f: np.array([getattr(r, f) for r in refl], dtype=float) for f, _ in
+                                REFLECTED_PATH})
+    cols["satellites"] = (np.array([len(sats)]), sat_cols)
+    return cols

@@ -146,12 +146,10 @@ def test_visibility_with_nested_reflections_equals_rclpy(k):
             np.testing.assert_array_equal(getattr(paths_b, name), getattr(ref, name), err_msg=name)
 
 
-def test_observations_equal_the_receiver_nodes_message():
+def test_observations_equal_rclpy():
     from types import SimpleNamespace
 
     from std_msgs.msg import Header
-
-    from gnss_sim_ros2.nodes.receiver_node import ReceiverNode
 
     rng = np.random.default_rng(3)
     n = 23
@@ -163,17 +161,17 @@ def test_observations_equal_the_receiver_nodes_message():
         clock_bias_s=1.5e-4)
     header = Header(frame_id="antenna")
     header.stamp.sec, header.stamp.nanosec = 9, 300_000_000
-    msg = ReceiverNode._observations_msg(None, header, T0 + 9.3, obs)
+    msg = conversions.observations_to_msg(header, T0 + 9.3, obs)
     ours = conversions.encode_observations((9, 300_000_000), "antenna", T0 + 9.3, obs)
     assert deserialize_message(ours, msgs.Observations) == msg
     _same_bytes(cdr.OBSERVATIONS_CODEC, cdr.OBSERVATIONS_CODEC.decode(ours), serialize_message(msg))
     obs.pseudorange_m[4] = np.nan          # what the receiver does not produce (NaN != NaN: bytes compared)
-    msg = ReceiverNode._observations_msg(None, header, T0 + 9.3, obs)
+    msg = conversions.observations_to_msg(header, T0 + 9.3, obs)
     ours = conversions.encode_observations((9, 300_000_000), "antenna", T0 + 9.3, obs)
     _same_bytes(cdr.OBSERVATIONS_CODEC, cdr.OBSERVATIONS_CODEC.decode(ours), serialize_message(msg))
     obs0 = SimpleNamespace(**{k: (v[:0] if isinstance(v, np.ndarray) else v) for k, v in vars(obs).items()})
     ours0 = conversions.encode_observations((9, 0), "", T0, obs0)
-    msg0 = ReceiverNode._observations_msg(None, Header(), T0, obs0)
+    msg0 = conversions.observations_to_msg(Header(), T0, obs0)
     msg0.header.stamp.sec = 9
     assert deserialize_message(ours0, msgs.Observations) == msg0
 

@@ -13,7 +13,6 @@ from __future__ import annotations
 import json
 import os
 import signal
-import struct
 import subprocess
 import sys
 import time
@@ -158,7 +157,6 @@ class Runner:
     # ------------------------------------------------------------------ graph
     def start(self):
         import rclpy
-        from rclpy.executors import SingleThreadedExecutor
         from rosgraph_msgs.msg import Clock
 
         from gnss_sim_ros2 import graph
@@ -168,7 +166,10 @@ class Runner:
         # the context down under the running executor
         rclpy.init(signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
         self.rclpy = rclpy
-        self.executor = SingleThreadedExecutor()
+        from gnss_sim_ros2.nodes.common import executor_name, make_executor
+
+        self.executor = make_executor()      # every composed node's callbacks: the EventsExecutor where rclpy has it
+        self.executor_name = executor_name(self.executor)
         self.driver = rclpy.create_node("gnss_sim_run")
         self.executor.add_node(self.driver)
         self.clock_pub = self.driver.create_publisher(Clock, "/clock", 10)
@@ -209,23 +210,17 @@ class Runner:
         from gnss_sim_msgs.msg import Observations, ReceiverStatus, SatelliteStates, Visibility
         from sensor_msgs.msg import NavSatFix
 
-        self.t_states, self.t_obs, self.status, self.fix, self.truth = {}, {}, {}, {}, {}
+        from gnss_sim_ros2.nodes.latency_probe import LatencyProbe
+
+        self.status, self.fix, self.truth = {}, {}, {}
         self.last_vis = None
 
         def key(m):
             return m.header.stamp.sec + m.header.stamp.nanosec * 1e-9
 
-        def raw_stamp(data: bytes) -> float:
-            # CDR: 4-byte encapsulation header, then std_msgs/Header.stamp (int32 sec, uint32 nanosec);
-            # reading only the stamp keeps the latency probe from deserialising 100+ satellites
-            sec, nsec = struct.unpack_from("<iI" if data[1] == 1 else ">iI", data, 4)
-            return sec + nsec * 1e-9
-
-        def on_states(data):
-            self.t_states[raw_stamp(data)] = time.perf_counter()
-
-        def on_obs(data):
-            self.t_obs[raw_stamp(data)] = time.perf_counter()
+        # latency: the states published -> the observations published (the middleware's publication times)
+        self.probe = LatencyProbe(self.driver.context, ("/gnss/satellite_states", SatelliteStates),
+                                  ("/gnss/observations", Observations))
 
         def on_status(m):
             self.status[key(m)] = m
@@ -238,9 +233,7 @@ class Runner:
             self.last_vis = m
 
         d = self.driver
-        self._subs = [d.create_subscription(SatelliteStates, "/gnss/satellite_states", on_states, 100, raw=True),
-                      d.create_subscription(Observations, "/gnss/observations", on_obs, 100, raw=True),
-                      d.create_subscription(ReceiverStatus, "/gnss/status", on_status, 100),
+        self._subs = [d.create_subscription(ReceiverStatus, "/gnss/status", on_status, 100),
                       d.create_subscription(NavSatFix, "/gnss/fix", on_fix, 100),
                       d.create_subscription(Visibility, "/gnss/visibility", on_vis, 100)]
         if self.args.rtk:
@@ -453,7 +446,7 @@ class Runner:
             lat, lon, h = ecef_to_geodetic(*tru)
             d = ecef_to_enu(est, lat, lon, h)
             err.append(float(np.hypot(d[0], d[1])))
-        lat_ms = [1e3 * (self.t_obs[t] - self.t_states[t]) for t in self.t_obs if t in self.t_states]
+        lat_ms = self.probe.latencies_ms()
         rinex = sorted(str(p.name) for p in self.out.glob("*.rnx"))
         out = {
             "epochs": n_epochs, "epochs_without_output": dropped, "wall_s": round(wall_s, 3),
@@ -467,6 +460,7 @@ class Runner:
             "latency_ms_median": round(float(np.median(lat_ms)), 3) if lat_ms else None,
             "latency_ms_p99": round(float(np.percentile(lat_ms, 99)), 3) if lat_ms else None,
             "mode": "processes" if self.args.processes else "composed",
+            "executor": self.executor_name,
             "ros_domain_id": self.domain_id,
             "foreign_publishers": self.foreign,
             "pace": "realtime" if self.args.realtime else "as fast as the chain answers",
@@ -577,6 +571,7 @@ class Runner:
         for n in self.local:
             self.executor.remove_node(n)
             n.destroy_node()
+        self.probe.close()
         self.driver.destroy_node()
         self.rclpy.try_shutdown()
         self.started = False

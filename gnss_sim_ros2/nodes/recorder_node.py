@@ -10,9 +10,8 @@ import sys
 from pathlib import Path
 
 import rclpy
-from rclpy.executors import SingleThreadedExecutor
 
-from gnss_sim_ros2.nodes.common import close_ros, init_ros, spin_until_stopped
+from gnss_sim_ros2.nodes.common import close_ros, init_ros, make_executor, spin_until_stopped
 
 
 def main(args=None) -> int:
@@ -20,7 +19,7 @@ def main(args=None) -> int:
     node = rclpy.create_node("gnss_sim_recorder")
     bag_dir = node.declare_parameter("bag_dir", "").value
     rtk = node.declare_parameter("rtk", False).value        # also the RTK topics (graph.RECORDED_RTK)
-    executor = SingleThreadedExecutor()
+    executor = make_executor()
     executor.add_node(node)
     recorder = None
     try:
