@@ -258,6 +258,22 @@ def decode_visibility(data: bytes) -> dict:
     return VISIBILITY_CODEC.decode(data)
 
 
+def visibility_antenna(data: bytes) -> tuple[np.ndarray, np.ndarray]:
+    """(antenna_world_m (3,), antenna_ecef_m (3,)) of serialised gnss_sim_msgs/Visibility: the fixed fields
+    after the header, read without the satellites."""
+    import struct
+
+    from gnss_sim_ros2.cdr import CdrError
+
+    if len(data) < 16 or data[:2] != b"\x00\x01":
+        raise CdrError("not little-endian CDR")
+    p = (12 + int.from_bytes(data[12:16], "little") + 7) & -8      # body offsets: stamp, frame_id, align 8
+    if 4 + p + 48 > len(data):
+        raise CdrError("message shorter than its contents")
+    v = struct.unpack_from("<6d", data, 4 + p)
+    return np.array(v[:3]), np.array(v[3:])
+
+
 def chain_inputs_from_visibility(vis: dict, svs):
     """(antenna ECEF (3,), visibility state (N,), attenuation dB (N,), ScenePaths or None) for the satellites
     ``svs`` (rows) from decode_visibility columns: what the receiver node made of the Visibility message

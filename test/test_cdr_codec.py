@@ -237,3 +237,13 @@ def test_schemas_follow_the_message_definitions():
     for cls, schema in ((msgs.SatelliteStates, cdr.SATELLITE_STATES), (msgs.Visibility, cdr.VISIBILITY),
                         (msgs.Observations, cdr.OBSERVATIONS)):
         check(cls, schema)
+
+
+def test_antenna_read_from_the_head_of_the_visibility():
+    for frame in ("", "world", "a_longer_world_frame"):
+        data = conversions.encode_visibility((3, 4), frame, [1.0, 2.0, 3.5], [4e6, 3e5, 4.9e6], [], [], [], [], [], [],
+                                             [])
+        world, ecef = conversions.visibility_antenna(data)
+        np.testing.assert_array_equal(world, [1.0, 2.0, 3.5])
+        np.testing.assert_array_equal(ecef, [4e6, 3e5, 4.9e6])
+        assert conversions.stamp_of(data) == (3, 4)

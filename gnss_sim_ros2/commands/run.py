@@ -210,6 +210,7 @@ class Runner:
         from gnss_sim_msgs.msg import Observations, ReceiverStatus, SatelliteStates, Visibility
         from sensor_msgs.msg import NavSatFix
 
+        from gnss_sim_ros2.conversions import stamp_of, visibility_antenna
         from gnss_sim_ros2.nodes.latency_probe import LatencyProbe
 
         self.status, self.fix, self.truth = {}, {}, {}
@@ -228,14 +229,16 @@ class Runner:
         def on_fix(m):
             self.fix[key(m)] = m
 
-        def on_vis(m):
-            self.truth[key(m)] = np.array([m.antenna_ecef_m.x, m.antenna_ecef_m.y, m.antenna_ecef_m.z])
-            self.last_vis = m
+        def on_vis(data):
+            # raw: no message object per satellite in the chain's executor (the last one is read at the end)
+            sec, nanosec = stamp_of(data)
+            self.truth[sec + nanosec * 1e-9] = visibility_antenna(data)[1]
+            self.last_vis = data
 
         d = self.driver
         self._subs = [d.create_subscription(ReceiverStatus, "/gnss/status", on_status, 100),
                       d.create_subscription(NavSatFix, "/gnss/fix", on_fix, 100),
-                      d.create_subscription(Visibility, "/gnss/visibility", on_vis, 100)]
+                      d.create_subscription(Visibility, "/gnss/visibility", on_vis, 100, raw=True)]
         if self.args.rtk:
             self._subscribe_rtk()
 
@@ -421,8 +424,17 @@ class Runner:
         self.sky_plot(sky)
         print(_summary_markdown(summary))
 
+    def _last_vis_msg(self):
+        """The last gnss_sim_msgs/Visibility (kept serialised during the run)."""
+        if isinstance(self.last_vis, bytes):
+            from gnss_sim_msgs.msg import Visibility
+            from rclpy.serialization import deserialize_message
+
+            self.last_vis = deserialize_message(self.last_vis, Visibility)
+        return self.last_vis
+
     def _antenna_world_m(self):
-        m = self.last_vis
+        m = self._last_vis_msg()
         return None if m is None else np.array([m.antenna_world_m.x, m.antenna_world_m.y, m.antenna_world_m.z])
 
     def _local_sky(self):
@@ -517,7 +529,7 @@ class Runner:
         """skyplot.png of the last epoch; ``sky``: what the casts find (Scene.sky_grid) if known, else the scene
         is loaded here
         (nodes in other processes)."""
-        m = self.last_vis
+        m = self._last_vis_msg()
         if m is None:
             return
         from gnss_sim_ros2.core.skyplot import plot_skyplot

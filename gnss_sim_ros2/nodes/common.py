@@ -7,6 +7,8 @@ publishers, active only between ``on_activate`` and ``on_deactivate``.
 """
 from __future__ import annotations
 
+import gc
+
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType
 from rclpy.lifecycle import LifecycleNode, TransitionCallbackReturn
 from rclpy.parameter import Parameter
@@ -41,6 +43,7 @@ class GnssSimNode(LifecycleNode):
         self.last_error = ""
         self._owned_publishers: list = []  # made in configure, destroyed after cleanup()
         self._owned_active: list = []      # timers and subscriptions made in activate, destroyed after deactivate()
+        self._jump_handles: list = []      # clock jump callbacks of active_clock_timer
         for p in params_of(self.PARAMS_KEY):
             ros_type, py_type = _KIND_TYPES[p.kind]
             desc = ParameterDescriptor(name=p.name, type=ros_type, description=p.description)
@@ -79,6 +82,29 @@ class GnssSimNode(LifecycleNode):
         self._owned_active.append(timer)
         return timer
 
+    def active_clock_timer(self, period_s: float, callback):
+        """A timer on the node's (ROS) clock (activate), destroyed after ``deactivate()``. With a simulated
+        clock ``callback`` also runs after every step of the clock (a clock jump callback): rclpy's
+        EventsExecutor can miss a ROS-time timer when the clock jumps (seen in gnss-sim run: a trajectory
+        tick missed, so its epoch waited for TF until tf_timeout_s). ``callback`` must act on what the clock
+        has reached (both of them may run for one step)."""
+        timer = self.active_timer(period_s, callback)
+        if self.has_parameter("use_sim_time") and self.get_parameter("use_sim_time").value:
+            from rclpy.clock import JumpThreshold
+            from rclpy.duration import Duration
+
+            def after_step(_jump):
+                try:
+                    callback()
+                except Exception as exc:  # noqa: BLE001 - raised into rcl it would be lost
+                    self.get_logger().error(f"{type(exc).__name__}: {exc}")
+
+            handle = self.get_clock().create_jump_callback(
+                JumpThreshold(min_forward=Duration(nanoseconds=1), min_backward=None, on_clock_change=False),
+                post_callback=after_step)
+            self._jump_handles.append(handle)
+        return timer
+
     def active_subscription(self, msg_type, topic: str, callback, qos, raw: bool = False):
         """A subscription (activate), destroyed by the base class after ``deactivate()``; ``raw``: the
         callback takes the serialised bytes (gnss_sim_ros2/cdr.py reads them)."""
@@ -87,6 +113,9 @@ class GnssSimNode(LifecycleNode):
         return sub
 
     def _release_active(self):
+        for handle in self._jump_handles:
+            handle.unregister()
+        self._jump_handles = []
         for entity in self._owned_active:
             if hasattr(entity, "timer_period_ns"):
                 self.destroy_timer(entity)
@@ -143,6 +172,10 @@ class GnssSimNode(LifecycleNode):
             self.last_error = f"activate: {type(exc).__name__}: {exc}"
             self.get_logger().error(self.last_error)
             return TransitionCallbackReturn.FAILURE
+        # what configure loaded (scene, ephemeris, modules) out of the garbage collector's sight: a full
+        # collection then walks the objects of the run only (one over the loaded process took 150 ms: an
+        # epoch that late); the process's few start-up cycles are kept rather than collected
+        gc.freeze()
         return ret
 
     def on_deactivate(self, state) -> TransitionCallbackReturn:

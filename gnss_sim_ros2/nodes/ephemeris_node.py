@@ -65,7 +65,7 @@ class EphemerisNode(GnssSimNode):
     def activate(self):
         self.mapping.origin_ns = run_origin_ns(self)
         self.next_k = self._first_epoch_index()
-        self.active_timer(min(self.period_s, 0.05), self._tick)
+        self.active_clock_timer(min(self.period_s, 0.05), self._tick)
         self._tick()  # the epoch the clock stands at now (a simulated clock may wait for it)
 
     def cleanup(self):

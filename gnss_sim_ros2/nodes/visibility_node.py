@@ -72,7 +72,8 @@ class VisibilityNode(GnssSimNode):
         self.pub = self.lifecycle_publisher(Visibility, "visibility", 100)
         self.image_pub = self.lifecycle_publisher(Image, "sky_view", 2)
         self.diag_pub = self.lifecycle_publisher(DiagnosticArray, "/diagnostics", 10)
-        self.tf = TfSource(self)
+        # an epoch waiting for its pose is cast as soon as the pose comes (not at the drain timer's next tick)
+        self.tf = TfSource(self, on_update=self._drain)
 
     def _fixed_antenna(self, p) -> np.ndarray:
         """The static antenna of parameter antenna_position in the world frame."""
