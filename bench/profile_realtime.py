@@ -60,14 +60,8 @@ class StageClock:
         self.cpu: dict[str, float] = {}
         self.calls: dict[str, int] = {}
 
-    def wrap(self, label: str, module: str, path: str) -> bool:
-        owner = importlib.import_module(module)
-        *parents, name = path.split(".")
-        for p in parents:
-            owner = getattr(owner, p, None)
-        inner = getattr(owner, name, None) if owner is not None else None
-        if inner is None:
-            return False
+    def timed(self, label: str, inner):
+        """``inner`` adding its main-thread CPU time to ``label``."""
         self.cpu.setdefault(label, 0.0)
         self.calls.setdefault(label, 0)
 
@@ -80,7 +74,17 @@ class StageClock:
                 self.cpu[label] += time.thread_time() - t0
                 self.calls[label] += 1
 
-        setattr(owner, name, timed)
+        return timed
+
+    def wrap(self, label: str, module: str, path: str) -> bool:
+        owner = importlib.import_module(module)
+        *parents, name = path.split(".")
+        for p in parents:
+            owner = getattr(owner, p, None)
+        inner = getattr(owner, name, None) if owner is not None else None
+        if inner is None:
+            return False
+        setattr(owner, name, self.timed(label, inner))
         return True
 
     def wrap_executor(self, label: str):
@@ -88,29 +92,25 @@ class StageClock:
         the call site through the runner's attribute)."""
         from gnss_sim_ros2.commands import run
 
-        clock = self
         start = run.Runner.start
+        clock = self
 
         def start_timed(runner):
             start(runner)
             ex = runner.executor
-            inner = ex.spin_once
+            spin_once = clock.timed(label, ex.spin_once)
 
             class Timed:
                 def __getattr__(self, a):
                     return getattr(ex, a)
 
                 def spin_once(self, *a, **k):
-                    t0 = time.thread_time()
-                    try:
-                        return inner(*a, **k)
-                    finally:
-                        clock.cpu[label] += time.thread_time() - t0
-                        clock.calls[label] += 1
+                    return spin_once(*a, **k)
 
             runner.executor = Timed()
 
-        self.cpu[label], self.calls[label] = 0.0, 0
+        self.cpu.setdefault(label, 0.0)
+        self.calls.setdefault(label, 0)
         run.Runner.start = start_timed
 
 
