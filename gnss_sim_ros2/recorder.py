@@ -15,6 +15,12 @@ rewritten (atomically) after each closed split, listing the closed splits.
 A killed recorder thus leaves a bag that rosbags (and ``ros2 bag``) read up
 to its last closed split; the split being written when the process died
 stays in a hidden ``.open_split`` folder, outside the bag.
+
+Closing a split (MCAP summary, metadata.yaml) takes 40-100 ms of the thread
+that spins the recorder, which in ``gnss-sim run`` is the nodes' executor: a
+due split is closed right after the receiver's last message of an epoch
+(``rotate_after``, EPOCH_LAST_TOPIC: nothing of the chain waits then),
+or by the timer when that topic has not come for another ``split_s``.
 """
 from __future__ import annotations
 
@@ -26,7 +32,10 @@ from pathlib import Path
 import yaml
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
-from gnss_sim_ros2.graph import RECORDED
+from gnss_sim_ros2.graph import RECORDED, TOPIC_NAMESPACE
+
+#: the receiver's last message of an epoch (receiver_node.process publishes observations, fix, vel, status, nmea)
+EPOCH_LAST_TOPIC = f"{TOPIC_NAMESPACE}/nmea"
 
 
 def _msg_dir() -> Path:
@@ -54,7 +63,8 @@ class BagRecorder:
     """Subscribe to ``topics`` on ``node`` and write every message into the rosbag2 folder ``bag_dir``,
     in splits of ``split_s`` seconds (wall time), each listed in metadata.yaml once closed."""
 
-    def __init__(self, node, bag_dir: Path, topics=RECORDED, split_s: float = 5.0):
+    def __init__(self, node, bag_dir: Path, topics=RECORDED, split_s: float = 5.0,
+                 rotate_after: str | None = EPOCH_LAST_TOPIC):
         self.node = node
         self.store = typestore()
         self.bag_dir = Path(bag_dir)
@@ -63,6 +73,8 @@ class BagRecorder:
         self.bag_dir.mkdir(parents=True)
         self.split_s = float(split_s)
         self.topics = list(topics)
+        # a due split closes after this topic's message (when recorded), else after any message
+        self.rotate_after = rotate_after if rotate_after in {t for t, _ in self.topics} else None
         self.counts: dict[str, int] = {}
         self.subs = []
         self.closed = False
@@ -76,11 +88,20 @@ class BagRecorder:
         from rclpy.clock import Clock, ClockType
 
         # a split also closes when no message comes (a slow or stalled run loses at most split_s)
-        self._timer = node.create_timer(min(1.0, self.split_s / 2), self._rotate_if_due,
+        self._timer = node.create_timer(min(1.0, self.split_s / 2), lambda: self._rotate_if_due(None),
                                         clock=Clock(clock_type=ClockType.STEADY_TIME))
 
-    def _rotate_if_due(self):
-        if not self.closed and self._split_messages and time.monotonic() - self._split_started >= self.split_s:
+    def _rotate_if_due(self, topic: str | None = None):
+        """Close the split when due: after a message of ``rotate_after`` (or of any topic without one); from
+        the timer (``topic`` None) only once it is a further ``split_s`` overdue (that topic stopped)."""
+        if self.closed or not self._split_messages:
+            return
+        age = time.monotonic() - self._split_started
+        if topic is None:
+            due = age >= (2.0 * self.split_s if self.rotate_after else self.split_s)
+        else:
+            due = age >= self.split_s and (self.rotate_after is None or topic == self.rotate_after)
+        if due:
             self._close_split()
             self._open_split()
 
@@ -149,10 +170,10 @@ class BagRecorder:
         def cb(data, topic=topic):
             if self.closed:
                 return
-            self._rotate_if_due()
             self._writer.write(self._conns[topic], self.node.get_clock().now().nanoseconds or time.time_ns(), data)
             self._split_messages += 1
             self.counts[topic] += 1
+            self._rotate_if_due(topic)
 
         self.subs.append(self.node.create_subscription(cls, topic, cb, qos, raw=True))
 

@@ -14,7 +14,6 @@ from __future__ import annotations
 import json
 import os
 import signal
-import struct
 import subprocess
 import sys
 import time
@@ -196,7 +195,6 @@ class Runner:
     # ------------------------------------------------------------------ graph
     def start(self):
         import rclpy
-        from rclpy.executors import SingleThreadedExecutor
         from rosgraph_msgs.msg import Clock
 
         from gnss_sim_ros2 import graph
@@ -206,7 +204,10 @@ class Runner:
         # the context down under the running executor
         rclpy.init(signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
         self.rclpy = rclpy
-        self.executor = SingleThreadedExecutor()
+        from gnss_sim_ros2.nodes.common import executor_name, make_executor
+
+        self.executor = make_executor()      # every composed node's callbacks: the EventsExecutor where rclpy has it
+        self.executor_name = executor_name(self.executor)
         self.driver = rclpy.create_node("gnss_sim_run")
         self.executor.add_node(self.driver)
         self.clock_pub = self.driver.create_publisher(Clock, "/clock", 10)
@@ -266,25 +267,26 @@ class Runner:
         self.started = True
 
     def _subscribe_outputs(self):
-        from gnss_sim_msgs.msg import SatelliteStates
+        from gnss_sim_msgs.msg import Observations, SatelliteStates
 
-        self.t_states = {}
+        from gnss_sim_ros2.nodes.latency_probe import LatencyProbe
 
-        def on_states(data):
-            self.t_states[raw_stamp(data)] = time.perf_counter()
-
-        self._subs = [self.driver.create_subscription(SatelliteStates, "/gnss/satellite_states", on_states, 100,
-                                                      raw=True)]
+        self._subs = []
         n = self.args.robots
         self.robots = [RobotOutputs(self.driver, k if n > 1 else -1) for k in range(n)]
         r0 = self.robots[0]              # one robot: the run's outputs (the RTK figures use its truth)
-        self.status, self.fix, self.truth, self.t_obs = r0.status, r0.fix, r0.truth, r0.t_obs
+        self.status, self.fix, self.truth = r0.status, r0.fix, r0.truth
+        # latency: the states published -> each robot's observations published (the middleware's publication
+        # times, read by a node of its own)
+        self.probe = LatencyProbe(self.driver.context, ("/gnss/satellite_states", SatelliteStates),
+                                  [(r.topic("observations"), Observations) for r in self.robots])
         if self.args.rtk:
             self._subscribe_rtk()
 
     @property
     def last_vis(self):
-        return self.robots[0].last_vis
+        """Robot 0's last gnss_sim_msgs/Visibility (kept serialised during the run)."""
+        return self.robots[0].last_vis_msg()
 
     def specs(self):
         """The nodes of this run (graph.nodes, and the RTK ones with --rtk)."""
@@ -514,7 +516,7 @@ class Runner:
         return scenes[0].sky_grid(at) if at is not None and scenes else None
 
     def summary(self, n_epochs, dropped, wall_s, period) -> dict:
-        per_robot = [r.samples(self.t_states) for r in self.robots]
+        per_robot = [r.samples(self.probe) for r in self.robots]
         pooled = {key: [x for one in per_robot for x in one[key]] for key in per_robot[0]}
         n = len(self.robots)
         figures = _figures(pooled, n_epochs * n)
@@ -526,6 +528,7 @@ class Runner:
             "realtime_factor": round(n_epochs * period / wall_s, 2) if wall_s > 0 else None,
             **figures,
             "mode": LAYOUT_MODES[self.args.layout],
+            "executor": self.executor_name,
             "processes": getattr(self, "process_figures", {}),
             "ros_domain_id": self.domain_id,
             "foreign_publishers": self.foreign,
@@ -649,6 +652,7 @@ class Runner:
         for n in self.local:
             self.executor.remove_node(n)
             n.destroy_node()
+        self.probe.close()
         self.driver.destroy_node()
         self.rclpy.try_shutdown()
         self.started = False
@@ -675,37 +679,27 @@ def _summary_markdown(s: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def raw_stamp(data: bytes) -> float:
-    """The header stamp of a serialized message [s]. CDR: a 4-byte encapsulation header, then
-    std_msgs/Header.stamp (int32 sec, uint32 nanosec); reading only the stamp keeps the latency probe from
-    deserialising 100+ satellites."""
-    sec, nsec = struct.unpack_from("<iI" if data[1] == 1 else ">iI", data, 4)
-    return sec + nsec * 1e-9
-
-
 def _stamp_s(m) -> float:
     return m.header.stamp.sec + m.header.stamp.nanosec * 1e-9
 
 
 class RobotOutputs:
-    """What the run reads of one robot's receiver chain: the observations' arrival (latency), status, fix and
-    the visibility's true antenna position, on the robot's topics (graph.robot_topic: /robot<k>/gnss/...;
+    """What the run reads of one robot's receiver chain: status, fix and the visibility's true antenna
+    position (the latency: the run's LatencyProbe), on the robot's topics (graph.robot_topic: /robot<k>/gnss/...;
     ``k`` = -1: the one robot of a run, /gnss/...)."""
 
     def __init__(self, driver, k: int):
-        from gnss_sim_msgs.msg import Observations, ReceiverStatus, Visibility
+        from gnss_sim_msgs.msg import ReceiverStatus, Visibility
         from sensor_msgs.msg import NavSatFix
 
-        from gnss_sim_ros2 import graph
         from gnss_sim_ros2.parameters import robot_namespace
 
         self.k = k
         self.name = robot_namespace(max(k, 0))
-        self.t_obs, self.status, self.fix, self.truth = {}, {}, {}, {}
-        self.last_vis = None
+        from gnss_sim_ros2.conversions import stamp_of, visibility_antenna
 
-        def on_obs(data):
-            self.t_obs[raw_stamp(data)] = time.perf_counter()
+        self.status, self.fix, self.truth = {}, {}, {}
+        self.last_vis = None
 
         def on_status(m):
             self.status[_stamp_s(m)] = m
@@ -713,17 +707,31 @@ class RobotOutputs:
         def on_fix(m):
             self.fix[_stamp_s(m)] = m
 
-        def on_vis(m):
-            self.truth[_stamp_s(m)] = np.array([m.antenna_ecef_m.x, m.antenna_ecef_m.y, m.antenna_ecef_m.z])
-            self.last_vis = m
+        def on_vis(data):
+            # raw: no message object per satellite in the chain's executor (the last one is read at the end)
+            sec, nanosec = stamp_of(data)
+            self.truth[sec + nanosec * 1e-9] = visibility_antenna(data)[1]
+            self.last_vis = data
 
-        def topic(t):
-            return graph.robot_topic(k, f"{graph.TOPIC_NAMESPACE}/{t}")
-
-        self.subs = [driver.create_subscription(Observations, topic("observations"), on_obs, 100, raw=True),
-                     driver.create_subscription(ReceiverStatus, topic("status"), on_status, 100),
+        topic = self.topic
+        self.subs = [driver.create_subscription(ReceiverStatus, topic("status"), on_status, 100),
                      driver.create_subscription(NavSatFix, topic("fix"), on_fix, 100),
-                     driver.create_subscription(Visibility, topic("visibility"), on_vis, 100)]
+                     driver.create_subscription(Visibility, topic("visibility"), on_vis, 100, raw=True)]
+
+    def topic(self, name: str) -> str:
+        """This robot's topic ``name`` (/robot<k>/gnss/<name>, or /gnss/<name> for the one robot of a run)."""
+        from gnss_sim_ros2 import graph
+
+        return graph.robot_topic(self.k, f"{graph.TOPIC_NAMESPACE}/{name}")
+
+    def last_vis_msg(self):
+        """The last gnss_sim_msgs/Visibility (kept serialised during the run); None before the first."""
+        if isinstance(self.last_vis, bytes):
+            from gnss_sim_msgs.msg import Visibility
+            from rclpy.serialization import deserialize_message
+
+            self.last_vis = deserialize_message(self.last_vis, Visibility)
+        return self.last_vis
 
     def spec(self, key: str):
         """This robot's node of ``key`` (graph.ROBOT_KEYS)."""
@@ -743,7 +751,7 @@ class RobotOutputs:
     def epochs_answered(self, n_epochs: int, period: float) -> int:
         return len({int(round(t / period)) for t in self.status} & set(range(n_epochs)))
 
-    def samples(self, t_states: dict) -> dict:
+    def samples(self, probe) -> dict:
         """Per-epoch samples: satellites tracked, fixes, horizontal errors against the true antenna [m],
         latency states -> observations [ms]."""
         from gnss_sim_ros2.core.frames import ecef_to_enu, ecef_to_geodetic, geodetic_to_ecef
@@ -758,7 +766,7 @@ class RobotOutputs:
             err.append(float(np.hypot(d[0], d[1])))
         return {"tracked": [m.satellites_tracked for m in self.status.values()],
                 "fixes": [1 for m in self.fix.values() if m.status.status >= 0], "err": err,
-                "lat_ms": [1e3 * (self.t_obs[t] - t_states[t]) for t in self.t_obs if t in t_states]}
+                "lat_ms": probe.latencies_ms(self.topic("observations"))}
 
 
 def _figures(x: dict, n_epochs: int) -> dict:

@@ -16,7 +16,8 @@ rclcpp_components' container on ``<container>/_container/{load_node,unload_node,
 Extra arguments: ``use_intra_process_comms`` (bool; rclpy has no intra-process
 transport, so true only logs that the middleware carries the messages),
 ``forward_global_arguments`` (bool), ``enable_rosout`` (bool); any other is refused.
-Every loaded node spins in the one executor of the process.  Lifecycle nodes
+Every loaded node spins in the one executor of the process (rclpy's
+EventsExecutor, or its SingleThreadedExecutor: nodes/common.py make_executor).  Lifecycle nodes
 stay unconfigured until a lifecycle manager (or ``ros2 lifecycle set``) drives them.
 """
 from __future__ import annotations
@@ -26,10 +27,9 @@ import threading
 
 import rclpy
 from rcl_interfaces.msg import ParameterType
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 
-from gnss_sim_ros2.nodes.common import close_ros, init_ros, spin_until_stopped
+from gnss_sim_ros2.nodes.common import close_ros, executor_name, init_ros, make_executor, spin_until_stopped
 from gnss_sim_ros2.nodes.components import ComponentError, load_class
 
 EXTRA_BOOL_ARGUMENTS = ("use_intra_process_comms", "forward_global_arguments", "enable_rosout")
@@ -175,8 +175,10 @@ def main(args=None) -> int:
     stop = init_ros(args)
     node = rclpy.create_node("gnss_sim_container")
     # one thread: a lifecycle transition (service callback) destroying publishers never races another thread
-    # building the wait set from them (rclpy InvalidHandle "destruction was requested")
-    executor = SingleThreadedExecutor()
+    # building the wait set from them (rclpy InvalidHandle "destruction was requested"); the EventsExecutor
+    # (or the SingleThreadedExecutor, common.make_executor) runs every callback in this thread
+    executor = make_executor()
+    node.get_logger().info(f"executor: {executor_name(executor)}")
     manager = ComponentManager(node, executor)
     executor.add_node(node)
     try:

@@ -6,6 +6,7 @@ the ROS clock (simulated time works) publishes ``satellite_states`` for each
 epoch of the grid start_time + k / rate_hz that the clock has reached, in
 order, none skipped (a late timer catches up and counts the late epochs);
 diagnostics report data problems (satellites without a valid ephemeris).
+The message goes out as its CDR bytes, written from the arrays (gnss_sim_ros2/cdr.py).
 """
 from __future__ import annotations
 
@@ -16,7 +17,7 @@ import tempfile
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from std_msgs.msg import Header
 
-from gnss_sim_ros2.conversions import states_to_msg
+from gnss_sim_ros2.conversions import encode_states
 from gnss_sim_ros2.core.time import GnssTime
 from gnss_sim_ros2.nodes.common import GnssSimNode, TimeMapping, run_node, run_origin_ns
 
@@ -64,7 +65,7 @@ class EphemerisNode(GnssSimNode):
     def activate(self):
         self.mapping.origin_ns = run_origin_ns(self)
         self.next_k = self._first_epoch_index()
-        self.active_timer(min(self.period_s, 0.05), self._tick)
+        self.active_clock_timer(min(self.period_s, 0.05), self._tick)
         self._tick()  # the epoch the clock stands at now (a simulated clock may wait for it)
 
     def cleanup(self):
@@ -96,8 +97,9 @@ class EphemerisNode(GnssSimNode):
 
     def publish_epoch(self, t: GnssTime):
         states = self.provider.states(t, systems=self.params["systems"])
-        header = Header(stamp=self.mapping.to_ros(t), frame_id="earth")
-        self.pub.publish(states_to_msg(states, t, header, getattr(self.provider, "iono", None)))
+        # the serialised message straight from the arrays (cdr.py; what states_to_msg + rclpy would send)
+        iono = getattr(self.provider, "iono", None)
+        self.pub.publish(encode_states(states, t, self.mapping.to_ros(t), "earth", iono))
         self.published += 1
         if self.published % max(1, int(round(10.0 / self.period_s))) == 1:
             self._diagnose(t, len(states))

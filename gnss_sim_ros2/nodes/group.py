@@ -39,12 +39,10 @@ def main(argv=None) -> int:
     except ValueError as exc:
         print(f"gnss_sim group: error: {exc}", file=sys.stderr)
         return 2
-    from rclpy.executors import SingleThreadedExecutor
-
-    from gnss_sim_ros2.nodes.common import close_ros, init_ros, spin_until_stopped
+    from gnss_sim_ros2.nodes.common import close_ros, init_ros, make_executor, spin_until_stopped
 
     stop = init_ros([sys.argv[0]])          # no process-wide ROS arguments: each node has its own
-    executor = SingleThreadedExecutor()
+    executor = make_executor()              # as every gnss_sim process: the EventsExecutor where rclpy has it
     nodes = []
     try:
         for module, cls, args in specs:

@@ -14,7 +14,10 @@ the RINEX observation file epoch by epoch into ``output_dir``.  With ``rtcm``:
 on TCP port ``rtcm_tcp_port`` (core/rtcm/tcp_server.py) for outside tools.
 
 The epoch's work is core/receiver/chain.py's ReceiverChain, the same object
-``gnss-sim simulate`` steps: this node only converts messages.  The node has
+``gnss-sim simulate`` steps: this node only converts messages. The big ones
+travel as CDR bytes read and written from arrays (gnss_sim_ros2/cdr.py): the
+states and visibility subscriptions are raw, ``observations`` is published
+serialised; the others are small rclpy messages.  The node has
 the states at the epoch, not the ephemeris: the chain goes back to the
 transmit time with the second-order expansion (sub-millimetre over 0.07 s,
 see test_propagation), whatever the preset says.
@@ -24,13 +27,19 @@ from __future__ import annotations
 import sys
 
 import numpy as np
+from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import TwistWithCovarianceStamped
 from sensor_msgs.msg import NavSatFix, NavSatStatus
 from std_msgs.msg import Header, String
 
-from gnss_sim_ros2.conversions import iono_from_msg, paths_from_msg, states_from_msg
-from gnss_sim_ros2.core.vocabulary import VisibilityState
+from gnss_sim_ros2.conversions import (
+    chain_inputs_from_visibility,
+    encode_observations,
+    stamp_of,
+    states_from_cdr,
+    visibility_from_cdr,
+)
 from gnss_sim_ros2.nodes.common import GnssSimNode, run_node
 
 SERVICE_FLAGS = {"G": NavSatStatus.SERVICE_GPS, "J": NavSatStatus.SERVICE_GPS, "R": NavSatStatus.SERVICE_GLONASS,
@@ -85,8 +94,8 @@ class ReceiverNode(GnssSimNode):
     def activate(self):
         from gnss_sim_msgs.msg import SatelliteStates, Visibility
 
-        self.active_subscription(SatelliteStates, "satellite_states", self._on_states, 100)
-        self.active_subscription(Visibility, "visibility", self._on_vis, 100)
+        self.active_subscription(SatelliteStates, "satellite_states", self._on_states, 100, raw=True)
+        self.active_subscription(Visibility, "visibility", self._on_vis, 100, raw=True)
 
     def deactivate(self):
         self.states.clear()
@@ -103,16 +112,12 @@ class ReceiverNode(GnssSimNode):
         self.last_stamp = None
 
     # ------------------------------------------------------------------
-    @staticmethod
-    def _key(stamp):
-        return (stamp.sec, stamp.nanosec)
-
-    def _on_states(self, msg):
-        self.states[self._key(msg.header.stamp)] = msg
+    def _on_states(self, data: bytes):
+        self.states[stamp_of(data)] = data      # keyed by (sec, nanosec) of the header stamp
         self._match()
 
-    def _on_vis(self, msg):
-        self.vis[self._key(msg.header.stamp)] = msg
+    def _on_vis(self, data: bytes):
+        self.vis[stamp_of(data)] = data
         self._match()
 
     def _match(self):
@@ -127,19 +132,17 @@ class ReceiverNode(GnssSimNode):
             for key in [k for k in d if self.last_stamp is not None and k <= self.last_stamp]:
                 del d[key]
 
-    def process(self, states_msg, vis_msg):
-        t, states = states_from_msg(states_msg)
-        self.chain.set_iono_coefficients(iono_from_msg(states_msg))
-        a = vis_msg.antenna_ecef_m
-        ecef = np.array([a.x, a.y, a.z])
-        by_sv = {s.sv: s for s in vis_msg.satellites}
-        blocked = int(VisibilityState.BLOCKED)   # below the horizon: not in the visibility message
-        vis_state = np.array([by_sv[sv].state if sv in by_sv else blocked for sv in states.sv], dtype=np.int64)
-        att = np.array([by_sv[sv].attenuation_db if sv in by_sv else 0.0 for sv in states.sv])
-        ep = self.chain.step(t, ecef, states, vis_state, att, multipath=paths_from_msg(by_sv, states.sv))
+    def process(self, states_data: bytes, vis_data: bytes):
+        """One epoch from the serialised SatelliteStates and Visibility of one stamp."""
+        stamp, t, states, iono = states_from_cdr(states_data)
+        self.chain.set_iono_coefficients(iono)
+        # below the horizon = not in the visibility message: blocked, no attenuation
+        ecef, vis_state, att, paths = chain_inputs_from_visibility(visibility_from_cdr(vis_data), states.sv)
+        ep = self.chain.step(t, ecef, states, vis_state, att, multipath=paths)
         obs, sol = ep.obs, ep.sol
-        header = Header(stamp=states_msg.header.stamp, frame_id=self.params["antenna_frame"])
-        self.pubs["obs"].publish(self._observations_msg(header, t, obs))
+        frame = self.params["antenna_frame"]
+        self.pubs["obs"].publish(encode_observations(stamp, frame, t, obs))   # first: the latency ends here
+        header = Header(stamp=Time(sec=stamp[0], nanosec=stamp[1]), frame_id=frame)
         self.pubs["fix"].publish(self._fix_msg(header, sol))
         self.pubs["vel"].publish(self._vel_msg(header, sol))
         self.pubs["status"].publish(self._status_msg(header, obs, sol))
@@ -152,20 +155,6 @@ class ReceiverNode(GnssSimNode):
                 self.tcp.write(ep.rtcm)
         if self.chain.epochs % 10 == 1:
             self._diagnose(obs, sol)
-
-    def _observations_msg(self, header, t, obs):
-        from gnss_sim_msgs.msg import Observations, SignalObservation
-
-        week, tow = t.week_tow()
-        msg = Observations(header=header, gps_week=int(week), gps_tow_s=float(tow),
-                           receiver_clock_offset_s=float(obs.clock_bias_s))
-        msg.observations = [SignalObservation(
-            sv=str(obs.sv[j]), code=str(obs.code[j]), frequency_hz=float(obs.frequency_hz[j]),
-            pseudorange_m=float(obs.pseudorange_m[j]), carrier_phase_cycles=float(obs.carrier_phase_cyc[j]),
-            doppler_hz=float(obs.doppler_hz[j]), cn0_dbhz=float(obs.cn0_dbhz[j]),
-            lock_time_s=float(obs.lock_time_s[j]), lli=int(obs.lli[j]), loss_of_lock=bool(obs.lli[j] & 1),
-            half_cycle_ambiguity=bool(obs.lli[j] & 2)) for j in range(len(obs.sv))]
-        return msg
 
     def _fix_msg(self, header, sol):
         fix = NavSatFix(header=header)

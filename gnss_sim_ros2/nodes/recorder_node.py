@@ -10,9 +10,8 @@ import sys
 from pathlib import Path
 
 import rclpy
-from rclpy.executors import SingleThreadedExecutor
 
-from gnss_sim_ros2.nodes.common import close_ros, init_ros, spin_until_stopped
+from gnss_sim_ros2.nodes.common import close_ros, init_ros, make_executor, spin_until_stopped
 
 
 def main(args=None) -> int:
@@ -21,7 +20,7 @@ def main(args=None) -> int:
     bag_dir = node.declare_parameter("bag_dir", "").value
     rtk = node.declare_parameter("rtk", False).value        # also the RTK topics (graph.RECORDED_RTK)
     robots = node.declare_parameter("robots", 1).value      # every robot's topics (graph.recorded)
-    executor = SingleThreadedExecutor()
+    executor = make_executor()
     executor.add_node(node)
     recorder = None
     try:

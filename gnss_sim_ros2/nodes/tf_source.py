@@ -21,8 +21,9 @@ except ImportError:  # PyPI wheels: tf2_ros does not exist there
 
 
 class TfSource:
-    def __init__(self, node, cache_time_s: float = 30.0, prefer_tf2_ros: bool = True):
+    def __init__(self, node, cache_time_s: float = 30.0, prefer_tf2_ros: bool = True, on_update=None):
         self.node = node
+        self.on_update = on_update     # called after each /tf message (compact backend): a waiting lookup retries
         self.backend = "tf2_ros" if (HAVE_TF2_ROS and prefer_tf2_ros) else "compact"
         self._subs = []
         if self.backend == "tf2_ros":
@@ -51,6 +52,8 @@ class TfSource:
                                     (q.x, q.y, q.z, q.w), static=static)
             if not static:
                 self.latest_s[tf.child_frame_id] = max(t, self.latest_s.get(tf.child_frame_id, -np.inf))
+        if self.on_update is not None:
+            self.on_update()
 
     def lookup(self, target: str, source: str, stamp):
         """Pose of ``source`` in ``target`` at ``stamp`` (builtin_interfaces/Time)."""

@@ -64,7 +64,7 @@ class TrajectoryPlayer(GnssSimNode):
         self.origin_ns = run_origin_ns(self)  # path time 0: ROS time 0 (simulated clock) or now
         now = self.get_clock().now()
         self.next_tick = (now.nanoseconds // self.period_ns) * self.period_ns
-        self.active_timer(self.period_ns * 1e-9, self._tick)
+        self.active_clock_timer(self.period_ns * 1e-9, self._tick)
         self._static_pending = True
         self._tick()  # a simulated clock may stand still until the first epoch is answered
 

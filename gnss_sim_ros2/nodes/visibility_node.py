@@ -8,7 +8,9 @@ batch of rays and publishes ``visibility`` (same stamp) and, once per second
 of ROS time, ``sky_view`` (sensor_msgs/Image, a polar sky plot for RViz);
 diagnostics count the epochs processed and dropped (no TF in time).
 With ``antenna_position`` the antenna stands still there (a base station):
-no TF lookup.
+no TF lookup. Messages travel as CDR bytes read and written from arrays
+(gnss_sim_ros2/cdr.py): ``satellite_states`` is a raw subscription and the
+visibility is published serialised.
 """
 from __future__ import annotations
 
@@ -17,13 +19,13 @@ import sys
 import time
 
 import numpy as np
+from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import Point
 from rclpy.clock import Clock, ClockType
 from sensor_msgs.msg import Image
 from std_msgs.msg import Header
 
-from gnss_sim_ros2.conversions import reflections_to_msgs, states_from_msg
+from gnss_sim_ros2.conversions import encode_visibility, stamp_of, states_from_cdr
 from gnss_sim_ros2.nodes.common import GnssSimNode, run_node
 from gnss_sim_ros2.nodes.tf_source import TfSource
 
@@ -70,7 +72,8 @@ class VisibilityNode(GnssSimNode):
         self.pub = self.lifecycle_publisher(Visibility, "visibility", 100)
         self.image_pub = self.lifecycle_publisher(Image, "sky_view", 2)
         self.diag_pub = self.lifecycle_publisher(DiagnosticArray, "/diagnostics", 10)
-        self.tf = TfSource(self)
+        # an epoch waiting for its pose is cast as soon as the pose comes (not at the drain timer's next tick)
+        self.tf = TfSource(self, on_update=self._drain)
 
     def _fixed_antenna(self, p) -> np.ndarray:
         """The static antenna of parameter antenna_position in the world frame."""
@@ -91,7 +94,7 @@ class VisibilityNode(GnssSimNode):
     def activate(self):
         from gnss_sim_msgs.msg import SatelliteStates
 
-        self.active_subscription(SatelliteStates, "satellite_states", self._on_states, 100)
+        self.active_subscription(SatelliteStates, "satellite_states", self._on_states, 100, raw=True)
         # a steady-clock timer: a simulated clock stands still while an epoch waits for its TF
         self.active_timer(0.005, self._drain, clock=Clock(clock_type=ClockType.STEADY_TIME))
 
@@ -107,8 +110,9 @@ class VisibilityNode(GnssSimNode):
         self._sky = None
 
     # ------------------------------------------------------------------
-    def _on_states(self, msg):
-        self.queue.append((msg, time.monotonic()))
+    def _on_states(self, data: bytes):
+        sec, nanosec = stamp_of(data)
+        self.queue.append((data, Time(sec=sec, nanosec=nanosec), time.monotonic()))
         self._drain()
 
     def _drain(self):
@@ -116,57 +120,52 @@ class VisibilityNode(GnssSimNode):
         (a simulated clock may stand still meanwhile), later ones wait behind it, so waits never add up."""
         p = self.params
         while self.queue:
-            msg, arrived = self.queue[0]
+            data, stamp, arrived = self.queue[0]
             if self.fixed_world_m is not None:
                 self.queue.popleft()
-                self.process(msg, self.fixed_world_m)
+                self.process(data, self.fixed_world_m)
                 continue
             try:
-                tr, _ = self.tf.lookup(p["world_frame"], p["antenna_frame"], msg.header.stamp)
+                tr, _ = self.tf.lookup(p["world_frame"], p["antenna_frame"], stamp)
             except LookupError:
                 if time.monotonic() - arrived > p["tf_timeout_s"]:
                     self.queue.popleft()
                     self.dropped += 1
-                    stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+                    t_s = stamp.sec + stamp.nanosec * 1e-9
                     self.get_logger().error(f"no transform {p['world_frame']} -> {p['antenna_frame']} in TF within "
-                                            f"tf_timeout_s = {p['tf_timeout_s']:g} s at {stamp:.3f} s: epoch dropped "
+                                            f"tf_timeout_s = {p['tf_timeout_s']:g} s at {t_s:.3f} s: epoch dropped "
                                             f"({self.dropped} so far)")
                     continue   # the epochs behind it have been waiting meanwhile: their own clocks run on
                 return
             self.queue.popleft()
-            self.process(msg, np.asarray(tr))
+            self.process(data, np.asarray(tr))
 
-    def process(self, msg, antenna_world_m):
-        from gnss_sim_msgs.msg import SatelliteVisibility, Visibility
-
-        _, states = states_from_msg(msg)
+    def process(self, data: bytes, antenna_world_m):
+        """One epoch: the serialised SatelliteStates in, the serialised Visibility published."""
+        (sec, nanosec), _, states, _ = states_from_cdr(data)
         ecef = self.scene.antenna_ecef(antenna_world_m)
-        out = Visibility(header=Header(stamp=msg.header.stamp, frame_id=self.params["world_frame"]),
-                         antenna_world_m=Point(x=float(antenna_world_m[0]), y=float(antenna_world_m[1]),
-                                               z=float(antenna_world_m[2])),
-                         antenna_ecef_m=Point(x=float(ecef[0]), y=float(ecef[1]), z=float(ecef[2])))
-        sats = []
+        rows = np.zeros(0, dtype=np.int64)
+        sv = az = el = state = att = extra = frac = rows
+        paths = None
         if len(states):
             state, att, v = self.options.cast(self.scene, antenna_world_m, states.pos_ecef_m)
-            above = v.el_deg >= 0.0
-            paths = getattr(v, "paths", None)     # reflected paths (multipath nlos/full), as the offline chain
-            for i in np.flatnonzero(above):
-                sats.append(SatelliteVisibility(
-                    sv=str(states.sv[i]), azimuth_deg=float(v.az_deg[i]), elevation_deg=float(v.el_deg[i]),
-                    state=int(state[i]), attenuation_db=float(att[i]),
-                    extra_path_m=float(v.extra_path_m[i]), fraction_blocked=float(v.fraction_blocked[i]),
-                    reflections=reflections_to_msgs(paths, i)))
-        out.satellites = sats
-        self.pub.publish(out)
+            rows = np.flatnonzero(v.el_deg >= 0.0)     # above the horizon
+            paths = getattr(v, "paths", None)          # reflected paths (multipath nlos/full), as the offline chain
+            sv, az, el = states.sv[rows], v.az_deg[rows], v.el_deg[rows]
+            state, att = state[rows], att[rows]
+            extra, frac = v.extra_path_m[rows], v.fraction_blocked[rows]
+        self.pub.publish(encode_visibility((sec, nanosec), self.params["world_frame"], antenna_world_m, ecef, sv, az,
+                                           el, state, att, extra, frac, paths, rows))
         self.processed += 1
-        t_s = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        t_s = sec + nanosec * 1e-9
         if t_s - self._last_image_s >= SKY_VIEW_PERIOD_S and self.image_pub.get_subscription_count() > 0:
             self._last_image_s = t_s
-            self.image_pub.publish(self._sky_image(out, antenna_world_m))
+            header = Header(stamp=Time(sec=sec, nanosec=nanosec), frame_id=self.params["world_frame"])
+            self.image_pub.publish(self._sky_image(header, az, el, state, antenna_world_m))
         if self.processed % 10 == 1:
-            self._diagnose(len(sats))
+            self._diagnose(len(rows))
 
-    def _sky_image(self, vis, antenna_world_m, size: int = 241) -> Image:
+    def _sky_image(self, header, az_deg, el_deg, state, antenna_world_m, size: int = 241) -> Image:
         """A polar sky view (north up, zenith centre): blocked sky grey, foliage pale green, satellites
         green (visible), red (blocked), yellow (attenuated), blue (reflection only)."""
         img = np.full((size, size, 3), 255, dtype=np.uint8)
@@ -187,12 +186,12 @@ class VisibilityNode(GnssSimNode):
         img[inside & foliage[ia, ie] & ~opaque[ia, ie]] = (200, 230, 200)
         img[(r > 1.0)] = (40, 40, 40)
         colors = {0: (0, 170, 0), 1: (200, 0, 0), 2: (230, 170, 0), 3: (0, 0, 200)}
-        for s in vis.satellites:
-            rr = (90.0 - s.elevation_deg) / 90.0 * c
-            x = int(round(c + rr * np.sin(np.radians(s.azimuth_deg))))
-            y = int(round(c - rr * np.cos(np.radians(s.azimuth_deg))))
-            img[max(0, y - 3):y + 4, max(0, x - 3):x + 4] = colors.get(s.state, (0, 0, 0))
-        return Image(header=vis.header, height=size, width=size, encoding="rgb8", is_bigendian=0, step=3 * size,
+        for a, e, st in zip(np.asarray(az_deg, dtype=float), np.asarray(el_deg, dtype=float), np.asarray(state)):
+            rr = (90.0 - e) / 90.0 * c
+            x = int(round(c + rr * np.sin(np.radians(a))))
+            y = int(round(c - rr * np.cos(np.radians(a))))
+            img[max(0, y - 3):y + 4, max(0, x - 3):x + 4] = colors.get(int(st), (0, 0, 0))
+        return Image(header=header, height=size, width=size, encoding="rgb8", is_bigendian=0, step=3 * size,
                      data=img.tobytes())
 
     def _diagnose(self, n: int):
