@@ -36,7 +36,8 @@ def _robot_counts(text: str) -> list[int]:
 
 
 def _lat(f: dict) -> str:
-    return f"p50 {f['latency_ms_median']} ms, p95 {f['latency_ms_p95']} ms, p99 {f['latency_ms_p99']} ms"
+    return (f"p50 {f['latency_ms_median']} ms, p95 {f['latency_ms_p95']} ms, p99 {f['latency_ms_p99']} ms "
+            f"(-> fix: p50 {f.get('fix_latency_ms_median')} ms, p99 {f.get('fix_latency_ms_p99')} ms)")
 
 
 def _layouts(text: str) -> list[str]:

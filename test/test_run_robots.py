@@ -81,6 +81,8 @@ def test_two_robots_each_its_namespace_one_ephemeris(tmp_path):
     assert worst["latency_ms_p99"]["value"] == max(f["latency_ms_p99"] for f in per.values())
     for f in per.values():
         assert f["latency_ms_median"] <= f["latency_ms_p95"] <= f["latency_ms_p99"]
+        # each robot's fix is published after its observations (ReceiverChain.observe, publish, finish)
+        assert f["fix_latency_ms_median"] > f["latency_ms_median"] > 0
 
     msgs = _bag_messages(out / "bag", ["/robot0/gnss/visibility", "/robot1/gnss/visibility", "/tf_static"])
     v0 = {_stamp(m): m for m in msgs["/robot0/gnss/visibility"]}

@@ -268,6 +268,7 @@ class Runner:
 
     def _subscribe_outputs(self):
         from gnss_sim_msgs.msg import Observations, SatelliteStates
+        from sensor_msgs.msg import NavSatFix
 
         from gnss_sim_ros2.nodes.latency_probe import LatencyProbe
 
@@ -279,7 +280,8 @@ class Runner:
         # latency: the states published -> each robot's observations published (the middleware's publication
         # times, read by a node of its own)
         self.probe = LatencyProbe(self.driver.context, ("/gnss/satellite_states", SatelliteStates),
-                                  [(r.topic("observations"), Observations) for r in self.robots])
+                                  [(r.topic(name), msg_type) for r in self.robots
+                                   for name, msg_type in (("observations", Observations), ("fix", NavSatFix))])
         if self.args.rtk:
             self._subscribe_rtk()
 
@@ -766,7 +768,8 @@ class RobotOutputs:
             err.append(float(np.hypot(d[0], d[1])))
         return {"tracked": [m.satellites_tracked for m in self.status.values()],
                 "fixes": [1 for m in self.fix.values() if m.status.status >= 0], "err": err,
-                "lat_ms": probe.latencies_ms(self.topic("observations"))}
+                "lat_ms": probe.latencies_ms(self.topic("observations")),
+                "fix_lat_ms": probe.latencies_ms(self.topic("fix"))}
 
 
 def _figures(x: dict, n_epochs: int) -> dict:
@@ -786,6 +789,9 @@ def _figures(x: dict, n_epochs: int) -> dict:
         "latency_ms_median": r(np.median(lat_ms)) if lat_ms else None,
         "latency_ms_p95": r(np.percentile(lat_ms, 95)) if lat_ms else None,
         "latency_ms_p99": r(np.percentile(lat_ms, 99)) if lat_ms else None,
+        # states published -> NavSatFix published (the fix follows the observations: ReceiverChain.finish)
+        "fix_latency_ms_median": r(np.median(x["fix_lat_ms"])) if x["fix_lat_ms"] else None,
+        "fix_latency_ms_p99": r(np.percentile(x["fix_lat_ms"], 99)) if x["fix_lat_ms"] else None,
     }
 
 

@@ -138,10 +138,13 @@ class ReceiverNode(GnssSimNode):
         self.chain.set_iono_coefficients(iono)
         # below the horizon = not in the visibility message: blocked, no attenuation
         ecef, vis_state, att, paths = chain_inputs_from_visibility(visibility_from_cdr(vis_data), states.sv)
-        ep = self.chain.step(t, ecef, states, vis_state, att, multipath=paths)
-        obs, sol = ep.obs, ep.sol
+        # the raw observations first, as a receiver outputs them before its fix (the latency ends here), then
+        # the fix and the rest of the epoch: ReceiverChain.step in its two halves
+        obs = self.chain.observe(t, ecef, states, vis_state, att, multipath=paths)
         frame = self.params["antenna_frame"]
-        self.pubs["obs"].publish(encode_observations(stamp, frame, t, obs))   # first: the latency ends here
+        self.pubs["obs"].publish(encode_observations(stamp, frame, t, obs))
+        ep = self.chain.finish(t, ecef, states, obs)
+        sol = ep.sol
         header = Header(stamp=Time(sec=stamp[0], nanosec=stamp[1]), frame_id=frame)
         self.pubs["fix"].publish(self._fix_msg(header, sol))
         self.pubs["vel"].publish(self._vel_msg(header, sol))

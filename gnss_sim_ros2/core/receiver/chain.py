@@ -249,16 +249,29 @@ class ReceiverChain:
     # ------------------------------------------------------------------ one epoch
     def step(self, t: GnssTime, antenna_ecef_m, states, vis_state=None, attenuation_db=None,
              antenna_vel_ecef_mps=None, multipath=None) -> EpochProducts:
-        """One epoch; ``multipath``: the reflected paths of the states' rows (VisibilityOptions.cast) or None."""
+        """One epoch; ``multipath``: the reflected paths of the states' rows (VisibilityOptions.cast) or None.
+        :meth:`observe` then :meth:`finish`."""
+        obs = self.observe(t, antenna_ecef_m, states, vis_state, attenuation_db, antenna_vel_ecef_mps, multipath)
+        return self.finish(t, antenna_ecef_m, states, obs)
+
+    def observe(self, t: GnssTime, antenna_ecef_m, states, vis_state=None, attenuation_db=None,
+                antenna_vel_ecef_mps=None, multipath=None):
+        """The first half of :meth:`step`: the epoch's observables, tracking included (EpochObservations).
+        A receiver outputs these raw measurements before its fix (u-blox: RXM-RAWX, then NAV-PVT); the
+        receiver node publishes them here, then calls :meth:`finish` with them."""
         ecef = np.asarray(antenna_ecef_m, dtype=float)
         backward = self._backward_velocity(t, ecef)
         if antenna_vel_ecef_mps is None:
             antenna_vel_ecef_mps = backward
         if self.rx is None:
             self.rx = self._receiver(states)
-        obs = self.rx.epoch(t, ecef, states, vis_state, attenuation_db, antenna_vel_ecef_mps=antenna_vel_ecef_mps,
-                            multipath=multipath)
-        products = self._products(t, ecef, states, obs)
+        return self.rx.epoch(t, ecef, states, vis_state, attenuation_db, antenna_vel_ecef_mps=antenna_vel_ecef_mps,
+                             multipath=multipath)
+
+    def finish(self, t: GnssTime, antenna_ecef_m, states, obs) -> EpochProducts:
+        """The second half of :meth:`step`: the fix, NMEA, files and RTCM of the observables :meth:`observe`
+        gave for this epoch (called once per observe, in order)."""
+        products = self._products(t, np.asarray(antenna_ecef_m, dtype=float), states, obs)
         self._flush_rinex()
         return products
 
