@@ -198,7 +198,7 @@ class Runner:
         from rosgraph_msgs.msg import Clock
 
         from gnss_sim_ros2 import graph
-        from gnss_sim_ros2.nodes.manager import LocalNodes, RemoteNodes
+        from gnss_sim_ros2.nodes.manager import LocalNodes, OrderedNodes, RemoteNodes
 
         # our own SIGINT/SIGTERM handlers end the loop (summary, sky plot, files closed); rclpy's would shut
         # the context down under the running executor
@@ -262,7 +262,6 @@ class Runner:
             for part in parts:
                 if isinstance(part, RemoteNodes):
                     part.wait_for_services()
-                    _answers(part)
             self.manager = OrderedNodes(parts)
         self.started = True
 
@@ -816,51 +815,6 @@ def robot_process_name(k: int, robots: int) -> str:
     from gnss_sim_ros2.parameters import robot_namespace
 
     return robot_namespace(k) if robots > 1 else "robot"
-
-
-class OrderedNodes:
-    """The run's nodes wherever each is (nodes.manager LocalNodes or RemoteNodes, one per node, in the graph's
-    order), driven like one manager: configure upstream first, activate downstream first.
-
-    A node in another process whose change_state answer is lost (Fast DDS: "failed to send response
-    (timeout)" while a busy process's client is still being discovered) but whose state is the transition's
-    goal has made the transition: the run goes on."""
-
-    def __init__(self, parts):
-        self.parts = list(parts)
-
-    def transition(self, name: str):
-        from lifecycle_msgs.srv import GetState
-
-        from gnss_sim_ros2.nodes.manager import TRANSITIONS, RemoteNodes, TransitionFailed
-
-        for part in reversed(self.parts) if name == "activate" else self.parts:
-            try:
-                part.transition(name)
-            except TransitionFailed:
-                if not isinstance(part, RemoteNodes):
-                    raise
-                state = part._call(part.get[part.names[0]], GetState.Request(), 10.0)
-                if state is None or state.current_state.label != TRANSITIONS[name][1]:
-                    raise
-
-
-#: wall seconds a node process has to answer its first get_state (each try, and in all) before any transition
-FIRST_ANSWER_S = (2.0, 30.0)
-
-
-def _answers(part) -> None:
-    """Until the node of ``part`` (nodes.manager.RemoteNodes of one node) answers a get_state: its service is
-    discovered before its answers reach this process, and a change_state whose answer is lost would wait for
-    it for the transition's whole timeout."""
-    from lifecycle_msgs.srv import GetState
-
-    from gnss_sim_ros2.nodes.manager import TransitionFailed
-
-    end = time.monotonic() + FIRST_ANSWER_S[1]
-    while part._call(part.get[part.names[0]], GetState.Request(), FIRST_ANSWER_S[0]) is None:
-        if time.monotonic() > end:
-            raise TransitionFailed(f"{part.names[0]}: no answer to get_state within {FIRST_ANSWER_S[1]:g} s")
 
 
 def _proc_cpu_s(pid: int) -> float | None:
