@@ -393,9 +393,10 @@ class Runner:
             t_configure = time.perf_counter()
             self.manager.transition("configure")
             self.configure_wall_s = time.perf_counter() - t_configure
-            self.peak_rss_mb = _peak_rss_mb()
+            self.peak_rss_mb = _proc_peak_rss_mb(os.getpid())   # every node when composed
             self.log(f"{self.args.robots} robot(s) configured in {self.configure_wall_s:.2f} s (scene, ephemeris, "
-                     f"receivers), peak memory of this process {self.peak_rss_mb:.0f} MB")
+                     f"receivers), peak memory of this process "
+                     f"{'unknown' if self.peak_rss_mb is None else f'{self.peak_rss_mb:.0f} MB'}")
             self.manager.transition("activate")
         except TransitionFailed as exc:
             print(f"gnss-sim run: error: {exc}", file=sys.stderr)
@@ -835,10 +836,3 @@ def _proc_peak_rss_mb(pid: int) -> float | None:
     except OSError:
         pass
     return None
-
-
-def _peak_rss_mb() -> float:
-    """Peak resident memory of this process [MB] (Linux ru_maxrss: kB): every node when composed."""
-    import resource
-
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
