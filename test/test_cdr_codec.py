@@ -11,8 +11,10 @@ from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris
 from gnss_sim_ros2.core.multipath.reflections import ScenePaths
 from gnss_sim_ros2.core.time import GnssTime
 
-rclpy_serialization = pytest.importorskip("rclpy.serialization")
-msgs = pytest.importorskip("gnss_sim_msgs.msg")
+rclpy_serialization = pytest.importorskip(
+    "rclpy.serialization", reason="rclpy is not installed (run make test, or source ROS 2): the codec is checked "
+    "against its serialisation")
+msgs = pytest.importorskip("gnss_sim_msgs.msg", reason="gnss_sim_msgs is not built (run make test)")
 serialize_message, deserialize_message = rclpy_serialization.serialize_message, rclpy_serialization.deserialize_message
 
 T0 = GnssTime.from_iso("2025-06-01T10:00:00")
