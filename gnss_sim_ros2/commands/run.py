@@ -25,6 +25,10 @@ from gnss_sim_ros2.graph import LAYOUTS
 
 #: summary.json "mode" of each layout ("processes": one per node, as before --layout)
 LAYOUT_MODES = {"composed": "composed", "robot": "robot_processes", "node": "processes"}
+#: with --realtime, /clock between two epochs is published at most this often [s of wall time] (and at every
+#: epoch exactly): every message wakes every node of every process (each node's clock subscription, the
+#: trajectory player's timer), so a finer clock costs CPU where the epochs need it (bench/profile_realtime.py)
+REALTIME_CLOCK_PERIOD_S = 0.01
 LAYOUT_WORDS = {"composed": "all nodes in one process", "robot": "one process per robot",
                 "node": "one process per node"}
 
@@ -371,6 +375,12 @@ class Runner:
         while time.monotonic() < end:
             self.executor.spin_once(timeout_sec=0.005)
 
+    def spin_until(self, end_perf_s: float):
+        """Dispatch callbacks until time.perf_counter() reaches ``end_perf_s`` (not beyond it by more than the
+        executor's wake-up)."""
+        while (left := end_perf_s - time.perf_counter()) > 0:
+            self.executor.spin_once(timeout_sec=min(left, 0.005))
+
     # ------------------------------------------------------------------ run
     def run(self, stop) -> int:
         from gnss_sim_ros2 import graph
@@ -418,9 +428,9 @@ class Runner:
                 break
             t_s = k * period
             if self.args.realtime:
-                while time.perf_counter() - wall0 < t_s:
-                    self.set_clock(time.perf_counter() - wall0)
-                    self.spin(0.002)
+                while (now_s := time.perf_counter() - wall0) < t_s:
+                    self.set_clock(now_s)
+                    self.spin_until(wall0 + min(t_s, now_s + REALTIME_CLOCK_PERIOD_S))
             self.set_clock(t_s)
             t_wait = time.monotonic()
             deadline = t_wait + max(10.0, tf_timeout_s + 2.0)
