@@ -18,9 +18,10 @@ stays in a hidden ``.open_split`` folder, outside the bag.
 
 Closing a split (MCAP summary, metadata.yaml) takes 40-100 ms of the thread
 that spins the recorder, which in ``gnss-sim run`` is the nodes' executor: a
-due split is closed right after the receiver's last message of an epoch
-(``rotate_after``, EPOCH_LAST_TOPIC: nothing of the chain waits then),
-or by the timer when that topic has not come for another ``split_s``.
+due split is closed right after the receivers' last message of an epoch
+(``rotate_after``, EPOCH_LAST_TOPIC: once every robot's has come, nothing of
+the chain waits then), or by the timer when they have not come for another
+``split_s``.
 """
 from __future__ import annotations
 
@@ -73,8 +74,10 @@ class BagRecorder:
         self.bag_dir.mkdir(parents=True)
         self.split_s = float(split_s)
         self.topics = list(topics)
-        # a due split closes after this topic's message (when recorded), else after any message
-        self.rotate_after = rotate_after if rotate_after in {t for t, _ in self.topics} else None
+        # a due split closes once every recorded topic named rotate_after, or ending in it (each robot's
+        # /robotK/gnss/nmea), has come since it became due; without any such topic, after any message
+        self.rotate_after = frozenset(t for t, _ in self.topics if rotate_after and t.endswith(rotate_after))
+        self._due_seen: set = set()
         self.counts: dict[str, int] = {}
         self.subs = []
         self.closed = False
@@ -99,8 +102,14 @@ class BagRecorder:
         age = time.monotonic() - self._split_started
         if topic is None:
             due = age >= (2.0 * self.split_s if self.rotate_after else self.split_s)
+        elif age < self.split_s:
+            return
+        elif self.rotate_after:
+            if topic in self.rotate_after:
+                self._due_seen.add(topic)
+            due = self._due_seen == self.rotate_after
         else:
-            due = age >= self.split_s and (self.rotate_after is None or topic == self.rotate_after)
+            due = True
         if due:
             self._close_split()
             self._open_split()
@@ -118,6 +127,7 @@ class BagRecorder:
                        for topic, ros_type in self.topics}
         self._split_messages = 0
         self._split_started = time.monotonic()
+        self._due_seen = set()
 
     def _close_split(self):
         """Close the open split, move its file into the bag and rewrite metadata.yaml."""

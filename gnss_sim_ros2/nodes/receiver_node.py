@@ -57,6 +57,7 @@ class ReceiverNode(GnssSimNode):
         self.vis: dict[tuple, object] = {}
         self.last_stamp = None
         self.tcp = None                # core.rtcm.tcp_server.RtcmTcpServer (configure .. cleanup)
+        self.unfinished: list = []     # epochs observed and published, their fix not yet (process .. _finish)
 
     def configure(self, p):
         from gnss_sim_msgs.msg import Observations, ReceiverStatus
@@ -98,10 +99,12 @@ class ReceiverNode(GnssSimNode):
         self.active_subscription(Visibility, "visibility", self._on_vis, 100, raw=True)
 
     def deactivate(self):
+        self._finish()                 # the fix of an epoch whose observations went out, while publishers are on
         self.states.clear()
         self.vis.clear()
 
     def cleanup(self):
+        self._finish()
         self.pubs = {}
         if self.tcp is not None:
             self.tcp.close()
@@ -140,9 +143,25 @@ class ReceiverNode(GnssSimNode):
         ecef, vis_state, att, paths = chain_inputs_from_visibility(visibility_from_cdr(vis_data), states.sv)
         # the raw observations first, as a receiver outputs them before its fix (the latency ends here), then
         # the fix and the rest of the epoch: ReceiverChain.step in its two halves
+        self._finish()                 # the chain's halves in order: the previous epoch's fix first
         obs = self.chain.observe(t, ecef, states, vis_state, att, multipath=paths)
+        self.pubs["obs"].publish(encode_observations(stamp, self.params["antenna_frame"], t, obs))
+        # the fix after what is already waiting in the executor: several receivers in one process (robots
+        # composed) publish every robot's observations before any of them computes its fix
+        self.unfinished.append((stamp, t, ecef, states, obs))
+        if self.executor is not None:
+            self.executor.create_task(self._finish)
+        else:
+            self._finish()
+
+    def _finish(self):
+        """The second half of the epochs observed (ReceiverChain.finish) and their messages, in order."""
+        while self.unfinished and self.chain is not None:
+            self._publish_fix(*self.unfinished.pop(0))
+        self.unfinished.clear()
+
+    def _publish_fix(self, stamp, t, ecef, states, obs):
         frame = self.params["antenna_frame"]
-        self.pubs["obs"].publish(encode_observations(stamp, frame, t, obs))
         ep = self.chain.finish(t, ecef, states, obs)
         sol = ep.sol
         header = Header(stamp=Time(sec=stamp[0], nanosec=stamp[1]), frame_id=frame)
