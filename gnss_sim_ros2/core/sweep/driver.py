@@ -43,8 +43,9 @@ class SweepOutcome:
 
 
 #: what the local cluster's worker processes import before their first run: the fork server imports it once
-#: (in parallel with the sweep's own set-up) and every worker forked from it starts with it
-WORKER_PRELOAD = ("distributed", "gnss_sim_ros2.core.simulation", "gnss_sim_ros2.core.scene.visibility")
+#: (in parallel with the sweep's own set-up) and every worker forked from it starts with it (trimesh: SDF
+#: primitives, 0.3 s of a worker's first scene otherwise)
+WORKER_PRELOAD = ("distributed", "gnss_sim_ros2.core.simulation", "gnss_sim_ros2.core.scene.visibility", "trimesh")
 _METHOD_KEY = "distributed.worker.multiprocessing-method"
 
 
@@ -54,20 +55,23 @@ def start_local_workers() -> str:
     Dask starts worker processes with ``spawn`` by default: each one a fresh interpreter that imports
     distributed, gnss_sim and Open3D before its first run (1-3 s, paid after the set-up). With
     ``forkserver`` (the Python 3.14 default; no threads are forked) one server imports them while the
-    sweep builds its runs, and each worker is a fork of it.  A method the user chose in the Dask
-    configuration is kept.  Returns the method in use."""
+    sweep imports distributed and builds its runs, and each worker is a fork of it.  A method the user
+    chose in the Dask configuration is kept.  Returns the method in use."""
     import multiprocessing
     import multiprocessing.forkserver
 
-    import dask
-    from distributed.utils import get_mp_context  # (also loads distributed's configuration)
+    import dask  # the user's configuration (distributed's defaults come with distributed: spawn)
 
-    if dask.config.get(_METHOD_KEY) != "spawn" or "forkserver" not in multiprocessing.get_all_start_methods():
-        return dask.config.get(_METHOD_KEY)
+    method = dask.config.get(_METHOD_KEY, "spawn")
+    if method != "spawn" or "forkserver" not in multiprocessing.get_all_start_methods():
+        return method
+    # a server already running (the sweep command started it) goes on; the list applies to a new one only
+    multiprocessing.forkserver.set_forkserver_preload(list(WORKER_PRELOAD))
+    multiprocessing.forkserver.ensure_running()      # the server imports WORKER_PRELOAD from now on
+    from distributed.utils import get_mp_context  # (loads distributed's configuration: set ours after it)
+
     dask.config.set({_METHOD_KEY: "forkserver"})
-    ctx = get_mp_context()                       # dask's own preload list, set once
-    ctx.set_forkserver_preload(list(WORKER_PRELOAD))
-    multiprocessing.forkserver.ensure_running()  # the server imports WORKER_PRELOAD from now on
+    get_mp_context()
     return "forkserver"
 
 
