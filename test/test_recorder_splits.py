@@ -44,11 +44,17 @@ class _Node:
         pass
 
 
-def _recorder(tmp_path, monkeypatch, robots):
+#: bytes of a message: the recorder writes what came without reading it
+_MSG = b"\x00\x01\x00\x00" + bytes(12)
+STATES = f"{graph.TOPIC_NAMESPACE}/satellite_states"
+
+
+def _recorder(tmp_path, monkeypatch, topics):
+    """(BagRecorder of ``topics`` on a stand-in node, its callbacks by topic, the monotonic clock {"s": ...})."""
     now = {"s": 100.0}
     monkeypatch.setattr(recorder.time, "monotonic", lambda: now["s"])
     node = _Node()
-    rec = recorder.BagRecorder(node, tmp_path / "bag", graph.recorded(robots), split_s=5.0)
+    rec = recorder.BagRecorder(node, tmp_path / "bag", topics, split_s=5.0)
     return rec, node.callbacks, now
 
 
@@ -58,21 +64,20 @@ def _nmea(k, robots):
 
 @pytest.mark.parametrize("robots", [1, 3])
 def test_a_due_split_waits_for_every_robots_last_message(tmp_path, monkeypatch, robots):
-    rec, cb, now = _recorder(tmp_path, monkeypatch, robots)
+    rec, cb, now = _recorder(tmp_path, monkeypatch, graph.recorded(robots))
     nmea = [_nmea(k, robots) for k in range(robots)]
     assert rec.rotate_after == frozenset(nmea)
-    states = f"{graph.TOPIC_NAMESPACE}/satellite_states"
-    cb[states](b"\x00\x01\x00\x00" + bytes(12))      # any bytes: the recorder writes them as they came
+    cb[STATES](_MSG)
     now["s"] += 6.0                                   # the split is due from here
-    cb[states](b"\x00\x01\x00\x00" + bytes(12))
+    cb[STATES](_MSG)
     assert rec._splits == []                          # not after the states: the robots' epochs are running
     for topic in nmea[:-1]:
-        cb[topic](b"\x00\x01\x00\x00" + bytes(8))
+        cb[topic](_MSG)
         assert rec._splits == []                      # not before the last robot's
-    cb[nmea[-1]](b"\x00\x01\x00\x00" + bytes(8))
+    cb[nmea[-1]](_MSG)
     assert len(rec._splits) == 1 and (tmp_path / "bag" / "bag_0.mcap").is_file()
     # the next split starts afresh: its own age, its own robots' messages
-    cb[nmea[0]](b"\x00\x01\x00\x00" + bytes(8))
+    cb[nmea[0]](_MSG)
     now["s"] += 6.0
     assert len(rec._splits) == 1
     rec.close()
@@ -80,15 +85,11 @@ def test_a_due_split_waits_for_every_robots_last_message(tmp_path, monkeypatch, 
 
 
 def test_without_the_epochs_last_topic_a_due_split_closes_after_any_message(tmp_path, monkeypatch):
-    now = {"s": 100.0}
-    monkeypatch.setattr(recorder.time, "monotonic", lambda: now["s"])
-    node = _Node()
     topics = tuple(t for t in graph.recorded(1) if not t[0].endswith(recorder.EPOCH_LAST_TOPIC))
-    rec = recorder.BagRecorder(node, tmp_path / "bag", topics, split_s=5.0)
+    rec, cb, now = _recorder(tmp_path, monkeypatch, topics)
     assert rec.rotate_after == frozenset()
-    states = f"{graph.TOPIC_NAMESPACE}/satellite_states"
-    node.callbacks[states](b"\x00\x01\x00\x00" + bytes(12))
+    cb[STATES](_MSG)
     now["s"] += 6.0
-    node.callbacks[states](b"\x00\x01\x00\x00" + bytes(12))
+    cb[STATES](_MSG)
     assert len(rec._splits) == 1
     rec.close()

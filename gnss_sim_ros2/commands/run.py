@@ -371,9 +371,7 @@ class Runner:
         self.clock_pub.publish(Clock(clock=Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)))
 
     def spin(self, seconds: float):
-        end = time.monotonic() + seconds
-        while time.monotonic() < end:
-            self.executor.spin_once(timeout_sec=0.005)
+        self.spin_until(time.perf_counter() + seconds)
 
     def spin_until(self, end_perf_s: float):
         """Dispatch callbacks until time.perf_counter() reaches ``end_perf_s`` (not beyond it by more than the

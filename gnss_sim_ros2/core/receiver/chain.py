@@ -295,7 +295,7 @@ class ReceiverChain:
         try:
             return [self._products(t, p, states, o, sol) for t, p, o, sol in zip(ts, ecef, obs, sols)]
         finally:
-            self._flush_files()           # the block's RINEX epochs, formatted and written together
+            self._flush_files()           # the block's RINEX epochs and fix.csv rows, written together
 
     def _products(self, t, ecef, states, obs, sol=None) -> EpochProducts:
         """The fix (unless given), NMEA, files and RTCM of one epoch's observables."""
@@ -423,7 +423,6 @@ class ReceiverChain:
         self.fix_path = out / "fix.csv"
         new = not self.fix_path.exists()
         self._fix_file = open(self.fix_path, "a", newline="", buffering=1)  # noqa: SIM115 - closed in close()
-        self._fix_rows = io.StringIO()
         self._fix_csv = csv.writer(self._fix_rows)
         if new:
             self._fix_csv.writerow(["time", "lat_deg", "lon_deg", "h_m", "n_sats", "status"])
