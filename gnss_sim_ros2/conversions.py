@@ -59,6 +59,41 @@ def observations_to_msg(header, t: GnssTime, obs):
     return msg
 
 
+def navsatfix_service_flags() -> dict[str, int]:
+    """{system letter: NavSatStatus.service bit} (QZSS flies GPS signals; NavIC has no bit)."""
+    from sensor_msgs.msg import NavSatStatus
+
+    return {"G": NavSatStatus.SERVICE_GPS, "J": NavSatStatus.SERVICE_GPS, "R": NavSatStatus.SERVICE_GLONASS,
+            "C": NavSatStatus.SERVICE_COMPASS, "E": NavSatStatus.SERVICE_GALILEO}
+
+
+def navsatfix_service(systems) -> int:
+    """NavSatStatus.service bits of the systems (letters) a fix used."""
+    flags = navsatfix_service_flags()
+    return int(np.bitwise_or.reduce([flags.get(s, 0) for s in systems] or [0]))
+
+
+def fix_to_msg(header, sol):
+    """``sensor_msgs/NavSatFix`` of a core.solver PvtSolution. position_covariance is the solver's own
+    ``cov_enu_m2`` (already scaled by the a-posteriori variance factor, solver.SolverConfig.scale_covariance),
+    row-major East, North, Up as the message defines it (sensor_msgs/NavSatFix.msg); no fix: NaN position,
+    COVARIANCE_TYPE_UNKNOWN."""
+    from sensor_msgs.msg import NavSatFix, NavSatStatus
+
+    fix = NavSatFix(header=header)
+    fix.status.service = navsatfix_service({s[0] for s in sol.sv_used})
+    if sol.is_fix:
+        fix.status.status = NavSatStatus.STATUS_FIX
+        fix.latitude, fix.longitude, fix.altitude = float(sol.lat_deg), float(sol.lon_deg), float(sol.h_m)
+        fix.position_covariance = [float(v) for v in np.asarray(sol.cov_enu_m2, dtype=float).reshape(9)]
+        fix.position_covariance_type = NavSatFix.COVARIANCE_TYPE_KNOWN
+    else:
+        fix.status.status = NavSatStatus.STATUS_NO_FIX
+        fix.latitude = fix.longitude = fix.altitude = float("nan")
+        fix.position_covariance_type = NavSatFix.COVARIANCE_TYPE_UNKNOWN
+    return fix
+
+
 def iono_from_msg(msg) -> dict | None:
     """The navigation header's ionosphere coefficients carried by a ``SatelliteStates`` message (the dict
     states_to_msg takes: "GPSA"/"GPSB" Klobuchar, "GAL" NeQuick-G), None when it carries none."""

@@ -5,7 +5,7 @@ stamp (the visibility message carries the antenna position that the
 visibility node looked up in TF at that stamp, lever arm included: one TF
 lookup serves both nodes), runs the receiver core and publishes:
 ``observations`` (gnss_sim_msgs/Observations), ``fix`` (sensor_msgs/NavSatFix,
-ENU covariance from the solution scaled by its a-posteriori variance),
+conversions.fix_to_msg: the solver's ENU covariance, which it scaled by the a-posteriori variance factor),
 ``vel`` (geometry_msgs/TwistWithCovarianceStamped, ENU), ``status``
 (gnss_sim_msgs/ReceiverStatus), ``nmea`` (std_msgs/String, one epoch's
 sentences; nmea_msgs is not available on PyPI) and diagnostics; and writes
@@ -30,20 +30,21 @@ import numpy as np
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import TwistWithCovarianceStamped
-from sensor_msgs.msg import NavSatFix, NavSatStatus
+from sensor_msgs.msg import NavSatFix
 from std_msgs.msg import Header, String
 
 from gnss_sim_ros2.conversions import (
     chain_inputs_from_visibility,
     encode_observations,
+    fix_to_msg,
+    navsatfix_service_flags,
     stamp_of,
     states_from_cdr,
     visibility_from_cdr,
 )
 from gnss_sim_ros2.nodes.common import GnssSimNode, run_node
 
-SERVICE_FLAGS = {"G": NavSatStatus.SERVICE_GPS, "J": NavSatStatus.SERVICE_GPS, "R": NavSatStatus.SERVICE_GLONASS,
-                 "C": NavSatStatus.SERVICE_COMPASS, "E": NavSatStatus.SERVICE_GALILEO}
+SERVICE_FLAGS = navsatfix_service_flags()
 
 
 class ReceiverNode(GnssSimNode):
@@ -165,7 +166,7 @@ class ReceiverNode(GnssSimNode):
         ep = self.chain.finish(t, ecef, states, obs)
         sol = ep.sol
         header = Header(stamp=Time(sec=stamp[0], nanosec=stamp[1]), frame_id=frame)
-        self.pubs["fix"].publish(self._fix_msg(header, sol))
+        self.pubs["fix"].publish(fix_to_msg(header, sol))
         self.pubs["vel"].publish(self._vel_msg(header, sol))
         self.pubs["status"].publish(self._status_msg(header, obs, sol))
         self.pubs["nmea"].publish(String(data=ep.nmea))
@@ -177,23 +178,6 @@ class ReceiverNode(GnssSimNode):
                 self.tcp.write(ep.rtcm)
         if self.chain.epochs % 10 == 1:
             self._diagnose(obs, sol)
-
-    def _fix_msg(self, header, sol):
-        fix = NavSatFix(header=header)
-        used = {s[0] for s in sol.sv_used}
-        fix.status.service = int(np.bitwise_or.reduce([SERVICE_FLAGS.get(s, 0) for s in used] or [0]))
-        if sol.is_fix:
-            fix.status.status = NavSatStatus.STATUS_FIX
-            fix.latitude, fix.longitude, fix.altitude = float(sol.lat_deg), float(sol.lon_deg), float(sol.h_m)
-            dof = max(sol.n_used - 3 - len(sol.clock_systems), 0)
-            scale = max(1.0, sol.chi2 / dof) if dof > 0 else 1.0
-            fix.position_covariance = [float(v) for v in (np.asarray(sol.cov_enu_m2) * scale).ravel()]
-            fix.position_covariance_type = NavSatFix.COVARIANCE_TYPE_KNOWN
-        else:
-            fix.status.status = NavSatStatus.STATUS_NO_FIX
-            fix.latitude = fix.longitude = fix.altitude = float("nan")
-            fix.position_covariance_type = NavSatFix.COVARIANCE_TYPE_UNKNOWN
-        return fix
 
     def _vel_msg(self, header, sol):
         msg = TwistWithCovarianceStamped(header=header)
