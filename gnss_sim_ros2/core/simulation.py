@@ -207,6 +207,27 @@ def _scene_options_key(options: VisibilityOptions | None, mesh: bool):
     return (bool(o.use_visuals), bool(o.keep_dynamic), bool(o.strict_world))
 
 
+#: sampling step of glonass_slots [s]: a GLONASS broadcast record serves +-15 min of its tb (select.WINDOW_S)
+GLONASS_SLOT_STEP_S = 900.0
+
+
+def glonass_slots(provider, start, duration_s: float, systems: str) -> dict[str, int]:
+    """{"R01": frequency channel k} of every GLONASS satellite ``provider`` serves at some instant of the run
+    [start, start + duration_s] (RINEX 3.04 section 5.2, header GLONASS SLOT / FRQ #), not only of those at
+    the first epoch: a satellite rising later in the run keeps its phase and Doppler in a reader that takes
+    the wavelength from this header.  Its states are sampled every GLONASS_SLOT_STEP_S and at the end."""
+    if "R" not in systems:
+        return {}
+    span_s = max(float(duration_s), 0.0)
+    n = int(np.ceil(span_s / GLONASS_SLOT_STEP_S))
+    slots: dict[str, int] = {}
+    for k in range(n + 1):
+        st = provider.states(start + min(k * GLONASS_SLOT_STEP_S, span_s), systems="R")
+        for sv, ch in zip(np.asarray(st.sv).tolist(), np.asarray(st.glo_channel).tolist()):
+            slots.setdefault(str(sv), int(ch))
+    return dict(sorted(slots.items()))
+
+
 def crop_world_mesh(world, antenna_world_m, mask_deg: float, margin_deg: float = 0.0):
     """The triangles of ``world`` (a WorldMesh) that may block a ray at or above the mask.
 
@@ -353,11 +374,7 @@ def run_simulation(setup: SimulationSetup) -> SimulationResult:
     if nav_written is None and nav_paths:
         shutil.copyfile(nav_paths[0], nav_path)
         nav_written = nav_path
-    glo_slots = {}
-    st0 = provider.states(setup.start, systems=setup.systems)
-    for sv, ch in zip(st0.sv, st0.glo_channel):
-        if sv[0] == "R":
-            glo_slots[str(sv)] = int(ch)
+    glo_slots = glonass_slots(provider, setup.start, setup.duration_s, setup.systems)
     rtcm = None
     if setup.rtcm_path is not None:
         rtcm = Path(setup.rtcm_path) if setup.rtcm_path else out / rinex_name(

@@ -33,6 +33,10 @@ _CHOKE_XPD_DB = np.array([5.0, 5.0, 7.0, 10.0, 17.0, 22.0, 25.0])
 
 PATTERNS = ("patch", "choke_ring")
 
+#: RINEX header ANT # / TYPE of each pattern: IGS antenna name, A16 type + A4 radome (RINEX 3.04 table A2;
+#: IGS rcvr_ant.tab naming); the simulator's own names, as these are representative, not one product's tables
+RINEX_ANTENNA_TYPE = {"patch": "GNSS_SIM_PATCH  NONE", "choke_ring": "GNSS_SIM_CHOKE  NONE"}
+
 
 def gain_dbic(pattern: str, el_deg):
     """(RHCP gain, LHCP gain) [dBic] at arrival elevations ``el_deg`` (array)."""

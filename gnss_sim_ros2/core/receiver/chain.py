@@ -381,7 +381,7 @@ class ReceiverChain:
         cfg = s.receiver
         return header(self.obs_types, s.marker_name, ecef, s.interval_s, slots,
                       comments=[f"{self.comment}, preset {s.preset}",
-                                f"seed {cfg.seed}; noise {'on' if cfg.noise else 'off'}"])
+                                f"seed {cfg.seed}; noise {'on' if cfg.noise else 'off'}"], antenna=cfg.antenna)
 
     def _open_rtcm(self):
         from ..rtcm.writer import RtcmWriter

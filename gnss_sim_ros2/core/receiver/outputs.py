@@ -98,11 +98,15 @@ def _columns_of(obs_types: dict[str, list[str]]) -> dict:
 
 
 def header(obs_types, marker_name: str, approx_pos_ecef_m, interval_s: float, glonass_slots: dict,
-           comments=()) -> RinexObsHeader:
+           comments=(), antenna: str = "patch") -> RinexObsHeader:
+    """The RINEX observation header of a simulated receiver; ``antenna``: its pattern (multipath/antenna.py
+    PATTERNS, the profile's ReceiverConfig.antenna), named in ANT # / TYPE."""
+    from ..multipath.antenna import RINEX_ANTENNA_TYPE
+
     return RinexObsHeader(
         obs_types=obs_types, marker_name=marker_name, marker_type="NON_GEODETIC",
         observer="gnss_sim", agency="gnss_sim", receiver_number="1", receiver_type="GNSS_SIM",
-        receiver_version="0.1", antenna_number="1", antenna_type="GNSS_SIM_PATCH  NONE",
+        receiver_version="0.1", antenna_number="1", antenna_type=RINEX_ANTENNA_TYPE[antenna],
         approx_pos_ecef_m=tuple(float(v) for v in approx_pos_ecef_m), interval_s=interval_s,
         glonass_slots=glonass_slots, glonass_cod_phs_bis_m={"C1C": 0.0, "C1P": 0.0, "C2C": 0.0, "C2P": 0.0},
         comments=list(comments),
