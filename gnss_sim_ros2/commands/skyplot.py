@@ -1,12 +1,19 @@
 """``gnss-sim skyplot``: line-of-sight state of every satellite seen from a point of a world.
 
     gnss-sim skyplot (--world SDF | --mesh FILE) --at E,N,U --time ISO8601 (--nav FILE ... | --synthetic)
-                     [--mask-deg D] --csv FILE [--png FILE]
+                     [--mask-deg D] --csv FILE [--png FILE [--skyline-csv FILE]]
 
 ``--at`` is in the world frame (Gazebo world, ENU at the origin when heading is 0), metres.  The CSV
 has one row ``sv,az_deg,el_deg,state,attenuation_db`` for each satellite at or above the horizon and
 the mask, with state ``visible``, ``blocked`` or ``attenuated``; az/el in the local ENU frame of the
 antenna.  ``--time`` is read in ``--time-scale`` (GPS by default).
+
+The PNG draws every satellite above the horizon (those under the mask as hollow grey "below mask" discs), the
+sky cells the casts find blocked (grey) or in foliage (green), and the scene's skyline and foliage outline
+(``Scene.horizon_profile``: the highest blocked elevation per azimuth, 1 degree apart, found by casting rays
+on the scene).  The skyline goes beside it as CSV (``--skyline-csv``, default ``skyline.csv`` in the PNG's
+folder): ``azimuth_deg,elevation_deg,foliage_elevation_deg``, one row per degree of azimuth, to compare with
+a measured sky mask.
 """
 from __future__ import annotations
 
@@ -33,6 +40,9 @@ def add_arguments(parser):
     parser.add_argument("--fresnel-rays", type=int, default=0, help="soft-edge rays per satellite (0 = off)")
     parser.add_argument("--csv", required=True, metavar="FILE", help="output CSV")
     parser.add_argument("--png", metavar="FILE", help="output sky plot PNG")
+    parser.add_argument("--skyline-csv", metavar="FILE",
+                        help="the scene's skyline per degree of azimuth as CSV (default with --png: skyline.csv in "
+                             "the PNG's folder)")
 
 
 def _parse_at(text: str) -> np.ndarray:
@@ -95,13 +105,37 @@ def _run(args) -> int:
     counts = {k: sum(names[i] == k for i in order) for k in ("visible", "attenuated", "blocked")}
     print(f"{args.csv}: {len(order)} satellites above {mask:g} deg: "
           + ", ".join(f"{v} {k}" for k, v in counts.items()))
+    skyline_csv = args.skyline_csv or (Path(args.png).parent / "skyline.csv" if args.png else None)
+    if skyline_csv is not None:
+        horizon = scene.horizon_profile(at, az_step_deg=SKYLINE_STEP_DEG)
+        foliage = scene.horizon_profile(at, az_step_deg=SKYLINE_STEP_DEG, which="foliage") \
+            if scene.has_foliage else (horizon[0], np.zeros_like(horizon[1]))
+        write_skyline_csv(skyline_csv, horizon[0], horizon[1], foliage[1])
+        print(f"{skyline_csv}: skyline, {len(horizon[0])} azimuths, elevation up to {np.max(horizon[1]):.1f} deg")
     if args.png:
         from gnss_sim_ros2.core.skyplot import plot_skyplot
 
-        # the blocked sky from casts over the whole sky: gaps under overhangs stay open
-        plot_skyplot(args.png, np.asarray(st.sv)[order], res.az_deg[order], res.el_deg[order],
-                     [names[i] for i in order], sky=scene.sky_grid(at), mask_deg=mask or None,
+        # every satellite above the horizon (under the mask: drawn as such); the blocked sky from casts over
+        # the whole sky (gaps under overhangs stay open) and the skyline and foliage outline over it
+        up = np.flatnonzero(res.el_deg >= 0.0)
+        up = up[np.argsort(np.asarray(st.sv)[up])]
+        plot_skyplot(args.png, np.asarray(st.sv)[up], res.az_deg[up], res.el_deg[up],
+                     [names[i] for i in up], sky=scene.sky_grid(at), horizon=horizon,
+                     foliage_horizon=foliage if scene.has_foliage else None, mask_deg=mask or None,
                      title=f"{Path(args.world or args.mesh).name} at E,N,U = {args.at} m, "
                            f"{args.time} {args.time_scale}")
         print(f"{args.png}: sky plot")
     return 0
+
+
+#: azimuth step of the skyline [deg]
+SKYLINE_STEP_DEG = 1.0
+
+
+def write_skyline_csv(path, az_deg, el_deg, foliage_el_deg) -> None:
+    """The skyline as CSV: azimuth_deg,elevation_deg,foliage_elevation_deg (0: nothing above the horizon)."""
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["azimuth_deg", "elevation_deg", "foliage_elevation_deg"])
+        for a, e, f in zip(az_deg, el_deg, foliage_el_deg):
+            w.writerow([f"{a:.1f}", f"{e:.3f}", f"{f:.3f}"])
