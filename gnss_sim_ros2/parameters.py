@@ -221,8 +221,10 @@ NODE_PARAMS: dict[str, list[Param]] = {
               "or wall edge (ITU-R P.526 knife edge) are received weakened"),
         Param("multipath_scattering", False, "with multipath on: diffuse scattering from the walls (effective "
               "roughness, Lambertian, S = 0.4) adds paths to the specular ones"),
-        Param("tf_timeout_s", 5.0, "wall-clock seconds an epoch waits for the antenna's transform before it is "
-              "dropped (and `gnss-sim run` fails, naming the frames)", min=0.1, max=600.0),
+        Param("tf_timeout_s", 5.0, "wall-clock seconds after which an epoch whose antenna transform TF lacks is "
+              "dropped (and `gnss-sim run` fails, naming the frames): counted once TF has reached the epoch's "
+              "stamp without the frame, or while no node publishes /tf; a TF source that is alive but behind "
+              "(a loaded machine) is waited for (tf_tree.FrameWait)", min=0.1, max=600.0),
         Param("antenna_position", [], "a static antenna (3 numbers in antenna_position_type) instead of "
               "antenna_frame looked up in TF, e.g. a base station; empty: from TF", item_type="double"),
         Param("antenna_position_type", "world", "what antenna_position holds: world (x, y, z in world_frame [m]), "

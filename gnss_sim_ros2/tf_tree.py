@@ -125,3 +125,58 @@ class TransformTree:
             tr_t, rot_t = rot.apply(tr_t) + tr, rot * rot_t
         inv_t = rot_t.inv()
         return inv_t.apply(tr_s - tr_t), inv_t * rot_s
+
+
+def frame_group(frame: str) -> str:
+    """The namespace part of a frame id (``robot1/gnss_antenna`` -> ``robot1/``; ``gnss_antenna`` -> ``""``):
+    the frames one source of TF publishes (one robot's)."""
+    return frame[:frame.rfind("/") + 1]
+
+
+class FrameWait:
+    """The missing-frame rule of an epoch that waits for its antenna's transform (issue 25: a loaded machine
+    is the normal case, so wall time alone proves nothing). It keys on the data:
+
+    - the source of TF has reached the epoch (a ``/tf`` transform of the antenna's frame group stamped at or
+      after it came) and the transform still cannot be computed: the frame is missing once that has lasted
+      ``timeout_s`` of wall time (late ``/tf_static`` and other publishers' frames get that grace);
+    - TF has not reached the epoch: while a ``/tf`` publisher is alive the epoch waits (the source is behind,
+      e.g. starved of CPU, not missing a frame); with no ``/tf`` publisher at all the frame is missing
+      ``timeout_s`` of wall time after the epoch began to wait (nothing publishes the robot's TF).
+
+    ROS-free: the owner feeds it each ``/tf`` message's (child frame, stamp [s]) through :meth:`seen` and asks
+    :meth:`missing` with the wall times of ``time.monotonic()``.
+    """
+
+    def __init__(self, timeout_s: float, history: int = 4096):
+        self.timeout_s = float(timeout_s)
+        self.history = history
+        #: per frame group: [(stamp_s, wall_s)], the wall time at which TF first reached each newer stamp
+        self.reached: dict[str, list[tuple[float, float]]] = {}
+
+    def seen(self, child_frame: str, stamp_s: float, wall_s: float) -> None:
+        steps = self.reached.setdefault(frame_group(child_frame), [])
+        if not steps or stamp_s > steps[-1][0]:
+            steps.append((stamp_s, wall_s))
+            if len(steps) > self.history:
+                del steps[:len(steps) - self.history]
+
+    def seen_transforms(self, transforms, wall_s: float) -> None:
+        """:meth:`seen` of each geometry_msgs/TransformStamped of a ``/tf`` message."""
+        for tf in transforms:
+            self.seen(tf.child_frame_id, tf.header.stamp.sec + tf.header.stamp.nanosec * 1e-9, wall_s)
+
+    def reached_at(self, frame: str, t_s: float) -> float | None:
+        """Wall time at which TF of ``frame``'s group first reached ``t_s`` (1 ns tolerance); None: not yet."""
+        steps = self.reached.get(frame_group(frame), [])
+        i = bisect.bisect_left([s for s, _ in steps], t_s - 1e-9)
+        return steps[i][1] if i < len(steps) else None
+
+    def missing(self, frame: str, t_s: float, waiting_since_s: float, now_s: float, tf_publishers: int) -> bool:
+        """Whether the epoch at ``t_s`` (waiting since ``waiting_since_s``) misses the transform of ``frame``."""
+        reached = self.reached_at(frame, t_s)
+        if reached is not None:
+            return now_s - max(reached, waiting_since_s) > self.timeout_s
+        if tf_publishers > 0:
+            return False
+        return now_s - waiting_since_s > self.timeout_s

@@ -278,6 +278,15 @@ class Runner:
         self._subs = []
         n = self.args.robots
         self.robots = [RobotOutputs(self.driver, k if n > 1 else -1) for k in range(n)]
+        # how far TF has come: the missing-frame rule of the wait for an epoch's visibility (tf_tree.FrameWait; a
+        # second later than the visibility node's own, whose error comes first)
+        from tf2_msgs.msg import TFMessage
+
+        from gnss_sim_ros2.tf_tree import FrameWait
+
+        self.tf_wait = FrameWait(self.cfg.node("visibility")["tf_timeout_s"] + 1.0)
+        self._subs.append(self.driver.create_subscription(
+            TFMessage, "/tf", lambda m: self.tf_wait.seen_transforms(m.transforms, time.monotonic()), 100))
         r0 = self.robots[0]              # one robot: the run's outputs (the RTK figures use its truth)
         self.status, self.fix, self.truth = r0.status, r0.fix, r0.truth
         # latency: the states published -> each robot's observations published (the middleware's publication
@@ -420,6 +429,8 @@ class Runner:
         self.cpu0 = self.cpu_s()
         dropped = 0
         k_done = 0
+        antenna_frames = {r.k: (graph.node_parameters(self.cfg, r.spec("visibility"), self.args.robots) if r.k >= 0
+                                else self.cfg.node("visibility"))["antenna_frame"] for r in self.robots}
         for k in range(n_epochs):
             if stop["flag"]:
                 self.log(f"stopped after {k_done} epochs")
@@ -435,13 +446,13 @@ class Runner:
             while (not all(r.answered(t_s) for r in self.robots) and time.monotonic() < deadline
                    and not stop["flag"]):
                 self.executor.spin_once(timeout_sec=0.001)
-                late = [r for r in self.robots if not r.cast(t_s)] if time.monotonic() - t_wait > tf_timeout_s + 1.0 \
-                    else []
+                late = [r for r in self.robots if not r.cast(t_s) and self.tf_wait.missing(
+                    antenna_frames[r.k], t_s, t_wait, time.monotonic(), self.driver.count_publishers("/tf"))]
                 if late:
                     vis = graph.node_parameters(self.cfg, late[0].spec("visibility"), self.args.robots) \
                         if late[0].k >= 0 else self.cfg.node("visibility")
                     print(f"\ngnss-sim run: error: no transform from '{vis['world_frame']}' to "
-                          f"'{vis['antenna_frame']}' in TF within tf_timeout_s = {tf_timeout_s:g} s (wall time) at "
+                          f"'{vis['antenna_frame']}' in TF within tf_timeout_s = {tf_timeout_s:g} s at "
                           f"epoch {k} (t = {t_s:g} s): nothing publishes the robot's TF (the trajectory player, "
                           f"or Gazebo through ros_gz_bridge) or the frames are misnamed (parameters world_frame, "
                           f"antenna_frame)", file=sys.stderr)

@@ -6,11 +6,13 @@ at the stamp (interpolated), or raise ``TransformError``.
 """
 from __future__ import annotations
 
+import time
+
 import numpy as np
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from scipy.spatial.transform import Rotation
 
-from gnss_sim_ros2.tf_tree import TransformError, TransformTree
+from gnss_sim_ros2.tf_tree import FrameWait, TransformError, TransformTree
 
 try:  # a ROS 2 install
     import tf2_ros  # type: ignore
@@ -21,16 +23,21 @@ except ImportError:  # PyPI wheels: tf2_ros does not exist there
 
 
 class TfSource:
-    def __init__(self, node, cache_time_s: float = 30.0, prefer_tf2_ros: bool = True, on_update=None):
+    def __init__(self, node, cache_time_s: float = 30.0, prefer_tf2_ros: bool = True, on_update=None,
+                 timeout_s: float = 5.0):
         self.node = node
         self.on_update = on_update     # called after each /tf message (compact backend): a waiting lookup retries
         self.backend = "tf2_ros" if (HAVE_TF2_ROS and prefer_tf2_ros) else "compact"
         self._subs = []
+        #: how far TF has come per frame group: the missing-frame rule (frame_missing)
+        self.wait = FrameWait(timeout_s)
         if self.backend == "tf2_ros":
             from rclpy.duration import Duration
+            from tf2_msgs.msg import TFMessage
 
             self.buffer = tf2_ros.Buffer(cache_time=Duration(seconds=cache_time_s))
             self.listener = tf2_ros.TransformListener(self.buffer, node, spin_thread=False)
+            self._subs = [node.create_subscription(TFMessage, "/tf", self._progress, 100)]
         else:
             from tf2_msgs.msg import TFMessage
 
@@ -44,7 +51,12 @@ class TfSource:
         #: newest dynamic stamp seen per child frame [s] (compact backend)
         self.latest_s: dict[str, float] = {}
 
+    def _progress(self, msg):
+        self.wait.seen_transforms(msg.transforms, time.monotonic())
+
     def _feed(self, msg, static: bool):
+        if not static:
+            self._progress(msg)
         for tf in msg.transforms:
             t = tf.header.stamp.sec + tf.header.stamp.nanosec * 1e-9
             tr, q = tf.transform.translation, tf.transform.rotation
@@ -68,6 +80,12 @@ class TfSource:
             tr, q = tf.transform.translation, tf.transform.rotation
             return np.array([tr.x, tr.y, tr.z]), Rotation.from_quat([q.x, q.y, q.z, q.w])
         return self.tree.lookup(target, source, stamp.sec + stamp.nanosec * 1e-9)
+
+    def frame_missing(self, frame: str, stamp, waiting_since_s: float) -> bool:
+        """Whether an epoch at ``stamp`` that waits since ``waiting_since_s`` (time.monotonic()) for the transform
+        of ``frame`` misses it: tf_tree.FrameWait's rule, with the /tf publishers alive in the graph."""
+        return self.wait.missing(frame, stamp.sec + stamp.nanosec * 1e-9, waiting_since_s, time.monotonic(),
+                                 self.node.count_publishers("/tf"))
 
     def can_transform(self, target: str, source: str, stamp) -> bool:
         try:

@@ -73,7 +73,7 @@ class VisibilityNode(GnssSimNode):
         self.image_pub = self.lifecycle_publisher(Image, "sky_view", 2)
         self.diag_pub = self.lifecycle_publisher(DiagnosticArray, "/diagnostics", 10)
         # an epoch waiting for its pose is cast as soon as the pose comes (not at the drain timer's next tick)
-        self.tf = TfSource(self, on_update=self._drain)
+        self.tf = TfSource(self, on_update=self._drain, timeout_s=p["tf_timeout_s"])
 
     def _fixed_antenna(self, p) -> np.ndarray:
         """The static antenna of parameter antenna_position in the world frame."""
@@ -116,8 +116,9 @@ class VisibilityNode(GnssSimNode):
         self._drain()
 
     def _drain(self):
-        """Cast every queued epoch whose antenna pose TF has; one waits at most tf_timeout_s of wall time
-        (a simulated clock may stand still meanwhile), later ones wait behind it, so waits never add up."""
+        """Cast every queued epoch whose antenna pose TF has; one whose frame is missing (TfSource.frame_missing:
+        TF reached the epoch without it for tf_timeout_s, or no /tf publisher for tf_timeout_s; a source that is
+        alive but behind is waited for) is dropped; later ones wait behind it, so waits never add up."""
         p = self.params
         while self.queue:
             data, stamp, arrived = self.queue[0]
@@ -128,12 +129,13 @@ class VisibilityNode(GnssSimNode):
             try:
                 tr, _ = self.tf.lookup(p["world_frame"], p["antenna_frame"], stamp)
             except LookupError:
-                if time.monotonic() - arrived > p["tf_timeout_s"]:
+                if self.tf.frame_missing(p["antenna_frame"], stamp, arrived):
                     self.queue.popleft()
                     self.dropped += 1
                     t_s = stamp.sec + stamp.nanosec * 1e-9
                     self.get_logger().error(f"no transform {p['world_frame']} -> {p['antenna_frame']} in TF within "
-                                            f"tf_timeout_s = {p['tf_timeout_s']:g} s at {t_s:.3f} s: epoch dropped "
+                                            f"tf_timeout_s = {p['tf_timeout_s']:g} s at {t_s:.3f} s (TF reached the "
+                                            f"epoch without it, or nothing publishes /tf): epoch dropped "
                                             f"({self.dropped} so far)")
                     continue   # the epochs behind it have been waiting meanwhile: their own clocks run on
                 return
