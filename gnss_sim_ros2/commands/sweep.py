@@ -25,6 +25,11 @@ AXIS_OPTIONS = {"--seeds": ("--seed", "seed"), "--dates": ("--start", "start"), 
 WORLD_SUFFIXES = (".sdf", ".world")
 
 
+def default_workers() -> int:
+    """Worker processes of the local cluster when ``--workers`` is not given: the machine's cores."""
+    return os.cpu_count() or 1
+
+
 def add_arguments(p):
     simulate.add_arguments(p)
     a = p.add_argument_group("sweep axes (every combination is one run)")
@@ -37,7 +42,8 @@ def add_arguments(p):
     c = p.add_argument_group("where the runs go")
     w = c.add_mutually_exclusive_group()
     w.add_argument("--workers", type=int, default=None, metavar="N",
-                   help=f"local cluster of N worker processes, one thread each (default: the cores, {os.cpu_count()})")
+                   help=f"local cluster of N worker processes, one thread each "
+                        f"(default: the cores, {default_workers()})")
     w.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler, e.g. tcp://10.0.0.5:8786")
     c.add_argument("--no-cache", action="store_true",
                    help="every run loads its scene and ephemeris (default: a worker keeps them between runs)")
@@ -159,7 +165,9 @@ def run(args) -> int:
             return 0
         # matplotlib is imported while the runs go (this process only waits for them)
         threading.Thread(target=pyplot, name="import-matplotlib", daemon=True).start()
-        outcome = run_sweep(tasks, out, workers=args.workers, scheduler=args.scheduler, progress=not args.quiet,
+        # --workers absent: the cores, as its help says (the driver alone would start one worker)
+        workers = None if args.scheduler else (args.workers if args.workers is not None else default_workers())
+        outcome = run_sweep(tasks, out, workers=workers, scheduler=args.scheduler, progress=not args.quiet,
                             cache=not args.no_cache)
     except ValueError as exc:
         print(f"gnss-sim sweep: error: {exc}", file=sys.stderr)
