@@ -42,12 +42,14 @@ def test_simulate_stopped_by_a_signal_closes_its_rinex(tmp_path, signum, code):
                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline:
-        found = list((tmp_path / "o").glob("*_MO.rnx"))
+        found = list(tmp_path.glob(".o.partial-*/*_MO.rnx"))     # written beside --out, moved there at the end
         if found and found[0].stat().st_size > 50_000:
             break
         time.sleep(0.2)
     proc.send_signal(signum)
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == code and "Traceback" not in err, err[-2000:]
+    found = list((tmp_path / "o").glob("*_MO.rnx"))                # a stopped run keeps its closed epochs
+    assert len(found) == 1 and not list(tmp_path.glob(".o.partial-*"))
     header = found[0].read_text().split("END OF HEADER")[0]
     assert "TIME OF LAST OBS" in header

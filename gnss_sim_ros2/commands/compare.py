@@ -7,7 +7,8 @@ Inputs: RINEX 3 observation files or rosbag2 bags holding gnss_sim_msgs/Observat
 (``gnss-sim run``'s ``bag/``).  Writes ``DIR/report.md`` (per system and per satellite
 pseudorange, time-differenced carrier phase, Doppler and C/N0 differences after removing
 the receiver clock; satellites seen by one side only; position solutions of both files
-against each other and the truth) and PNG figures beside it.  Method: core/comparison/.
+against each other and the truth) and PNG figures beside it (only compare's own files in DIR are replaced;
+a DIR holding other files is refused: core/output_folder.py).  Method: core/comparison/.
 The real file is read over the simulated span only.  Without ``--nav`` there are no
 positions and no elevations.  Truth: ``--truth`` (ECEF m), ``--truth-csv`` (time and
 x_m,y_m,z_m or lat_deg,lon_deg,h_m, e.g. a simulation's fix.csv) or, by default, the
@@ -33,20 +34,36 @@ def add_arguments(p):
                    help="elevation mask of the tracked-satellite comparison [deg] (needs --nav; default 0)")
     p.add_argument("--solver", choices=("ours", "rtklib"), default="ours",
                    help="position solver: gnss_sim solve_pvt (default) or RTKLIB rnx2rtkp (RINEX inputs)")
-    p.add_argument("--out", required=True, metavar="DIR", help="output folder (report.md + PNG figures)")
+    p.add_argument("--out", required=True, metavar="DIR",
+                   help="output folder (report.md + PNG figures): new, empty or one of an earlier compare (only its "
+                        "files are replaced); a folder holding other files is refused")
 
 
 def run(args) -> int:
     from gnss_sim_ros2.core.comparison import compare, write_report
+    from gnss_sim_ros2.core.output_folder import OutputBusy, OutputFolder
 
+    # written beside --out, moved there at the end: only compare's own files replaced (core/output_folder.py)
+    folder = OutputFolder(Path(args.out), command="gnss-sim compare",
+                          inputs=[args.sim, args.real, *(args.nav or ()), args.truth_csv])
     try:
         truth = parse_triple(args.truth, "--truth (ECEF X,Y,Z [m])") if args.truth else None
-        cmp = compare(args.sim, args.real, nav_paths=args.nav, truth_ecef_m=truth, truth_csv=args.truth_csv,
-                      mask_deg=args.mask_deg, solver=args.solver, workdir=Path(args.out))
-        report = write_report(cmp, args.out)
+        staging = folder.acquire()
+        try:
+            cmp = compare(args.sim, args.real, nav_paths=args.nav, truth_ecef_m=truth, truth_csv=args.truth_csv,
+                          mask_deg=args.mask_deg, solver=args.solver, workdir=staging)
+            report = write_report(cmp, staging)
+        except BaseException:
+            folder.abandon()
+            raise
+        folder.commit()
+        report = folder.final_path(report)
     except ValueError as exc:
         print(f"gnss-sim compare: error: {exc}", file=sys.stderr)
         return 2
+    except OutputBusy as exc:
+        print(f"gnss-sim compare: error: {exc}", file=sys.stderr)
+        return 1
     code = cmp.kinds["code"]
     if code.available:
         parts = []

@@ -46,7 +46,11 @@ def add_arguments(p):
     sc = p.add_mutually_exclusive_group()
     sc.add_argument("--world", metavar="SDF", help="Gazebo world (default: worlds/courtyard.sdf)")
     sc.add_argument("--mesh", metavar="FILE", help="mesh exported by export-world")
-    p.add_argument("--out", default="gnss_sim_run", metavar="DIR", help="output folder [gnss_sim_run]")
+    from gnss_sim_ros2.core.scene.scene_report import ALLOW_PARTIAL_HELP
+    p.add_argument("--allow-partial", action="store_true", help=ALLOW_PARTIAL_HELP)
+    p.add_argument("--out", default="gnss_sim_run", metavar="DIR",
+                   help="output folder [gnss_sim_run]: new, empty or one of an earlier run (only its files are "
+                        "replaced); a folder holding other files is refused")
     p.add_argument("--duration", type=float, default=None, metavar="S", help="simulated seconds [from config]")
     p.add_argument("--rate", type=float, default=None, metavar="HZ", help="epoch rate [from config]")
     p.add_argument("--systems", default=None, help="GNSS systems, letters of GRECJI")
@@ -77,7 +81,8 @@ def add_arguments(p):
 
 #: command-line option -> parameter (errors name the option)
 OPTION_PARAMS = {"--systems": "systems", "--rate": "rate_hz", "--antenna-frame": "antenna_frame",
-                 "--duration": "duration_s", "--world": "world_file", "--mesh": "mesh_file"}
+                 "--duration": "duration_s", "--world": "world_file", "--mesh": "mesh_file",
+                 "--allow-partial": "strict_world"}
 
 
 def _overrides(args) -> dict:
@@ -93,6 +98,8 @@ def _overrides(args) -> dict:
         out["visibility"] = {"world_file": str(Path(args.world).resolve()), "mesh_file": ""}
     if args.mesh:
         out["visibility"] = {"mesh_file": str(Path(args.mesh).resolve()), "world_file": ""}
+    if getattr(args, "allow_partial", False):
+        out.setdefault("visibility", {})["strict_world"] = False
     if args.duration is not None:
         out["ephemeris"] = {"duration_s": args.duration}
     if getattr(args, "rtk", False):
@@ -103,10 +110,11 @@ def _overrides(args) -> dict:
 def run(args) -> int:
     from gnss_sim_ros2 import graph
     from gnss_sim_ros2.parameters import check_robot_config, check_robots, load_config
-    from gnss_sim_ros2.run_isolation import OutputBusy, OutputFolder, choose_domain_id
+    from gnss_sim_ros2.run_isolation import OutputBusy, OutputFolder, OutputNotOurs, choose_domain_id
 
-    folder = OutputFolder(Path(args.out))
+    folder = OutputFolder(Path(args.out), command="gnss-sim run", inputs=(args.config, args.world, args.mesh))
     try:
+        folder.check()           # a folder with files the run did not write: refused before anything starts
         args.robots = check_robots(args.robots, "option --robots")
         args.layout = layout_of(args)
         args.processes = args.layout == "node"
@@ -135,6 +143,9 @@ def run(args) -> int:
     except OutputBusy as exc:
         print(f"gnss-sim run: error: {exc}", file=sys.stderr)
         return 1
+    except OutputNotOurs as exc:
+        print(f"gnss-sim run: error: {exc}", file=sys.stderr)
+        return 2
     os.environ["ROS_DOMAIN_ID"] = str(domain)   # this process and its node processes
     import yaml
 
@@ -159,8 +170,12 @@ def run(args) -> int:
     finally:
         runner.close()
         if runner.epochs_done > 0:
-            folder.commit()
-            runner.log(f"outputs in {folder.final}")
+            try:
+                folder.commit()
+                runner.log(f"outputs in {folder.final}")
+            except OutputNotOurs as exc:    # a foreign file appeared under one of the run's names meanwhile
+                runner.warn(f"gnss-sim run: error: {exc}")
+                code = code or 1
         else:
             folder.abandon()
             if folder.final.exists():

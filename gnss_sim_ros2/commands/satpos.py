@@ -40,7 +40,8 @@ def add_arguments(parser):
     parser.add_argument("--systems", default="GRECJI", help="system letters (default GRECJI)")
     parser.add_argument("--galileo-nav", default="inav", choices=["inav", "fnav", "any"],
                         help="Galileo messages to use (broadcast): inav (default), fnav, any")
-    parser.add_argument("--out", required=True, metavar="FILE.csv", help="output CSV")
+    parser.add_argument("--out", required=True, metavar="FILE.csv",
+                        help="output CSV (written under a temporary name, renamed when complete; an input is refused)")
 
 
 def _grid(start, end, step_s):
@@ -90,7 +91,11 @@ def _run(args) -> int:
         raise ValueError("give --nav FILE(s) or --sp3 FILE(s)")
     frac_digits = 0 if (float(args.step).is_integer() and start.frac == 0.0) else 6
     n_rows = 0
-    with open(args.out, "w", encoding="ascii", newline="\n") as f:
+    from gnss_sim_ros2.core.output_folder import staged_files
+
+    # no half-written CSV under the final name, never an input overwritten (core/output_folder.py)
+    with staged_files([("--out", args.out)], inputs=[*(args.nav or ()), *(args.sp3 or ()), *args.clk]) as temp, \
+            open(temp[args.out], "w", encoding="ascii", newline="\n") as f:
         f.write(HEADER + "\n")
         for k in range(len(grid)):
             t = grid[k]

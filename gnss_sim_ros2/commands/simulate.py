@@ -1,7 +1,8 @@
 """``gnss-sim simulate``: the receiver simulation without ROS, as fast as the machine allows.
 
 Writes exactly one observation file ``DIR/*_MO.rnx``, one navigation file
-``DIR/*_MN.rnx`` and ``DIR/fix.csv`` (time,lat_deg,lon_deg,h_m,n_sats,status).
+``DIR/*_MN.rnx`` and ``DIR/fix.csv`` (time,lat_deg,lon_deg,h_m,n_sats,status),
+replacing only the files an earlier simulate wrote there (core/output_folder.py).
 Options override the configuration file (``--config``, the same file the ROS
 launch reads).
 """
@@ -44,7 +45,9 @@ def add_arguments(p):
                    help="also write the observations as RTCM3 (1006, 1033, MSM, broadcast ephemerides); "
                         "FILE default: next to the RINEX observation file, .rtcm3")
     p.add_argument("--quiet", action="store_true", help="no progress output")
-    p.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    p.add_argument("--out", required=True, metavar="DIR",
+                   help="output folder: new, empty or one of an earlier simulate (only its files are replaced); "
+                        "a folder holding other files is refused")
 
 
 #: command-line option -> (section of the parameter table, parameter): errors name the option
@@ -110,6 +113,7 @@ def setup_from_args(args):
 
 
 def run(args) -> int:
+    from gnss_sim_ros2.core.output_folder import OutputBusy
     from gnss_sim_ros2.core.simulation import run_simulation
 
     try:
@@ -118,6 +122,9 @@ def run(args) -> int:
     except ValueError as exc:
         print(f"gnss-sim simulate: error: {exc}", file=sys.stderr)
         return 2
+    except OutputBusy as exc:
+        print(f"gnss-sim simulate: error: {exc}", file=sys.stderr)
+        return 1
     import numpy as np
 
     print(f"epochs {res.epochs}, fixes {res.fixes} ({100.0 * res.fixes / max(res.epochs, 1):.1f} %), "

@@ -70,7 +70,13 @@ def _ephemeris(args, t):
 
 
 def run(args) -> int:
+    from gnss_sim_ros2.core.output_folder import check_outputs_not_inputs
+
     try:
+        # an output file is never one of the inputs (core/output_folder.py)
+        check_outputs_not_inputs([("--csv", args.csv), ("--png", args.png),
+                                  ("--skyline-csv", getattr(args, "skyline_csv", None))],
+                                 inputs=[args.world, args.mesh, args.materials, *(args.nav or ())])
         return _run(args)
     except ValueError as exc:
         print(f"gnss-sim skyplot: error: {exc}", file=sys.stderr)

@@ -23,6 +23,8 @@ from gnss_sim_ros2.commands import simulate
 AXIS_OPTIONS = {"--seeds": ("--seed", "seed"), "--dates": ("--start", "start"), "--presets": ("--preset", "preset"),
                 "--trajectories": ("--trajectory", "trajectory"), "--worlds": ("--world", "world")}
 WORLD_SUFFIXES = (".sdf", ".world")
+#: the writer named in the manifest of OUT
+SWEEP_COMMAND = "gnss-sim sweep"
 
 
 def default_workers() -> int:
@@ -49,6 +51,10 @@ def add_arguments(p):
                    help="every run loads its scene and ephemeris (default: a worker keeps them between runs)")
     c.add_argument("--plot", metavar="FILE.png", default=None, help="summary plot (default OUT/summary.png)")
     p.add_argument("--print-setup", action="store_true", help=argparse.SUPPRESS)   # tests: the points, no run
+    for action in p._actions:
+        if action.dest == "out":
+            action.help = ("output folder: runs/runNNNNN/, results.parquet, summary.png; new, empty or one of an "
+                           "earlier sweep (only its files are replaced); a folder holding other files is refused")
 
 
 def axis_values(args) -> dict:
@@ -150,11 +156,14 @@ def run(args) -> int:
     import numpy as np
 
     from gnss_sim_ros2.core.figures import pyplot
+    from gnss_sim_ros2.core.output_folder import check_output_folder, record_outputs
     from gnss_sim_ros2.core.sweep.driver import run_sweep, start_local_workers
     from gnss_sim_ros2.core.sweep.plot import summary_plot
 
     out = Path(args.out)
     try:
+        if not args.print_setup:   # a folder with files the sweep did not write is refused (core/output_folder.py)
+            check_output_folder(out, SWEEP_COMMAND, ignore_dirs=(".cache",))
         if not args.scheduler and not args.print_setup:
             start_local_workers()          # the workers' imports go on while the runs are built
         tasks = build_tasks(args, out)
@@ -192,4 +201,6 @@ def run(args) -> int:
         print(f"wrote {outcome.results_path}")
         plot_path = Path(args.plot) if args.plot else out / "summary.png"
         print(f"wrote {summary_plot(rows, plot_path)}")
+        # what the sweep wrote beside its runs' own folders (each with the manifest of its simulate)
+        record_outputs(out, SWEEP_COMMAND, [outcome.results_path, plot_path, *out.glob("runs/*/error.txt")])
     return 0 if not failed else 1

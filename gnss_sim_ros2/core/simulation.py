@@ -335,6 +335,35 @@ def _interval_s(setup: SimulationSetup, sw: dict) -> float:
 
 
 def run_simulation(setup: SimulationSetup) -> SimulationResult:
+    """Simulate ``setup`` into ``setup.out_dir`` (core/output_folder.py): a folder holding files this command did
+    not write is refused; the run writes into a staging folder beside it whose files replace the previous run's
+    at the end; a run that fails leaves the previous results as they were (one stopped by Ctrl-C / SIGTERM
+    after its first epoch keeps what it wrote, closed, as ``gnss-sim run`` does)."""
+    import dataclasses
+
+    from .output_folder import OutputFolder
+
+    inputs = [*setup.nav_files, *setup.sp3_files, *setup.clk_files, setup.world_file, setup.mesh_file,
+              setup.materials_file, setup.rtcm_path]
+    folder = OutputFolder(setup.out_dir, command="gnss-sim simulate", inputs=inputs)
+    staging = folder.acquire()
+    try:
+        res = _simulate_into(dataclasses.replace(setup, out_dir=staging))
+    except BaseException as exc:
+        # a failure (an Exception) leaves nothing; a stop (KeyboardInterrupt, SIGTERM) keeps closed epochs
+        if isinstance(exc, Exception) or not any(staging.glob("*_MO*.rnx")):
+            folder.abandon()
+        else:
+            folder.commit()
+        raise
+    folder.commit()
+    res.obs_path, res.nav_path = folder.final_path(res.obs_path), folder.final_path(res.nav_path)
+    res.fix_path, res.rtcm_path = folder.final_path(res.fix_path), folder.final_path(res.rtcm_path)
+    return res
+
+
+def _simulate_into(setup: SimulationSetup) -> SimulationResult:
+    """The simulation of :func:`run_simulation`, written into ``setup.out_dir`` (its staging folder)."""
     t_setup0 = time.perf_counter()
     sw = switches(setup)
     interval_s = _interval_s(setup, sw)
@@ -366,9 +395,7 @@ def run_simulation(setup: SimulationSetup) -> SimulationResult:
         check_coverage(provider, setup.start, setup.duration_s, setup.systems,
                        list(setup.sp3_files) + list(setup.nav_files), warn=False)
 
-    out.mkdir(parents=True, exist_ok=True)
-    for old in list(out.glob("*_MO*.rnx")) + list(out.glob("*_MN.rnx")) + list(out.glob("fix.csv")):
-        old.unlink()  # exactly one observation and one navigation file (and one fix.csv) per run
+    out.mkdir(parents=True, exist_ok=True)   # the staging folder: exactly one observation, navigation, fix.csv
     nav_path = out / rinex_name(setup.marker_name, setup.start, setup.duration_s, interval_s, "MN")
     nav_written = write_navigation(nav_path, provider, setup.systems)
     if nav_written is None and nav_paths:
