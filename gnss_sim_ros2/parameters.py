@@ -207,8 +207,9 @@ NODE_PARAMS: dict[str, list[Param]] = {
         Param("use_visuals", False, "export visual instead of collision geometry"),
         Param("keep_dynamic_models", False, "also take the world's non-static models (robots, movable objects) "
               "as static obstacles; default: only static models block"),
-        Param("strict_world", False, "a part of the world that cannot be loaded is an error instead of a warning "
-              "(CI users)"),
+        Param("strict_world", True, "a world whose scene would lack geometry it names (a model:// or mesh not "
+              "found, an uncached Fuel model) is an error naming the model and why; false: a partial world, each "
+              "missing part skipped with a warning (gnss-sim --allow-partial)"),
         Param("fresnel_rays", -1, "rays over the first Fresnel zone per satellite (0 off; -1 from preset)", min=-1),
         Param("multipath", "", "reflections from the scene (core/multipath): off, nlos (blocked satellites "
               "only), full (every satellite); empty: from preset", choices=("", *MULTIPATH_MODES)),

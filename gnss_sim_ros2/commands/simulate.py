@@ -36,6 +36,8 @@ def add_arguments(p):
     sc.add_argument("--mesh", metavar="FILE", help="mesh exported by export-world")
     p.add_argument("--systems", help="systems, RINEX letters from GRECJI")
     p.add_argument("--seed", type=int, default=None)
+    from gnss_sim_ros2.core.scene.scene_report import ALLOW_PARTIAL_HELP
+    p.add_argument("--allow-partial", action="store_true", help=ALLOW_PARTIAL_HELP)
     p.add_argument("--preset", choices=("fast", "balanced", "accurate"), default=None)
     p.add_argument("--noise-free", action="store_true",
                    help="an ideal receiver: no random errors and no hardware code biases (deterministic models kept)")
@@ -61,6 +63,7 @@ OPTION_PARAMS = {
 }
 
 
+    "--allow-partial": ("visibility", "strict_world"),
 def parameter_overrides(args) -> tuple[dict, dict]:
     """(overrides {section: {param: value}}, {param: option}) of the options given on the command line."""
     given = {"--start": args.start, "--rate": args.rate,
@@ -69,7 +72,8 @@ def parameter_overrides(args) -> tuple[dict, dict]:
              "--mask-deg": args.mask_deg, "--systems": args.systems, "--seed": args.seed, "--preset": args.preset,
              "--marker": args.marker, "--duration": args.duration, "--nav": args.nav, "--sp3": args.sp3,
              "--clk": args.clk, "--world": args.world, "--mesh": args.mesh, "--profile": args.profile,
-             "--noise-free": False if args.noise_free else None}
+             "--noise-free": False if args.noise_free else None,
+             "--allow-partial": False if getattr(args, "allow_partial", False) else None}
     ov: dict = {}
     names: dict = {}
     for opt, value in given.items():

@@ -24,12 +24,15 @@ from pathlib import Path
 
 import numpy as np
 
+from gnss_sim_ros2.core.scene.scene_report import ALLOW_PARTIAL_HELP
+
 
 def add_arguments(parser):
     src = parser.add_mutually_exclusive_group(required=True)
     src.add_argument("--world", metavar="SDF", help="SDF world file")
     src.add_argument("--mesh", metavar="FILE", help="exported scene mesh (with its .scene.yaml sidecar)")
     parser.add_argument("--materials", metavar="FILE.yaml", help="material classes/rules (with --world)")
+    parser.add_argument("--allow-partial", action="store_true", help=ALLOW_PARTIAL_HELP)
     parser.add_argument("--at", required=True, metavar="E,N,U", help="antenna position in the world frame [m]")
     parser.add_argument("--time", required=True, metavar="ISO8601", help="instant, e.g. 2022-01-01T00:05:00")
     parser.add_argument("--time-scale", default="GPS", choices=["GPS", "UTC"], help="scale of --time [GPS]")
@@ -84,12 +87,17 @@ def run(args) -> int:
 
 
 def _run(args) -> int:
-    from gnss_sim_ros2.core.scene.visibility import STATE_NAMES, Scene
+    from gnss_sim_ros2.commands.export_world import strict_world
+    from gnss_sim_ros2.core.receiver.chain import VisibilityOptions
+    from gnss_sim_ros2.core.scene.visibility import STATE_NAMES
+    from gnss_sim_ros2.core.simulation import load_scene
     from gnss_sim_ros2.core.time import GnssTime
 
     at = _parse_at(args.at)
     t = GnssTime.from_iso(args.time, scale=args.time_scale)
-    scene = Scene.from_sdf(args.world, materials_yaml=args.materials) if args.world else Scene.load(args.mesh)
+    # the world as every front end loads it (simulate, run, the visibility node): strict unless --allow-partial
+    scene = load_scene(args.world or "", args.mesh or "", args.materials or "",
+                       VisibilityOptions(strict_world=strict_world(args)))
     if scene.spherical is None:
         raise ValueError(f"{args.world or args.mesh}: no geodetic origin (<spherical_coordinates> in the world, "
                          f"spherical_coordinates in the sidecar): satellites cannot be placed")

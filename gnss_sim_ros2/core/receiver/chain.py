@@ -44,9 +44,9 @@ class VisibilityOptions:
     fresnel_rays: int = 0
     foliage: str = "path"
     use_visuals: bool = False
-    #: world loading: non-static models kept as obstacles; unloadable parts an error
+    #: world loading: non-static models kept as obstacles; unloadable parts an error (parameter strict_world)
     keep_dynamic: bool = False
-    strict_world: bool = False
+    strict_world: bool = True
     #: reflections from the scene (core/multipath): "off", "nlos" (blocked satellites only) or "full"
     multipath: str = "off"
     multipath_range_m: float = 100.0
@@ -67,7 +67,7 @@ class VisibilityOptions:
                    fresnel_rays=int(fresnel if fresnel >= 0 else sw["fresnel_rays"]),
                    foliage=sw["foliage"], use_visuals=bool(p.get("use_visuals", False)),
                    keep_dynamic=bool(p.get("keep_dynamic_models", False)),
-                   strict_world=bool(p.get("strict_world", False)),
+                   strict_world=bool(p.get("strict_world", True)),
                    multipath=p.get("multipath") or sw.get("multipath", "off"),
                    multipath_range_m=float(p.get("multipath_range_m", 100.0)),
                    multipath_max_paths=int(p.get("multipath_max_paths", 3)),

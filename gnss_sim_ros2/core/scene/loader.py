@@ -19,12 +19,18 @@ followed for what matters to line-of-sight:
 * Geometry: :mod:`.primitives` (box, sphere, cylinder, cone, capsule, ellipsoid, plane, polyline,
   heightmap) and meshes (:mod:`.mesh_files`: COLLADA, OBJ, STL, PLY, glTF/GLB, ``<scale>``,
   ``<submesh>`` with ``<center>``), each file read once.
-* Only static models are obstacles: a model (or include) without ``<static>true`` moves in Gazebo
-  (a robot, a box that falls) and is left out unless ``keep_dynamic``; a model inside a static
-  model is static.  ``<actor>`` is left out (animated), and ``<road>`` (a flat visual in Gazebo).
-* Partial worlds: a part that cannot be loaded (a missing mesh, an uncached Fuel model, an unknown
-  geometry) is skipped with one warning naming it and why, and listed in
-  the scene report (:mod:`.scene_report`); ``strict=True`` turns each skip into an :class:`SdfError`.
+* Only static geometry is an obstacle, by SDFormat's rule (sdformat.org ``model.sdf`` ``<static>``;
+  libsdformat ``Model::Static``): a model is static when its ``<static>`` (or its include's) is true or it
+  is inside a static model; a nested model keeps its own ``<static>`` otherwise.  The links of a model that
+  is not static move in Gazebo (a robot, a box that falls) and are left out unless ``keep_dynamic``; its
+  nested models are still walked, so a ``<model>`` without links of its own that wraps an ``<include>`` of
+  a static model (the AWS RoboMaker worlds, the Hong Kong city world) keeps that model.  ``<actor>`` is
+  left out (animated), and ``<road>`` (a flat visual in Gazebo).
+* Partial worlds: a part that cannot be loaded (a missing mesh, an unresolved ``model://``, an uncached
+  Fuel model, an unknown geometry) is recorded in the scene report (:mod:`.scene_report`); with
+  ``strict=True`` (every front end's default, parameter ``strict_world``) the load then fails with one
+  :class:`~.scene_report.PartialWorldError` naming the world, the part and why; without, each is skipped
+  with one warning naming it and why.
 
 Material classes: :mod:`.materials`; open foliage meshes become closed crowns: :mod:`.foliage`.
 """
@@ -301,18 +307,21 @@ class _Loader:
 
     # ------------------------------------------------------------------ walking
     def walk_model(self, scope: _Scope, T_world_model: np.ndarray, prefix: str, chain: list, names: list):
+        """The links of a model (static, or ``keep_dynamic``) and its nested models, each by its own ``<static>``
+        (SDFormat: a nested model keeps its own; a static model makes its nested content static): a model
+        without links of its own that wraps static models moves nothing."""
         file = scope.file
-        for name, (kind, cel, cfile, _, st) in scope.frames.items():
+        dynamic = not scope.static and not self.keep_dynamic
+        if dynamic and any(e[0] == "link" for e in scope.frames.values()):
+            self.report.leave_out(prefix, "not static (it moves in Gazebo); keep_dynamic keeps it")
+        for name, (kind, cel, cfile, _, _st) in scope.frames.items():
             scoped_name = f"{prefix}::{name}"
             try:
                 if kind == "model":
-                    if not st and not self.keep_dynamic:
-                        self.report.leave_out(scoped_name, "not static (it moves in Gazebo); keep_dynamic keeps it")
-                        continue
                     sub = scope.subscope(name, scoped_name)
                     T = T_world_model @ scope.resolve(name)
                     self.walk_model(sub, T, scoped_name, chain + [(cel, cfile)], [name] + names)
-                elif kind == "link":
+                elif kind == "link" and not dynamic:
                     self.walk_link(scope, name, cel, file, T_world_model, prefix, chain, names)
             except SdfError as exc:
                 self.report.skip_error(scoped_name, exc)
@@ -343,11 +352,8 @@ class _Loader:
     def world(self, world_el, file: Path):
         scope = _Scope(world_el, file, True, self, static=False)
         self.apply_state(scope, world_el, file)
-        for name, (kind, el, mfile, _, st) in scope.frames.items():
+        for name, (kind, el, mfile, _, _st) in scope.frames.items():
             if kind != "model":
-                continue
-            if not st and not self.keep_dynamic:
-                self.report.leave_out(name, "not static (it moves in Gazebo); keep_dynamic keeps it")
                 continue
             try:
                 T = scope.resolve(name)
@@ -412,6 +418,8 @@ class _Loader:
             mats = np.concatenate(self.mats)
         else:
             verts, tris, mats = np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros(0, np.int16)
+        self.report.dropped = list(self.meshes.dropped)
+        self.report.raise_if_partial(source)
         self.report.warn_left_out_dynamic()
         self.report.mesh_files_read = self.meshes.reads
         self.report.mesh_cache_hits = self.meshes.hits
@@ -427,7 +435,8 @@ def load_sdf_world(sdf_path, materials_yaml=None, use_visuals: bool = False,
 
     ``materials_yaml``: optional YAML of classes and name rules; ``use_visuals``: take ``<visual>``
     geometry instead of ``<collision>``; ``keep_dynamic``: keep non-static models; ``strict``: a part
-    that cannot be loaded is an error instead of a skip; ``seed``: of random populations.
+    that cannot be loaded makes the load fail (:class:`~.scene_report.PartialWorldError`) instead of a
+    skip; ``seed``: of random populations.
     """
     sdf_path = Path(sdf_path)
     if materials is not None:

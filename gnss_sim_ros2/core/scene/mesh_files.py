@@ -11,7 +11,9 @@ COLLADA is read with pycollada (the scene's node tree, ``<unit meter>`` applied,
 skinned mesh in its bind pose);
 the other formats with trimesh (its scene graph gives the node transforms and names).
 :class:`MeshCache` keeps each file's submeshes, keyed by the resolved path, so a world that uses one
-mesh in 400 places reads it once.
+mesh in 400 places reads it once.  Triangles with a NaN or infinite vertex, a vertex index out of range or
+zero area are dropped with one warning naming the file and the count (one such triangle would otherwise
+leave the whole ray-casting scene unable to block a ray); the rest of the file is kept.
 """
 from __future__ import annotations
 
@@ -161,8 +163,62 @@ def _trimesh_submeshes(path: Path) -> list[SubMesh]:
     return out
 
 
+#: a triangle whose doubled area is below this fraction of its longest edge squared is degenerate (zero area:
+#: a point or a line; it blocks nothing and some ray casters misbehave on it)
+DEGENERATE_REL_AREA = 1e-12
+
+
+class DroppedTrianglesWarning(UserWarning):
+    """Triangles of a mesh file were dropped (NaN/infinite vertex, bad index, zero area): the message names the file."""
+
+
+def bad_triangles(vertices_m: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, int, int, int]:
+    """(mask of the triangles to drop, how many have a non-finite vertex, a vertex index out of range, zero area)."""
+    f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+    v = np.asarray(vertices_m, dtype=np.float64).reshape(-1, 3)
+    bad_index = np.any((f < 0) | (f >= len(v)), axis=1)
+    tri = v[np.where(bad_index[:, None], 0, f)] if len(v) else np.zeros((len(f), 3, 3))
+    non_finite = ~bad_index & ~np.all(np.isfinite(tri), axis=(1, 2))
+    ok = ~(bad_index | non_finite)
+    with np.errstate(invalid="ignore", over="ignore"):
+        e1, e2, e3 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0], tri[:, 2] - tri[:, 1]
+        area2 = np.linalg.norm(np.cross(e1, e2), axis=1)
+        longest2 = np.max(np.stack([np.einsum("ij,ij->i", e, e) for e in (e1, e2, e3)]), axis=0)
+    degenerate = ok & ((f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2])
+                       | (area2 <= DEGENERATE_REL_AREA * longest2))
+    return bad_index | non_finite | degenerate, int(non_finite.sum()), int(bad_index.sum()), int(degenerate.sum())
+
+
+def drop_bad_triangles(subs: list[SubMesh], path: Path) -> tuple[list[SubMesh], dict | None]:
+    """``subs`` without their NaN/infinite, badly indexed and zero-area triangles, and what was dropped
+    ({file, triangles, of, non_finite, bad_index, degenerate}) or None; one warning naming the file."""
+    out, counts, total = [], [0, 0, 0], 0
+    for s in subs:
+        drop, nf, bi, dg = bad_triangles(s.vertices_m, s.faces)
+        total += len(drop)
+        counts = [counts[0] + nf, counts[1] + bi, counts[2] + dg]
+        if drop.any():
+            # the kept triangles' vertices only: a NaN vertex left in the array would still spoil the scene's
+            # bounds (RayScene centres the scene on them)
+            f = np.asarray(s.faces, dtype=np.int64)[~drop]
+            used, f = np.unique(f, return_inverse=True)
+            s = SubMesh(s.name, np.asarray(s.vertices_m)[used], f.reshape(-1, 3), s.names)
+        if len(s.faces):
+            out.append(s)
+    n = sum(counts)
+    if n == 0:
+        return subs, None
+    why = ", ".join(f"{k} {w}" for k, w in zip(counts, ("with a NaN/infinite vertex", "with a vertex index out of "
+                                                         "range", "degenerate (zero area)")) if k)
+    info = {"file": str(path), "triangles": n, "of": total, "non_finite": counts[0], "bad_index": counts[1],
+            "degenerate": counts[2]}
+    warnings.warn(f"mesh file {path}: dropped {n} of {total} triangles ({why}); the rest of the file is kept",
+                  DroppedTrianglesWarning, stacklevel=2)
+    return out, info
+
+
 def read_mesh_file(path: Path) -> list[SubMesh]:
-    """Submeshes of a mesh file (module docstring); SdfError when unreadable or empty."""
+    """Submeshes of a mesh file (module docstring), as the file holds them; SdfError when unreadable or empty."""
     path = Path(path)
     if not path.is_file():
         raise SdfError(f"mesh file {path} not found")
@@ -190,10 +246,12 @@ def pick_submesh(subs: list[SubMesh], name: str, center: bool, path: Path) -> li
 
 
 class MeshCache:
-    """Submeshes of each mesh file, read once per resolved path."""
+    """Submeshes of each mesh file, read once per resolved path, without the triangles that cannot be cast
+    against (``dropped``: one entry per file that had some, :func:`drop_bad_triangles`)."""
 
     def __init__(self):
         self._files: dict[str, list[SubMesh]] = {}
+        self.dropped: list[dict] = []
         self.reads = 0
         self.hits = 0
 
@@ -201,7 +259,12 @@ class MeshCache:
         key = str(Path(path).resolve())
         subs = self._files.get(key)
         if subs is None:
-            subs = read_mesh_file(Path(path))
+            subs, dropped = drop_bad_triangles(read_mesh_file(Path(path)), Path(path))
+            if dropped is not None:
+                self.dropped.append(dropped)
+            if not subs:
+                raise SdfError(f"mesh file {path} holds no valid triangles (every one has a NaN/infinite vertex, "
+                               f"a bad index or zero area)")
             self._files[key] = subs
             self.reads += 1
         else:

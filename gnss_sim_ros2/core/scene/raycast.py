@@ -53,7 +53,10 @@ class RayScene:
             raise ValueError("RayScene: vertices_m (V, 3), triangles (T, 3), attenuation_db_per_m (T,) expected")
         self.nthreads = int(nthreads)
         self._local = threading.local()         # per-thread scratch arrays, see scratch()
-        self.center_m = 0.5 * (v.min(axis=0) + v.max(axis=0)) if len(v) else np.zeros(3)
+        finite = v[np.all(np.isfinite(v), axis=1)]
+        # the bounds of the finite vertices: one NaN vertex must not make every ray NaN (Embree itself skips
+        # a triangle with a NaN corner)
+        self.center_m = 0.5 * (finite.min(axis=0) + finite.max(axis=0)) if len(finite) else np.zeros(3)
         vc = v - self.center_m
         opaque = ~np.isfinite(att)
         self.n_opaque = int(opaque.sum())

@@ -1,15 +1,17 @@
 """SDF XML reading as sdformat reads it: lenient parsing, element helpers, ``<pose>``.
 
-sdformat parses with TinyXML2, which accepts two things a strict XML parser refuses and which real
+sdformat parses with TinyXML2, which accepts things a strict XML parser refuses and which real
 worlds contain (gz-sim's own ``empty.sdf``, ``default.sdf``, ``sensors.sdf``):
 
 * ``--`` inside a comment (XML 1.0 section 2.5 forbids it): each such comment is rewritten with the
   hyphens separated, on the same lines, before parsing;
 * element or attribute prefixes without an ``xmlns:`` declaration (``<gz:system ...>``): a
   declaration ``xmlns:PREFIX="urn:gnss_sim:undeclared:PREFIX"`` is added to the root element, so the
-  elements parse as custom elements (which the loader ignores, as Gazebo's geometry reader does).
+  elements parse as custom elements (which the loader ignores, as Gazebo's geometry reader does);
+* element and attribute names with ``::`` (``<gz::system_priority>`` in gz-sim's ``sensors.sdf``): the
+  first ``::`` becomes the prefix colon (``gz:system_priority``), then declared as above.
 
-Both rewrites keep line numbers, so errors still name the file's own lines.  Anything else that is
+The rewrites keep line numbers, so errors still name the file's own lines.  Anything else that is
 not well-formed XML is an :class:`SdfError` naming the file and line.
 """
 from __future__ import annotations
@@ -140,6 +142,10 @@ _COMMENT = re.compile(r"<!--(.*?)-->", re.S)
 _PREFIX_USE = re.compile(r"</?([A-Za-z_][\w.-]*):[A-Za-z_]|\s([A-Za-z_][\w.-]*):[A-Za-z_][\w.-]*\s*=")
 _PREFIX_DECL = re.compile(r"xmlns:([A-Za-z_][\w.-]*)\s*=")
 _ROOT_START = re.compile(r"<(?![?!])[A-Za-z_][\w.:-]*")
+# a start or end tag (quoted attribute values may hold ">"), and in its attributes a quoted value (kept) or a
+# ``PREFIX::name`` attribute name
+_TAG = re.compile(r"<(/?)([A-Za-z_][\w.:-]*)((?:[^>\"']|\"[^\"]*\"|'[^']*')*)>")
+_ATTR_DOUBLE_COLON = re.compile(r"(\"[^\"]*\"|'[^']*')|(\s)([A-Za-z_][\w.-]*::[\w.:-]*)(?=\s*=)")
 
 
 def _fix_comment(m: re.Match) -> str:
@@ -151,9 +157,28 @@ def _fix_comment(m: re.Match) -> str:
     return f"<!--{body}-->"
 
 
+def _fix_double_colon_name(name: str) -> str:
+    """``gz::system_priority`` -> ``gz:system_priority`` (a prefixed name XML accepts; further ``::`` -> ``__``)."""
+    head, _, rest = name.partition("::")
+    return f"{head}:{rest.replace('::', '__')}"
+
+
+def _fix_tag_names(m: re.Match) -> str:
+    """One start or end tag with its ``PREFIX::name`` element and attribute names made ``PREFIX:name``."""
+    slash, name, attrs = m.group(1), m.group(2), m.group(3)
+    if "::" in name:
+        name = _fix_double_colon_name(name)
+    if "::" in attrs:
+        attrs = _ATTR_DOUBLE_COLON.sub(
+            lambda a: a.group(1) or f"{a.group(2)}{_fix_double_colon_name(a.group(3))}", attrs)
+    return f"<{slash}{name}{attrs}>"
+
+
 def lenient_xml_text(source: str) -> str:
-    """The two TinyXML2 leniencies (module docstring) applied to an XML text; line numbers unchanged."""
+    """The TinyXML2 leniencies (module docstring) applied to an XML text; line numbers unchanged."""
     fixed = _COMMENT.sub(_fix_comment, source)
+    if "::" in fixed:
+        fixed = _TAG.sub(_fix_tag_names, fixed)
     body = _COMMENT.sub("", fixed)
     used = {a or b for a, b in _PREFIX_USE.findall(body)} - {"xml", "xmlns"}
     missing = sorted(used - set(_PREFIX_DECL.findall(body)))
