@@ -538,6 +538,8 @@ def test_export_world_command_report_strict_and_keep_dynamic(tmp_path, capsys):
     # --strict (the default now) is still accepted
     assert main(["export-world", str(w), "--out", str(tmp_path / "c.ply"), "--strict"]) == 2
     assert "cannot load shed::l::c: " in capsys.readouterr().err
+    assert main(["export-world", str(w), "--out", str(tmp_path / "c.ply"), "--strict", "--allow-partial"]) == 2
+    assert "options --strict and --allow-partial contradict" in capsys.readouterr().err
 
 
 def test_demo_world_path(monkeypatch):
