@@ -141,29 +141,28 @@ def _check_iso_time(value: str, where: str) -> str:
     return value
 
 
+#: the longest simulated span [s]: ephemerides are prepared for the whole span up front (synthetic records, one
+#: downloaded navigation file per day, the GLONASS slots of the RINEX header), a month at most
+MAX_DURATION_S = 31 * 86400.0
+#: the most epochs one run takes (duration_s x rate_hz): a RINEX observation file takes about 7.6 kB per epoch
+#: (geodetic profile, GRECJI: 274 MB for 36001 epochs) and the offline run about 1.3 kB of memory per epoch (peak
+#: RSS 175 MB at 3600 epochs, 216 MB at 36000): 1e6 epochs, e.g. a day at 10 Hz, ~7.6 GB of RINEX
+MAX_EPOCHS = 1_000_000
+
 #: how a static antenna position is given (parameters antenna_position_type, base_position_type)
 POSITION_TYPES = ("world", "llh", "ecef")
-#: |ECEF| of a point on the Earth's surface lies between these [m] (WGS 84 polar radius 6356752 m minus the
-#: Dead Sea shore, equatorial radius 6378137 m plus 9 km of Everest and a margin)
-EARTH_RADIUS_SPAN_M = (6_350_000.0, 6_390_000.0)
 
 
 def check_position(value: list, kind: str, name: str, where: str) -> list:
-    """A static antenna position of ``kind`` (POSITION_TYPES): 3 numbers in their range, else ValueError
-    naming ``name`` and ``where``."""
+    """A static antenna position of ``kind`` (POSITION_TYPES): 3 numbers; llh and ecef within the receivers the
+    simulator models (core/frames.py check_receiver_position, the one rule for parameters, options and path
+    files), else ValueError naming ``name`` and ``where``."""
     if len(value) != 3:
         raise ValueError(f"{where}: parameter '{name}' needs 3 numbers ({kind}), got {value!r}")
-    if kind == "llh":
-        lat, lon, h = value
-        if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 360.0 and -500.0 <= h <= 9000.0):
-            raise ValueError(f"{where}: parameter '{name}' = {value!r} (llh) is not latitude -90..90 deg, "
-                             f"longitude -180..360 deg, height -500..9000 m")
-    elif kind == "ecef":
-        r = math.sqrt(sum(v * v for v in value))
-        if not EARTH_RADIUS_SPAN_M[0] <= r <= EARTH_RADIUS_SPAN_M[1]:
-            raise ValueError(f"{where}: parameter '{name}' = {value!r} (ecef) is {r:.0f} m from the Earth's centre, "
-                             f"not on its surface ({EARTH_RADIUS_SPAN_M[0]:.0f}..{EARTH_RADIUS_SPAN_M[1]:.0f} m); "
-                             f"latitude/longitude/height go with {name}_type: llh")
+    if kind in ("llh", "ecef"):
+        from gnss_sim_ros2.core.frames import check_receiver_position
+
+        check_receiver_position(value, kind, f"{where}: parameter '{name}' = {value!r} ({kind})")
     return value
 
 
@@ -199,7 +198,8 @@ NODE_PARAMS: dict[str, list[Param]] = {
               "empty: ~/.cache/gnss_sim"),
         Param("time_mapping", "offset", "ROS time -> GNSS time: offset (ROS time 0 = start_time; simulated "
               "clocks) or utc (ROS stamps are UNIX UTC)", choices=("offset", "utc")),
-        Param("duration_s", 600.0, "simulated span [s] for which ephemerides are prepared", min=1.0),
+        Param("duration_s", 600.0, "simulated span [s] for which ephemerides are prepared; at most 31 days and "
+              "1e6 epochs at rate_hz (MAX_DURATION_S, MAX_EPOCHS)", min=1.0, max=MAX_DURATION_S),
     ],
     "visibility": [
         Param("world_file", "", "Gazebo SDF world (exported to a mesh on configure); empty: the demo courtyard"),
@@ -211,7 +211,10 @@ NODE_PARAMS: dict[str, list[Param]] = {
         Param("strict_world", True, "a world whose scene would lack geometry it names (a model:// or mesh not "
               "found, an uncached Fuel model) is an error naming the model and why; false: a partial world, each "
               "missing part skipped with a warning (gnss-sim --allow-partial)"),
-        Param("fresnel_rays", -1, "rays over the first Fresnel zone per satellite (0 off; -1 from preset)", min=-1),
+        # at most 256: the blocked fraction in steps of 0.4 %; memory grows ~1.2 MB per ray for a block of 300
+        # epochs (simulate, courtyard: peak RSS 335 MB at 8 rays, 378 MB at 64, 611 MB at 256)
+        Param("fresnel_rays", -1, "rays over the first Fresnel zone per satellite (0 off; -1 from preset; at most "
+              "256)", min=-1, max=256),
         Param("multipath", "", "reflections from the scene (core/multipath): off, nlos (blocked satellites "
               "only), full (every satellite); empty: from preset", choices=("", *MULTIPATH_MODES)),
         Param("multipath_range_m", 100.0, "facets farther than this from the antenna reflect nothing [m]",
@@ -331,6 +334,15 @@ def params_of(key: str) -> list[Param]:
     return SHARED + NODE_PARAMS[key]
 
 
+def param(key: str, name: str) -> Param:
+    """The table's row of parameter ``name`` of node ``key`` (``/**``: a shared one): a command-line option
+    takes its choices and range from it instead of writing them again."""
+    for p in SHARED if key == SHARED_KEY else params_of(key):
+        if p.name == name:
+            return p
+    raise KeyError(f"no parameter {name!r} in section {key!r}")
+
+
 def defaults() -> Config:
     return Config({k: {p.name: p.default for p in params_of(k)} for k in NODE_PARAMS})
 
@@ -351,13 +363,25 @@ def _apply(target: dict, section: dict, specs: dict[str, Param], where: str, opt
         target[name] = specs[name].check(value, here)
 
 
-def validate_node(key: str, values: dict, where: str) -> dict:
+def validate_node(key: str, values: dict, where: str, options: dict[str, str] | None = None) -> dict:
     """Every parameter of node ``key`` checked by the table, then the rules between parameters.
 
     The one validation path: :func:`load_config` (``config --check``, ``simulate``, ``run``, the launch
-    file) and the nodes' configure call it.  Returns the normalised values.
+    file) and the nodes' configure call it.  Returns the normalised values.  ``options``: {param: command-line
+    option}, so that a rule names the option the user typed.
     """
     out = {p.name: p.check(values[p.name] if p.name in values else p.default, where) for p in params_of(key)}
+
+    def named(name):
+        return f"option {options[name]} (parameter '{name}')" if options and name in options else f"parameter '{name}'"
+
+    if key == "ephemeris":
+        n_epochs = math.floor(out["duration_s"] * out["rate_hz"] + 1e-9) + 1
+        if n_epochs > MAX_EPOCHS:
+            raise ValueError(f"{where}: {named('duration_s')} = {out['duration_s']:g} s at {named('rate_hz')} = "
+                             f"{out['rate_hz']:g} Hz is {n_epochs:.3g} epochs; a run takes at most {MAX_EPOCHS:.0e} "
+                             f"(about 7.6 kB of RINEX and 1.3 kB of memory each, MAX_EPOCHS in "
+                             f"gnss_sim_ros2/parameters.py): give a shorter span or a lower rate, or split the run")
     if key == "receiver":
         from gnss_sim_ros2.core.signals import traits
 
@@ -460,7 +484,7 @@ def load_config(path: str | Path | None = None, overrides: dict[str, dict] | Non
             _apply(cfg.values[key], params, specs, "command line", options)
     where = cfg.source if path is None else str(path)
     for key in NODE_NAMES:
-        cfg.values[key] = validate_node(key, cfg.values[key], f"{where}: {NODE_NAMES[key]}")
+        cfg.values[key] = validate_node(key, cfg.values[key], f"{where}: {NODE_NAMES[key]}", options)
     return cfg
 
 

@@ -135,8 +135,8 @@ def test_moving_baseline_parameters():
 
 @pytest.mark.parametrize("position, kind, words", [
     ([0.0, 21.0], "world", "needs 3 numbers"),
-    ([95.0, 14.0, 250.0], "llh", "is not latitude -90..90"),
-    ([50.0, 14.4, 250.0], "ecef", "not on its surface"),
+    ([95.0, 14.0, 250.0], "llh", "latitude 95 deg is outside -90..90 deg"),
+    ([50.0, 14.4, 250.0], "ecef", "m from the Earth's centre, deep inside the Earth"),
 ])
 def test_bad_base_position_is_a_clear_error(tmp_path, position, kind, words):
     cfg = tmp_path / "bad.yaml"

@@ -46,6 +46,7 @@ def add_arguments(parser):
 
 def _grid(start, end, step_s):
     from gnss_sim_ros2.core.time import GnssTime
+    from gnss_sim_ros2.parameters import MAX_EPOCHS
 
     if not (math.isfinite(step_s) and step_s > 0):
         raise ValueError(f"--step {step_s}: must be a positive number of seconds")
@@ -53,6 +54,11 @@ def _grid(start, end, step_s):
     if span < 0:
         raise ValueError(f"--end {end.isoformat()} is before --start {start.isoformat()}")
     n = int(math.floor(span / step_s + 1e-9)) + 1
+    if n > MAX_EPOCHS:      # the grid and the CSV grow with the epochs: refused before anything is read
+        raise ValueError(f"option --step {step_s:g} s over {span:g} s gives {n:.3g} epochs; satpos takes at most "
+                         f"{MAX_EPOCHS:.0e} (MAX_EPOCHS in gnss_sim_ros2/parameters.py; one CSV row of ~120 bytes "
+                         f"per satellite and epoch: {n * 100 * 120 / 1e9:.3g} GB for 100 satellites): give a larger "
+                         f"--step or a shorter span")
     k = np.arange(n, dtype=np.float64) * step_s
     whole = np.floor(k)
     return GnssTime(np.full(n, start.sec, dtype=np.int64) + whole.astype(np.int64), start.frac + (k - whole))
@@ -72,9 +78,9 @@ def _run(args) -> int:
     start = GnssTime.from_iso(args.start, "GPS")
     end = GnssTime.from_iso(args.end, "GPS")
     grid = _grid(start, end, args.step)
-    systems = args.systems.upper()
-    if not systems or set(systems) - set("GRECJI"):
-        raise ValueError(f"--systems {args.systems!r}: expected letters of GRECJI")
+    from gnss_sim_ros2.parameters import SHARED_KEY, param
+
+    systems = param(SHARED_KEY, "systems").check(args.systems.upper(), "option --systems")
     if args.sp3:
         from gnss_sim_ros2.core.ephemeris.sp3 import Sp3Ephemeris
 

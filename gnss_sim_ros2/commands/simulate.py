@@ -15,6 +15,8 @@ from gnss_sim_ros2.commands import parse_triple
 
 
 def add_arguments(p):
+    from gnss_sim_ros2.parameters import param  # choices from the parameter table
+
     p.add_argument("--config", help="gnss_sim parameter file (ROS 2 format, see config/gnss_sim.yaml)")
     p.add_argument("--nav", nargs="+", default=None, metavar="FILE", help="RINEX navigation files")
     p.add_argument("--sp3", nargs="+", default=None, metavar="FILE", help="SP3 precise orbits")
@@ -34,14 +36,15 @@ def add_arguments(p):
     sc = p.add_mutually_exclusive_group()
     sc.add_argument("--world", metavar="SDF", help="Gazebo world for visibility")
     sc.add_argument("--mesh", metavar="FILE", help="mesh exported by export-world")
-    p.add_argument("--systems", help="systems, RINEX letters from GRECJI")
-    p.add_argument("--seed", type=int, default=None)
     from gnss_sim_ros2.core.scene.scene_report import ALLOW_PARTIAL_HELP
     p.add_argument("--allow-partial", action="store_true", help=ALLOW_PARTIAL_HELP)
-    p.add_argument("--preset", choices=("fast", "balanced", "accurate"), default=None)
+    p.add_argument("--systems", help="systems, RINEX letters from GRECJI")
+    p.add_argument("--seed", type=int, default=None)
+    p.add_argument("--preset", choices=param("/**", "preset").choices, default=None)
     p.add_argument("--noise-free", action="store_true",
                    help="an ideal receiver: no random errors and no hardware code biases (deterministic models kept)")
-    p.add_argument("--profile", choices=("geodetic", "single_frequency"), default=None)
+    p.add_argument("--profile", choices=param("receiver", "profile").choices, default=None,
+                   help="receiver profile: the signals tracked and the receiver's traits")
     p.add_argument("--marker", default=None, help="RINEX marker name")
     p.add_argument("--rtcm", nargs="?", const="", default=None, metavar="FILE",
                    help="also write the observations as RTCM3 (1006, 1033, MSM, broadcast ephemerides); "
@@ -60,10 +63,10 @@ OPTION_PARAMS = {
     "--nav": ("ephemeris", "nav_files"), "--sp3": ("ephemeris", "sp3_files"), "--clk": ("ephemeris", "clk_files"),
     "--world": ("visibility", "world_file"), "--mesh": ("visibility", "mesh_file"),
     "--profile": ("receiver", "profile"), "--noise-free": ("receiver", "noise"),
+    "--allow-partial": ("visibility", "strict_world"),
 }
 
 
-    "--allow-partial": ("visibility", "strict_world"),
 def parameter_overrides(args) -> tuple[dict, dict]:
     """(overrides {section: {param: value}}, {param: option}) of the options given on the command line."""
     given = {"--start": args.start, "--rate": args.rate,
@@ -108,9 +111,9 @@ def setup_from_args(args):
     cfg = load_config(args.config, ov, names)
     tr = None
     if args.position_ecef:
-        tr = Trajectory.static(parse_triple(args.position_ecef, "--position-ecef"), "ecef")
+        tr = Trajectory.static(parse_triple(args.position_ecef, "--position-ecef"), "ecef", "option --position-ecef")
     elif args.position:
-        tr = Trajectory.static(parse_triple(args.position, "--position"), "geodetic")
+        tr = Trajectory.static(parse_triple(args.position, "--position"), "geodetic", "option --position")
     elif args.trajectory:
         tr = Trajectory.from_csv(args.trajectory)
     return setup_from_config(cfg, Path(args.out), tr, progress=not args.quiet, rtcm_path=args.rtcm)

@@ -88,12 +88,19 @@ def run(args) -> int:
 
 def _run(args) -> int:
     from gnss_sim_ros2.commands.export_world import strict_world
+    from gnss_sim_ros2.core.frames import check_receiver_position
     from gnss_sim_ros2.core.receiver.chain import VisibilityOptions
     from gnss_sim_ros2.core.scene.visibility import STATE_NAMES
     from gnss_sim_ros2.core.simulation import load_scene
     from gnss_sim_ros2.core.time import GnssTime
+    from gnss_sim_ros2.parameters import param
 
     at = _parse_at(args.at)
+    # options that are parameters of the visibility node: checked by the parameter table, before any work
+    fresnel_rays = param("visibility", "fresnel_rays").check(args.fresnel_rays, "option --fresnel-rays")
+    if fresnel_rays < 0:
+        raise ValueError(f"option --fresnel-rays is {fresnel_rays}: a number of rays >= 0 is needed (0: off)")
+    mask_deg = param("visibility", "elevation_mask_deg").check(args.mask_deg, "option --mask-deg")
     t = GnssTime.from_iso(args.time, scale=args.time_scale)
     # the world as every front end loads it (simulate, run, the visibility node): strict unless --allow-partial
     scene = load_scene(args.world or "", args.mesh or "", args.materials or "",
@@ -101,12 +108,13 @@ def _run(args) -> int:
     if scene.spherical is None:
         raise ValueError(f"{args.world or args.mesh}: no geodetic origin (<spherical_coordinates> in the world, "
                          f"spherical_coordinates in the sidecar): satellites cannot be placed")
+    check_receiver_position(scene.antenna_ecef(at.reshape(1, 3))[0], "ecef", f"option --at {args.at}")
     eph = _ephemeris(args, t)
     st = eph.states(t)
     if len(st.sv) == 0:
         raise ValueError(f"no satellite has a valid navigation record at {args.time}")
-    mask = max(0.0, float(args.mask_deg))
-    res = scene.visibility_ecef(at, np.asarray(st.pos_ecef_m), mask_deg=mask, fresnel_rays=args.fresnel_rays)
+    mask = max(0.0, mask_deg)
+    res = scene.visibility_ecef(at, np.asarray(st.pos_ecef_m), mask_deg=mask, fresnel_rays=fresnel_rays)
     keep = np.flatnonzero(res.el_deg >= mask)
     order = keep[np.argsort(np.asarray(st.sv)[keep])]
     names = [STATE_NAMES[int(s)] for s in res.state]

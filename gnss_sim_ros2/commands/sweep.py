@@ -60,8 +60,7 @@ def add_arguments(p):
 def axis_values(args) -> dict:
     """{axis: values or None} from the options; ValueError naming the option."""
     from gnss_sim_ros2.core.sweep.axes import parse_dates, parse_names, parse_seeds
-    from gnss_sim_ros2.core.vocabulary import PRESET_NAMES
-    from gnss_sim_ros2.parameters import load_config
+    from gnss_sim_ros2.parameters import SHARED_KEY, load_config, param
 
     for axis_opt, (single, attr) in AXIS_OPTIONS.items():
         if getattr(args, axis_opt[2:]) is not None and getattr(args, attr) is not None:
@@ -72,8 +71,7 @@ def axis_values(args) -> dict:
         raise ValueError("option --worlds excludes --mesh")
     presets = parse_names(args.presets, "--presets") if args.presets is not None else None
     for name in presets or ():
-        if name not in PRESET_NAMES:
-            raise ValueError(f"option --presets: unknown preset {name!r} (use {', '.join(PRESET_NAMES)})")
+        param(SHARED_KEY, "preset").check(name, "option --presets")
     dates = None
     if args.dates is not None:
         ov, names = simulate.parameter_overrides(args)
@@ -117,6 +115,7 @@ def build_tasks(args, out: Path):
     from gnss_sim_ros2.core.sweep.axes import RunPoint, run_points
 
     axes = axis_values(args)
+    points = run_points(**axes)        # the number of runs is checked before any is built
     # each axis value alone first, so that an error names the option and the value
     for axis_opt, field_name in (("--seeds", "seed"), ("--dates", "date"), ("--presets", "preset"),
                                  ("--trajectories", "trajectory"), ("--worlds", "world")):
@@ -126,7 +125,7 @@ def build_tasks(args, out: Path):
             except ValueError as exc:
                 raise ValueError(f"option {axis_opt}: {value}: {exc}") from None
     tasks = []
-    for point in run_points(**axes):
+    for point in points:
         try:
             tasks.append((point, absolute_paths(simulate.setup_from_args(point_args(args, point, out)))))
         except ValueError as exc:

@@ -151,3 +151,71 @@ def enu_unit_from_az_el(az_deg, el_deg):
     el = np.radians(el_deg)
     ce = np.cos(el)
     return np.stack([ce * np.sin(az), ce * np.cos(az), np.sin(el)], axis=-1)
+
+
+# ---------------------------------------------------------------------------- the receivers this simulator models
+#: latitude [deg] (geodetic, WGS 84): the poles are the ends; 91 would wrap over the pole
+LATITUDE_SPAN_DEG = (-90.0, 90.0)
+#: longitude [deg], east: -180..180 and the 0..360 some tools write
+LONGITUDE_SPAN_DEG = (-180.0, 360.0)
+#: ellipsoidal height [m] of an antenna this simulator models: a terrestrial or low-altitude receiver.  Below:
+#: the Dead Sea shore (-430 m, the lowest dry land).  Above: 10 km, the range of the troposphere model
+#: (Saastamoinen with a standard atmosphere, core/propagation.py; RTKLIB's tropmodel() refuses heights above
+#: 1e4 m too).  Higher receivers need a partial atmosphere and see satellites below the horizon (aircraft above
+#: 10 km, balloons, spacecraft): out of scope.
+HEIGHT_SPAN_M = (-500.0, 10_000.0)
+
+
+def check_receiver_position(pos, frame: str, where: str, labels=None) -> np.ndarray:
+    """``pos`` (3,) or (N, 3) of a receiver antenna in ``frame``: ``geodetic``/``llh`` (lat_deg, lon_deg, h_m)
+    or ``ecef`` (x_m, y_m, z_m, WGS 84), finite and within LATITUDE_SPAN_DEG, LONGITUDE_SPAN_DEG and
+    HEIGHT_SPAN_M (an ECEF point through its geodetic height: the Earth's centre is refused).  Bounds
+    inclusive.  Returns ``pos`` as a float array of its own shape; else ValueError naming ``where`` and, for the
+    first bad row i, ``labels[i]`` or ``labels(i)`` (e.g. ``:12``, the line of a file)."""
+    try:
+        a = np.asarray(pos, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"{where}: {pos!r} is not 3 numbers") from None
+    if a.shape[-1:] != (3,) or a.ndim > 2:
+        raise ValueError(f"{where}: needs 3 numbers per position ({frame}), got shape {a.shape}")
+    rows = a.reshape(-1, 3)
+
+    def fail(i, text):
+        if labels is None:
+            label = "" if a.ndim == 1 else f" (row {i + 1})"
+        else:
+            label = labels(i) if callable(labels) else labels[i]
+        raise ValueError(f"{where}{label}: {text}")
+
+    finite = np.isfinite(rows).all(axis=1)
+    if not finite.all():
+        i = int(np.flatnonzero(~finite)[0])
+        fail(i, f"{rows[i].tolist()} is not 3 finite numbers")
+    h_lo, h_hi = HEIGHT_SPAN_M
+    span = (f"{h_lo:g}..{h_hi:g} m (ellipsoidal; the simulator models terrestrial and low-altitude receivers, "
+            f"within the troposphere model's range)")
+    if frame in ("geodetic", "llh"):
+        lat, lon, h = rows[:, 0], rows[:, 1], rows[:, 2]
+        for values, (lo, hi), what in ((lat, LATITUDE_SPAN_DEG, "latitude"), (lon, LONGITUDE_SPAN_DEG, "longitude"),
+                                       (h, HEIGHT_SPAN_M, "height")):
+            bad = (values < lo) | (values > hi)
+            if bad.any():
+                i = int(np.flatnonzero(bad)[0])
+                fail(i, f"height {values[i]:g} m is outside {span}" if what == "height" else
+                     f"{what} {values[i]:g} deg is outside {lo:g}..{hi:g} deg")
+    elif frame == "ecef":
+        r = np.linalg.norm(rows, axis=1)
+        h = np.full(len(rows), -np.inf)
+        near = r >= _FAST_MIN_RADIUS_M
+        if near.any():
+            h[near] = ecef_to_geodetic(rows[near, 0], rows[near, 1], rows[near, 2])[2]
+        bad = (h < h_lo) | (h > h_hi)
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            at = f"a geodetic height of {h[i]:.0f} m" if np.isfinite(h[i]) else "deep inside the Earth"
+            xyz = [round(v, 1) for v in rows[i].tolist()]
+            fail(i, f"ECEF {xyz} m is {r[i]:.0f} m from the Earth's centre, {at}; the antenna must be at a height "
+                    f"of {span}")
+    else:
+        raise ValueError(f"{where}: unknown position frame {frame!r} (geodetic, llh or ecef)")
+    return a

@@ -32,7 +32,7 @@ from .ephemeris.coverage import check_coverage
 from .ephemeris.precise_broadcast import PreciseWithBroadcastGroupDelay
 from .ephemeris.provider import open_ephemeris
 from .ephemeris.states import SatelliteStates
-from .frames import az_el_from_ecef, geodetic_to_ecef
+from .frames import az_el_from_ecef, check_receiver_position, geodetic_to_ecef
 from .presets import preset as preset_switches
 from .receiver.chain import ChainSettings, ReceiverChain, VisibilityOptions
 from .receiver.engine import ATTENUATED, BLOCKED, VISIBLE
@@ -265,6 +265,11 @@ class AntennaPath:
                              "(--world with spherical_coordinates, or --mesh)")
         if trajectory.frame != "world" and scene is not None and scene.spherical is None:
             raise ValueError("the scene has no spherical_coordinates: cannot place a geodetic/ECEF path in it")
+        if trajectory.frame == "world":     # the points as the scene places them: receivers the simulator models
+            lines = trajectory.source_lines
+            check_receiver_position(scene.antenna_ecef(trajectory.pos), "ecef",
+                                    trajectory.source or "antenna path (world frame)",
+                                    labels=lambda i: lines[i] if lines else f" point {i + 1}")
 
     def at(self, t_s: float):
         """(ecef (3,), world (3,) or None)."""

@@ -10,10 +10,12 @@ holds its start, after the last its end (or it loops).
 from __future__ import annotations
 
 import csv
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+
+from .frames import check_receiver_position
 
 FRAMES = {
     ("e_m", "n_m", "u_m"): "world",
@@ -29,6 +31,9 @@ class Trajectory:
     frame: str               # "world" | "geodetic" | "ecef"
     yaw_deg: np.ndarray | None = None  # (K,) heading about world up, from east counter-clockwise (REP-103)
     loop: bool = False
+    #: where the points come from (a CSV file) and each point's ":line" in it: errors name them
+    source: str = field(default="", compare=False)
+    source_lines: list | None = field(default=None, compare=False)
 
     def __post_init__(self):
         self.t_s = np.asarray(self.t_s, dtype=float)
@@ -75,7 +80,11 @@ class Trajectory:
 
     # ------------------------------------------------------------------ constructors
     @classmethod
-    def static(cls, pos, frame: str) -> Trajectory:
+    def static(cls, pos, frame: str, where: str = "static antenna position") -> Trajectory:
+        """One position held for the whole run; a geodetic or ECEF one must be a receiver the simulator models
+        (frames.check_receiver_position: ValueError naming ``where``, e.g. the option)."""
+        if frame != "world":
+            check_receiver_position(pos, frame, where)
         return cls(np.array([0.0]), np.asarray(pos, dtype=float).reshape(1, 3), frame)
 
     @classmethod
@@ -107,7 +116,7 @@ class Trajectory:
             raise ValueError(f"{path}:1: header must be t_s,e_m,n_m,u_m[,yaw_deg] or t_s,lat_deg,lon_deg,h_m "
                              f"or t_s,x_m,y_m,z_m; got {','.join(header)}")
         has_yaw = len(header) > 4 and header[4] == "yaw_deg"
-        ts, pos, yaw = [], [], []
+        ts, pos, yaw, lines = [], [], [], []
         for lineno, row in enumerate(rows[1:], start=2):
             if not row or not "".join(row).strip() or row[0].lstrip().startswith("#"):
                 continue
@@ -117,16 +126,23 @@ class Trajectory:
                     raise ValueError
             except ValueError:
                 raise ValueError(f"{path}:{lineno}: expected {len(header)} numbers, got {','.join(row)}") from None
+            if not all(np.isfinite(vals)):
+                raise ValueError(f"{path}:{lineno}: every value must be a finite number, got {','.join(row)}")
             ts.append(vals[0])
             pos.append(vals[1:4])
+            lines.append(f":{lineno}")
             if has_yaw:
                 yaw.append(vals[4])
         if not ts:
             raise ValueError(f"{path}: no points after the header")
+        if frame != "world":        # a world path is placed by its scene (core/simulation.py AntennaPath)
+            check_receiver_position(np.array(pos), frame, str(path), labels=lines)
         try:
-            return cls(np.array(ts), np.array(pos), frame, np.array(yaw) if has_yaw else None, loop)
+            out = cls(np.array(ts), np.array(pos), frame, np.array(yaw) if has_yaw else None, loop)
         except ValueError as exc:
             raise ValueError(f"{path}: {exc}") from None
+        out.source, out.source_lines = str(path), lines      # a world path is checked where a scene places it
+        return out
 
 
 def _yaw_along(pos: np.ndarray) -> np.ndarray:
@@ -194,5 +210,7 @@ def antenna_path(base: Trajectory, offset_m) -> Trajectory:
     yaw = np.radians(base.yaw_deg)
     d = np.stack([np.cos(yaw) * off[0] - np.sin(yaw) * off[1], np.sin(yaw) * off[0] + np.cos(yaw) * off[1],
                   np.full(len(yaw), off[2])], axis=-1)
-    return Trajectory(base.t_s.copy(), base.pos + d, "world", base.yaw_deg.copy() if base.yaw_given else None,
-                      base.loop)
+    out = Trajectory(base.t_s.copy(), base.pos + d, "world", base.yaw_deg.copy() if base.yaw_given else None,
+                     base.loop)
+    out.source, out.source_lines = base.source, base.source_lines
+    return out

@@ -9,11 +9,17 @@ from __future__ import annotations
 
 import datetime as _dt
 import itertools
+import math
 import re
 from dataclasses import asdict, dataclass
 
 #: the axes in the order of the product (seed innermost)
 AXES = ("date", "preset", "trajectory", "world", "seed")
+
+#: the most runs one sweep takes (every axis alone and their product): each run's setup is built in the driving
+#: process before the first starts and each writes a folder of RINEX (about 30 MB for an hour at 1 Hz); more: split
+#: the sweep (e.g. --seeds 1-10000, then 10001-20000 into another folder)
+MAX_SWEEP_RUNS = 10_000
 
 _RANGE = re.compile(r"^\s*(\d+)\s*-\s*(\d+)\s*$")
 _INT = re.compile(r"^\s*\d+\s*$")
@@ -50,16 +56,32 @@ def parse_seeds(text: str, option: str = "--seeds") -> list[int]:
             lo, hi = int(m.group(1)), int(m.group(2))
             if hi < lo:
                 raise ValueError(f"option {option}: range {part.strip()!r} goes down (write {hi}-{lo})")
+            _check_count(len(out) + hi - lo + 1, option, f"range {part.strip()!r}")
             out.extend(range(lo, hi + 1))
         elif _INT.match(part):
             out.append(int(part))
         else:
             raise ValueError(f"option {option}: {part.strip()!r} is not a seed (non-negative integer) "
                              f"or a range like 1-100")
-    dup = sorted({s for s in out if out.count(s) > 1})
+    _check_count(len(out), option, "the list")
+    dup = _repeated(out)
     if dup:
         raise ValueError(f"option {option}: seed {dup[0]} given twice")
     return out
+
+
+def _check_count(n: int, option: str, what: str) -> None:
+    if n > MAX_SWEEP_RUNS:
+        raise ValueError(f"option {option}: {what} gives {n} runs; a sweep takes at most {MAX_SWEEP_RUNS} "
+                         f"(MAX_SWEEP_RUNS in core/sweep/axes.py): split it into several sweeps")
+
+
+def _repeated(values: list) -> list:
+    """The values that occur more than once, sorted (one pass: the lists may be MAX_SWEEP_RUNS long)."""
+    seen, dup = set(), set()
+    for v in values:
+        (dup if v in seen else seen).add(v)
+    return sorted(dup)
 
 
 def parse_dates(text: str, default_time: str, option: str = "--dates") -> list[str]:
@@ -78,6 +100,7 @@ def parse_dates(text: str, default_time: str, option: str = "--dates") -> list[s
                                  f"YYYY-MM-DD") from None
             if d1 < d0:
                 raise ValueError(f"option {option}: day range {part!r} goes back in time")
+            _check_count(len(out) + (d1 - d0).days + 1, option, f"day range {part!r}")
             out.extend(f"{d0 + _dt.timedelta(days=k)}T{default_time}" for k in range((d1 - d0).days + 1))
         elif _DATE_ONLY.match(part):
             out.append(f"{part}T{default_time}")
@@ -85,7 +108,8 @@ def parse_dates(text: str, default_time: str, option: str = "--dates") -> list[s
             out.append(part)       # a date-time: checked as start_time by the parameter table
         else:
             raise ValueError(f"option {option}: empty item in {text!r}")
-    dup = sorted({d for d in out if out.count(d) > 1})
+    _check_count(len(out), option, "the list")
+    dup = _repeated(out)
     if dup:
         raise ValueError(f"option {option}: {dup[0]} given twice")
     return out
@@ -106,6 +130,13 @@ def run_points(seeds=None, dates=None, presets=None, trajectories=None, worlds=N
     """Every combination of the axes given (None or empty: not swept), numbered from 1."""
     values = {"date": dates, "preset": presets, "trajectory": trajectories, "world": worlds, "seed": seeds}
     lists = [list(values[a]) if values[a] else [None] for a in AXES]
+    n = math.prod(len(v) for v in lists)
+    if n > MAX_SWEEP_RUNS:
+        option = {"date": "--dates", "preset": "--presets", "trajectory": "--trajectories", "world": "--worlds",
+                  "seed": "--seeds"}
+        given = " x ".join(f"{option[a]} {len(v)}" for a, v in zip(AXES, lists) if values[a])
+        raise ValueError(f"options {given} give {n} runs; a sweep takes at most {MAX_SWEEP_RUNS} "
+                         f"(MAX_SWEEP_RUNS in core/sweep/axes.py): split it into several sweeps")
     return [RunPoint(index=i + 1, **dict(zip(AXES, combo)))
             for i, combo in enumerate(itertools.product(*lists))]
 
