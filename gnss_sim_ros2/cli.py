@@ -9,9 +9,12 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import logging
 import re
 import signal
 import sys
+import warnings
+from pathlib import Path
 
 from . import __version__
 
@@ -42,7 +45,46 @@ def build_parser(load_all: bool = True) -> argparse.ArgumentParser:
         p = sub.add_parser(name, help=help_text, description=help_text)
         if load_all:
             importlib.import_module(f"gnss_sim_ros2.commands.{module}").add_arguments(p)
+            _add_quiet(p)
     return parser
+
+
+def _add_quiet(p: argparse.ArgumentParser) -> None:
+    """Every subcommand takes --quiet: no warnings (the commands that print progress also drop it)."""
+    if "--quiet" not in p._option_string_actions:
+        p.add_argument("--quiet", action="store_true", help="no warnings (errors only)")
+
+
+class _OneLine(logging.Formatter):
+    """``gnss-sim <command>: warning: <message>``, one line per record."""
+
+    def __init__(self, command: str):
+        super().__init__()
+        self.command = command
+
+    def format(self, record: logging.LogRecord) -> str:
+        text = " ".join(record.getMessage().split())
+        return f"gnss-sim {self.command}: {record.levelname.lower()}: {text}"
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    """warnings.showwarning: a warning through logging, one line. gnss_sim's own warnings name their file and
+    reason in the message; another package's say where they come from."""
+    text = str(message)
+    if not (category.__module__ or "").startswith("gnss_sim_ros2"):
+        text = f"{category.__name__} ({Path(filename).name}:{lineno}): {text}"
+    logging.getLogger("gnss_sim_ros2").warning(text)
+
+
+def route_messages(command: str, quiet: bool) -> None:
+    """Warnings (Python's and gnss_sim's loggers') go to stderr through logging, one line each, named after the
+    command; ``quiet``: errors only."""
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(_OneLine(command))
+    root = logging.getLogger()
+    root.handlers[:] = [handler]
+    root.setLevel(logging.ERROR if quiet else logging.WARNING)
+    warnings.showwarning = _show_warning
 
 
 #: a value that starts with a minus sign: -5, -3976219.5082,3382372.5671,3652512.9849, -.5, -1e-3
@@ -84,6 +126,7 @@ def main(argv=None) -> int:
         sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
         module = importlib.import_module(f"gnss_sim_ros2.commands.{COMMANDS[chosen][0]}")
         module.add_arguments(sub.choices[chosen])
+        _add_quiet(sub.choices[chosen])
     else:
         parser = build_parser(load_all=False)
     args = parser.parse_args(_attach_negative_values(parser, argv))
@@ -91,6 +134,7 @@ def main(argv=None) -> int:
         parser.print_help()
         return 0
     module = importlib.import_module(f"gnss_sim_ros2.commands.{COMMANDS[args.command][0]}")
+    route_messages(args.command, bool(getattr(args, "quiet", False)))
     # SIGTERM unwinds like Ctrl-C (files closed by their finally blocks); `run` installs its own handlers
     signal.signal(signal.SIGTERM, _terminate)
     try:

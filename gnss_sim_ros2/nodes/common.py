@@ -7,7 +7,10 @@ publishers, active only between ``on_activate`` and ``on_deactivate``.
 """
 from __future__ import annotations
 
+import functools
 import gc
+import os
+import warnings
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType
 from rclpy.lifecycle import LifecycleNode, TransitionCallbackReturn
@@ -26,6 +29,36 @@ _KIND_TYPES = {
 }
 
 
+#: the gnss_sim nodes whose callbacks run (innermost last): a Python warning raised there goes to its logger
+_SPEAKING: list = []
+_PREVIOUS_SHOWWARNING = None
+
+
+def _node_warning(message, category, filename, lineno, file=None, line=None):
+    """warnings.showwarning in a process with gnss_sim nodes: one line through the logger of the node whose
+    callback raised it (gnss_sim's own warnings name their file and reason; another package's say where they
+    come from); outside a node's callback, what showed warnings before (gnss-sim's one-line logging), or the
+    ``gnss_sim`` ROS logger in a node executable."""
+    text = " ".join(str(message).split())
+    if not (getattr(category, "__module__", "") or "").startswith("gnss_sim_ros2"):
+        text = f"{category.__name__} ({os.path.basename(str(filename))}:{lineno}): {text}"
+    if _SPEAKING:
+        _SPEAKING[-1].get_logger().warning(text)
+    elif _PREVIOUS_SHOWWARNING not in (None, getattr(warnings, "_showwarning_orig", None)):
+        _PREVIOUS_SHOWWARNING(message, category, filename, lineno, file, line)
+    else:
+        from rclpy.logging import get_logger
+
+        get_logger("gnss_sim").warning(text)
+
+
+def _route_warnings_to_nodes() -> None:
+    global _PREVIOUS_SHOWWARNING
+    if warnings.showwarning is not _node_warning:
+        _PREVIOUS_SHOWWARNING = warnings.showwarning
+        warnings.showwarning = _node_warning
+
+
 class GnssSimNode(LifecycleNode):
     """Base of the gnss_sim lifecycle nodes.
 
@@ -39,6 +72,7 @@ class GnssSimNode(LifecycleNode):
 
     def __init__(self, node_name: str | None = None, **kwargs):
         super().__init__(node_name or NODE_NAMES[self.PARAMS_KEY], **kwargs)
+        _route_warnings_to_nodes()         # warnings of this node's callbacks: its logger, one line each
         self.params: dict = {}
         self.last_error = ""
         self._owned_publishers: list = []  # made in configure, destroyed after cleanup()
@@ -70,6 +104,18 @@ class GnssSimNode(LifecycleNode):
                     self.declare_parameter(p.name, p.default, desc)
 
     # ----------------------------------------------------------- owned entities
+    def speaking(self, callback):
+        """``callback`` with this node as the one whose logger takes the warnings it raises (its signature kept:
+        rclpy reads it to choose what it passes, e.g. a timer's TimerInfo)."""
+        @functools.wraps(callback)
+        def run(*args, **kwargs):
+            _SPEAKING.append(self)
+            try:
+                return callback(*args, **kwargs)
+            finally:
+                _SPEAKING.pop()
+        return run
+
     def lifecycle_publisher(self, msg_type, topic: str, qos):
         """A lifecycle publisher (configure), destroyed by the base class after ``cleanup()``."""
         pub = self.create_lifecycle_publisher(msg_type, topic, qos)
@@ -78,7 +124,7 @@ class GnssSimNode(LifecycleNode):
 
     def active_timer(self, period_s: float, callback, clock=None):
         """A timer (activate), destroyed by the base class after ``deactivate()``."""
-        timer = self.create_timer(period_s, callback, clock=clock)
+        timer = self.create_timer(period_s, self.speaking(callback), clock=clock)
         self._owned_active.append(timer)
         return timer
 
@@ -95,7 +141,7 @@ class GnssSimNode(LifecycleNode):
 
             def after_step(_jump):
                 try:
-                    callback()
+                    self.speaking(callback)()
                 except Exception as exc:  # noqa: BLE001 - raised into rcl it would be lost
                     self.get_logger().error(f"{type(exc).__name__}: {exc}")
 
@@ -108,7 +154,7 @@ class GnssSimNode(LifecycleNode):
     def active_subscription(self, msg_type, topic: str, callback, qos, raw: bool = False):
         """A subscription (activate), destroyed by the base class after ``deactivate()``; ``raw``: the
         callback takes the serialised bytes (gnss_sim_ros2/cdr.py reads them)."""
-        sub = self.create_subscription(msg_type, topic, callback, qos, raw=raw)
+        sub = self.create_subscription(msg_type, topic, self.speaking(callback), qos, raw=raw)
         self._owned_active.append(sub)
         return sub
 
@@ -152,7 +198,7 @@ class GnssSimNode(LifecycleNode):
     def on_configure(self, state) -> TransitionCallbackReturn:
         try:
             self.params = self.read_parameters()
-            self.configure(self.params)
+            self.speaking(self.configure)(self.params)
         except (ValueError, OSError) as exc:
             self.last_error = str(exc)
             self.get_logger().error(f"configure failed: {exc}")
@@ -167,7 +213,7 @@ class GnssSimNode(LifecycleNode):
     def on_activate(self, state) -> TransitionCallbackReturn:
         ret = super().on_activate(state)  # lifecycle publishers first: activate() may publish
         try:
-            self.activate()
+            self.speaking(self.activate)()
         except Exception as exc:  # noqa: BLE001 - report any failure as the transition's error
             self.last_error = f"activate: {type(exc).__name__}: {exc}"
             self.get_logger().error(self.last_error)

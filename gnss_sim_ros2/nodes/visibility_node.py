@@ -73,7 +73,7 @@ class VisibilityNode(GnssSimNode):
         self.image_pub = self.lifecycle_publisher(Image, "sky_view", 2)
         self.diag_pub = self.lifecycle_publisher(DiagnosticArray, "/diagnostics", 10)
         # an epoch waiting for its pose is cast as soon as the pose comes (not at the drain timer's next tick)
-        self.tf = TfSource(self, on_update=self._drain, timeout_s=p["tf_timeout_s"])
+        self.tf = TfSource(self, on_update=self.speaking(self._drain), timeout_s=p["tf_timeout_s"])
 
     def _fixed_antenna(self, p) -> np.ndarray:
         """The static antenna of parameter antenna_position in the world frame."""
