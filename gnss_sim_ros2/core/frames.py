@@ -164,6 +164,9 @@ LONGITUDE_SPAN_DEG = (-180.0, 360.0)
 #: 1e4 m too).  Higher receivers need a partial atmosphere and see satellites below the horizon (aircraft above
 #: 10 km, balloons, spacecraft): out of scope.
 HEIGHT_SPAN_M = (-500.0, 10_000.0)
+#: an ECEF point's height is compared with HEIGHT_SPAN_M within this [m]: the round-off of geodetic -> ECEF ->
+#: geodetic (~4e-9 m, test_frames.py), so a bound given in ECEF is the bound
+_ROUND_OFF_M = 1e-6
 
 
 def check_receiver_position(pos, frame: str, where: str, labels=None) -> np.ndarray:
@@ -209,7 +212,7 @@ def check_receiver_position(pos, frame: str, where: str, labels=None) -> np.ndar
         near = r >= _FAST_MIN_RADIUS_M
         if near.any():
             h[near] = ecef_to_geodetic(rows[near, 0], rows[near, 1], rows[near, 2])[2]
-        bad = (h < h_lo) | (h > h_hi)
+        bad = (h < h_lo - _ROUND_OFF_M) | (h > h_hi + _ROUND_OFF_M)
         if bad.any():
             i = int(np.flatnonzero(bad)[0])
             at = f"a geodetic height of {h[i]:.0f} m" if np.isfinite(h[i]) else "deep inside the Earth"
