@@ -70,7 +70,7 @@ def test_axis_options_map_onto_simulate_and_bad_values_name_the_option(tmp_path)
     assert [s.out_dir for _, s in tasks] == [tmp_path / "runs" / f"run0000{i}" for i in range(1, 5)]
     assert all(s.duration_s == 20.0 and not s.progress for _, s in tasks)
     cases = [(("--seeds", "1-3", "--seed", "2"), "--seeds and --seed exclude"),
-             (("--presets", "fast,turbo"), "--presets: unknown preset 'turbo'"),
+             (("--presets", "fast,turbo"), "option --presets: parameter 'preset' is 'turbo'"),
              (("--dates", "2025-13-01"), "--dates: 2025-13-01T10:00:00: .*month"),
              (("--trajectories", str(tmp_path / "none.csv")), "--trajectories: .*none.csv"),
              (("--trajectories", str(tmp_path / "a.csv"), "--position", "50,8,100"), "--trajectories excludes")]
