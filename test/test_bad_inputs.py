@@ -192,3 +192,30 @@ def test_parameter_table_uses_the_same_checker():
         load_config(None, {"rtk": {"base_position": [48.0, 11.0, 10001.0], "base_position_type": "llh"}})
     with pytest.raises(ValueError, match=r"parameter 'antenna_position'.*Earth's centre"):
         load_config(None, {"visibility": {"antenna_position": [0.0, 0.0, 0.0], "antenna_position_type": "ecef"}})
+
+
+@pytest.mark.parametrize("position, kind, words", [
+    ([0.0, 0.0, 1e8], "world", "geodetic height"),
+    ([91.0, 0.0, 0.0], "llh", "latitude 91 deg"),
+    ([0.0, 0.0, 0.0], "ecef", "Earth's centre"),
+])
+def test_visibility_node_refuses_an_impossible_static_antenna(position, kind, words):
+    """The node's antenna_position goes through the same checker (world: as its scene places it); the configure
+    transition fails naming the parameter."""
+    pytest.importorskip("rclpy", reason="rclpy is not installed (run make test)")
+    from rclpy.parameter import Parameter
+    from ros_helpers import RosFixture
+
+    from gnss_sim_ros2.nodes.visibility_node import VisibilityNode
+
+    ros = RosFixture()
+    try:
+        overrides = [Parameter("use_sim_time", value=True), Parameter("antenna_position", value=position),
+                     Parameter("antenna_position_type", value=kind)]
+        node = ros.add(VisibilityNode(node_name="gnss_sim_bad_visibility", parameter_overrides=overrides,
+                                      context=ros.context))
+        node.trigger_configure()
+        assert node._state_machine.current_state[1] == "unconfigured"
+        assert "parameter 'antenna_position'" in node.last_error and words in node.last_error, node.last_error
+    finally:
+        ros.close()

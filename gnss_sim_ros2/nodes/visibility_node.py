@@ -77,7 +77,7 @@ class VisibilityNode(GnssSimNode):
 
     def _fixed_antenna(self, p) -> np.ndarray:
         """The static antenna of parameter antenna_position in the world frame."""
-        from gnss_sim_ros2.core.frames import geodetic_to_ecef
+        from gnss_sim_ros2.core.frames import check_receiver_position, geodetic_to_ecef
 
         pos, kind = p["antenna_position"], p["antenna_position_type"]
         if kind == "world":
@@ -85,6 +85,9 @@ class VisibilityNode(GnssSimNode):
         else:
             ecef = np.array(geodetic_to_ecef(*pos) if kind == "llh" else pos, dtype=float)
             world = self.scene.spherical.ecef_to_world(ecef)
+        if kind == "world":        # llh and ecef were checked by the parameter table: the same rule
+            check_receiver_position(self.scene.antenna_ecef(world), "ecef",
+                                    f"node {self.get_name()}: parameter 'antenna_position' = {pos!r} ({kind})")
         if np.hypot(world[0], world[1]) > 100e3:
             raise ValueError(f"node {self.get_name()}: parameter 'antenna_position' = {pos!r} ({kind}) is "
                              f"{np.hypot(world[0], world[1]) / 1e3:.0f} km from the world's origin; the world frame "
