@@ -219,3 +219,26 @@ def test_a_manifest_never_reaches_outside_its_folder(tmp_path):
     assert outside.read_text() == "keep"
     assert _contents(out) == {"new.csv": b"new", MANIFEST_NAME: (out / MANIFEST_NAME).read_bytes()}
     assert _manifest(out) == {"new.csv"}
+
+
+def test_export_world_never_writes_its_sidecar_over_an_input(tmp_path):
+    from gnss_sim_ros2.core.scene.demo_world import demo_world_path
+
+    # the sidecar of m.ply is m.scene.yaml: here also the --materials file (main overwrote it)
+    materials = tmp_path / "m.scene.yaml"
+    materials.write_text("classes: {}\n")
+    res = _cli("export-world", demo_world_path(), "--out", tmp_path / "m.ply", "--materials", materials)
+    assert res.returncode == 2 and "option --out (sidecar)" in res.stderr and "is also an input" in res.stderr, \
+        res.stderr[-2000:]
+    assert materials.read_text() == "classes: {}\n" and not (tmp_path / "m.ply").exists()
+    res = _cli("export-world", demo_world_path(), "--out", tmp_path / "w.ply")
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m.scene.yaml", "w.ply", "w.scene.yaml"]
+
+
+def test_an_rtcm_file_named_inside_the_folder_is_the_runs_own(tmp_path):
+    out = tmp_path / "o"
+    for _ in range(2):                 # the second run accepts the first's RTCM file and replaces it
+        res = _cli(*SIMULATE, "--rtcm", out / "sub" / "x.rtcm3", "--out", out)
+        assert res.returncode == 0, res.stderr[-2000:]
+    assert "sub/x.rtcm3" in _manifest(out) and (out / "sub" / "x.rtcm3").stat().st_size > 0

@@ -349,11 +349,14 @@ def run_simulation(setup: SimulationSetup) -> SimulationResult:
     from .output_folder import OutputFolder
 
     inputs = [*setup.nav_files, *setup.sp3_files, *setup.clk_files, setup.world_file, setup.mesh_file,
-              setup.materials_file, setup.rtcm_path]
+              setup.materials_file]
     folder = OutputFolder(setup.out_dir, command="gnss-sim simulate", inputs=inputs)
     staging = folder.acquire()
+    rtcm_path = setup.rtcm_path     # an RTCM file named inside the folder is one of the run's files too
+    if rtcm_path and folder.final in Path(rtcm_path).resolve().parents:
+        rtcm_path = str(staging / Path(rtcm_path).resolve().relative_to(folder.final))
     try:
-        res = _simulate_into(dataclasses.replace(setup, out_dir=staging))
+        res = _simulate_into(dataclasses.replace(setup, out_dir=staging, rtcm_path=rtcm_path))
     except BaseException as exc:
         # a failure (an Exception) leaves nothing; a stop (KeyboardInterrupt, SIGTERM) keeps closed epochs
         if isinstance(exc, Exception) or not any(staging.glob("*_MO*.rnx")):
