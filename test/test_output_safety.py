@@ -84,6 +84,21 @@ def test_simulate_keeps_a_stations_rinex_and_its_own_nav_input(tmp_path, nav_fil
     assert _manifest(out) == set(_contents(out)) - {MANIFEST_NAME}
 
 
+@pytest.mark.parametrize("option", ["--config", "--trajectory"])
+def test_out_in_the_folder_of_an_input_file_is_refused(tmp_path, option):
+    here = tmp_path / "project"
+    here.mkdir()
+    if option == "--config":
+        name, text, args = "my.yaml", "/**:\n  ros__parameters:\n    seed: 3\n", SIMULATE
+    else:
+        name, text = "path.csv", "t_s,lat_deg,lon_deg,h_m\n0,50,4,100\n10,50,4.0001,100\n"
+        args = [a for a in SIMULATE if a not in ("--position", "50,4,100")]
+    (here / name).write_text(text)
+    res = _cli(*args, option, here / name, "--out", here)
+    _refused(res, here, name, "simulate")
+    assert _contents(here) == {name: text.encode()}
+
+
 @pytest.mark.parametrize("command", ["simulate", "run"])
 def test_out_dot_with_a_users_file_is_refused(tmp_path, command):
     if command == "run":
