@@ -88,6 +88,9 @@ def _cases(tmp: Path, write: bool = True):
         ("fresnel-negative", [*sky, "--at", "0,0,1.5", "--fresnel-rays", "-1"], ["option --fresnel-rays"]),
         ("skyplot-mask", [*sky, "--at", "0,0,1.5", "--mask-deg", "95"], ["option --mask-deg", "maximum"]),
         ("skyplot-at-height", [*sky, "--at", "0,0,1e8"], ["option --at", "geodetic height"]),
+        # run's errors name the option too (its option table was keyed the wrong way round: "command line")
+        ("run-rate", ["run", "--out", tmp / "run", "--rate", "-5"], ["option --rate", "'rate_hz'"]),
+        ("run-duration", ["run", "--out", tmp / "run", "--duration", "1e9"], ["option --duration", "maximum"]),
     ]
 
 

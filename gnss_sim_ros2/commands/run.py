@@ -79,10 +79,10 @@ def add_arguments(p):
     p.add_argument("--quiet", action="store_true")
 
 
-#: command-line option -> parameter (errors name the option)
-OPTION_PARAMS = {"--systems": "systems", "--rate": "rate_hz", "--antenna-frame": "antenna_frame",
-                 "--duration": "duration_s", "--world": "world_file", "--mesh": "mesh_file",
-                 "--allow-partial": "strict_world"}
+#: parameter -> command-line option (load_config's ``options``: errors name the option the user typed)
+PARAM_OPTIONS = {"systems": "--systems", "rate_hz": "--rate", "antenna_frame": "--antenna-frame",
+                 "duration_s": "--duration", "world_file": "--world", "mesh_file": "--mesh",
+                 "strict_world": "--allow-partial"}
 
 
 def _overrides(args) -> dict:
@@ -123,7 +123,7 @@ def run(args) -> int:
                              f"rover (and its base station); run RTK with --robots 1")
         ov = _overrides(args)
         ov["/**"]["output_dir"] = str(folder.staging)
-        cfg = load_config(args.config, ov, OPTION_PARAMS)
+        cfg = load_config(args.config, ov, PARAM_OPTIONS)
         check_robot_config(cfg, args.robots, "option --robots")
         robot_sections = graph.robot_parameter_sections(cfg, args.robots)   # a robot's bad path file stops here
         # the base station's (and moving baseline's) sections: a bad base_position stops here, before any start
