@@ -22,6 +22,8 @@ Arguments:
   autostart:=true|false              configure and activate the nodes (lifecycle manager) [true]
   rtk:=true|false                    RTK: the base station (gnss_sim_base_visibility, gnss_sim_base_receiver at
                                      base_position) and the rtk node (RTKLIB rtkrcv): /gnss/rtk/fix [false]
+  strict_world:=true|false          stop when the world loses geometry it names (a model:// not found) or load
+                                     the rest with a warning [from config: true]
   robots:=N                          N robots (1..16): each its trajectory player, visibility and receiver node in
                                      namespace robot<k> (/robot<k>/gnss/fix, TF frames robot<k>/..., RINEX in
                                      output_dir/robot<k>), a convoy convoy_spacing_s apart along the path (or
@@ -49,10 +51,23 @@ from launch_ros.descriptions import ComposableNode
 from gnss_sim_ros2 import graph
 from gnss_sim_ros2.parameters import check_robot_config, check_robots, load_config
 
+#: launch argument -> (default, description): `ros2 launch gnss_sim sim.launch.py --show-args` prints them
 ARGS = {
-    "world": "", "mesh": "", "config": "", "composed": "true", "use_sim_time": "true", "trajectory_player": "true",
-    "record": "false", "output_dir": "gnss_sim_output", "antenna_frame": "", "autostart": "true", "rtk": "false",
-    "robots": "1",
+    "world": ("", "Gazebo world (SDF) for visibility; empty: the config's world_file (the demo courtyard)"),
+    "mesh": ("", "scene mesh exported by `gnss-sim export-world` (instead of world)"),
+    "config": ("", "gnss_sim parameter file (ROS 2 format); empty: the package's config/gnss_sim.yaml defaults"),
+    "composed": ("true", "true: every node in one container; false: one process per node; robot: one container "
+                         "per robot"),
+    "use_sim_time": ("true", "follow /clock (Gazebo or the trajectory player)"),
+    "trajectory_player": ("true", "move the robot along a path here; false when Gazebo publishes TF"),
+    "record": ("false", "record the gnss_sim topics into output_dir/bag (MCAP)"),
+    "output_dir": ("gnss_sim_output", "folder of the RINEX files (and the bag)"),
+    "antenna_frame": ("", "TF frame of the antenna; empty: the config's antenna_frame"),
+    "autostart": ("true", "configure and activate the nodes (lifecycle manager)"),
+    "rtk": ("false", "RTK: a base station and the rtk node (RTKLIB rtkrcv) publishing /gnss/rtk/fix"),
+    "robots": ("1", "number of robots (1..16), each in namespace robot<k>"),
+    "strict_world": ("", "true: stop when the world loses geometry it names (a model:// not found, an unreadable "
+                         "mesh); false: load the rest with a warning; empty: the config's strict_world"),
 }
 CONTAINER = "gnss_sim_container"
 
@@ -134,6 +149,8 @@ def _setup(context):
         overrides["visibility"] = {"world_file": os.path.abspath(a["world"]), "mesh_file": ""}
     if a["mesh"]:
         overrides["visibility"] = {"mesh_file": os.path.abspath(a["mesh"]), "world_file": ""}
+    if a["strict_world"]:     # checked by the parameter table (load_config) like the file's value
+        overrides.setdefault("visibility", {})["strict_world"] = yaml.safe_load(a["strict_world"])
     layout = layout_of(a["composed"])
     rtk = _true(a["rtk"])
     robots = check_robots(a["robots"], "launch argument robots")
@@ -142,7 +159,7 @@ def _setup(context):
                          f"rover (and its base station); use robots:=1 with rtk:=true")
     if rtk:
         overrides["receiver"] = {"rtcm": True}      # the rover's RTCM3 for the rtk node
-    cfg = load_config(a["config"] or None, overrides)
+    cfg = load_config(a["config"] or None, overrides, {"strict_world": "strict_world:="})
     check_robot_config(cfg, robots, "launch argument robots")
     sim_time = _true(a["use_sim_time"])
     params = {**cfg.ros_parameter_file_dict(), **(graph.rtk_parameter_sections(cfg) if rtk else {}),
@@ -182,5 +199,5 @@ def _setup(context):
 
 
 def generate_launch_description():
-    return LaunchDescription([DeclareLaunchArgument(k, default_value=v) for k, v in ARGS.items()]
+    return LaunchDescription([DeclareLaunchArgument(k, default_value=v, description=d) for k, (v, d) in ARGS.items()]
                              + [OpaqueFunction(function=_setup)])

@@ -119,6 +119,27 @@ def test_composed_argument_layouts_and_refusal():
         mod.layout_of("container")
 
 
+def test_every_launch_argument_has_a_description():
+    """nav2 bring-up's convention: `ros2 launch ... --show-args` tells a user what each argument does."""
+    res = subprocess.run(["ros2", "launch", "gnss_sim", "sim.launch.py", "--show-args"], capture_output=True,
+                         text=True, timeout=60)
+    assert res.returncode == 0, res.stdout + res.stderr
+    mod = _launch_module()
+    for name in mod.ARGS:
+        assert f"'{name}':" in res.stdout, (name, res.stdout)
+    assert "no description given" not in res.stdout, res.stdout
+
+
+def test_strict_world_argument_is_checked_by_the_parameter_table(tmp_path):
+    """strict_world:= reaches the visibility parameters through load_config: a value that is no bool is refused
+    naming the argument before any node starts."""
+    res = subprocess.run(["ros2", "launch", "gnss_sim", "sim.launch.py", f"output_dir:={tmp_path / 'out'}",
+                          "strict_world:=maybe"], capture_output=True, text=True, timeout=60)
+    text = res.stdout + res.stderr
+    assert res.returncode != 0, text
+    assert "strict_world" in text and "process started" not in text, text
+
+
 @pytest.mark.parametrize("exe, args, sig", [
     ("container", [], signal.SIGTERM),
     ("container", [], signal.SIGINT),
