@@ -143,3 +143,38 @@ def test_stepped_epochs_reach_the_rinex_file_at_once(tmp_path):
     block.close()
     la, lb = (c.obs_path.read_text().splitlines() for c in (stepped, block))
     assert [x for x in la if "PGM / RUN BY" not in x] == [x for x in lb if "PGM / RUN BY" not in x]
+
+
+def test_a_glonass_satellite_that_appears_later_is_encoded(tmp_path):
+    """The receiver node has no ephemeris of its own: a GLONASS satellite whose broadcast record becomes valid
+    after the first epoch (its channel absent from the first states and so from the header's SLOT / FRQ #)
+    still reaches RTCM3 MSM, with the channel its states carry (it raised "GLONASS R.. has no frequency
+    channel" and stopped the node)."""
+    from gnss_sim_ros2.core.receiver.chain import ChainSettings, ReceiverChain
+
+    rcv = load_config(overrides={"/**": {"systems": "GR"}}).node("receiver")
+    t0 = GnssTime.from_iso(rcv["start_time"])
+    prov, _ = open_ephemeris("synthetic", t0, 60.0, "GR", workdir=tmp_path / "eph")
+    ecef = np.array([4027894.0, 307045.6, 4919474.9])
+    ts = [t0 + float(k) for k in range(3)]
+    states = [prov.states(t, systems="GR") for t in ts]
+    glo = [i for i, sv in enumerate(states[0].sv) if sv[0] == "R"]
+    assert len(glo) > 2
+    first = states[0].select(np.array([i for i in range(len(states[0])) if i not in glo[:len(glo) // 2]]))
+    first.t = ts[0]
+    chain = ReceiverChain(ChainSettings.from_params({**rcv, "output_dir": str(tmp_path / "o")}), None, rtcm=True)
+    out = [chain.step(ts[0], ecef, first)] + [chain.step(t, ecef, st) for t, st in zip(ts[1:], states[1:])]
+    chain.close()
+    assert all(len(p.rtcm) > 0 for p in out)
+    import io
+
+    from pyrtcm import RTCMReader
+
+    tracked = {str(sv) for sv in out[-1].obs.sv}
+    later = {str(states[0].sv[i]) for i in glo[:len(glo) // 2]} & tracked
+    assert later, "no satellite of the later half is tracked: the case is not exercised"
+    seen = set()
+    for _raw, msg in RTCMReader(io.BytesIO(out[-1].rtcm)):
+        if msg is not None and msg.identity in ("1087", "1084", "1085", "1086"):
+            seen |= {f"R{int(getattr(msg, f'PRN_{k + 1:02d}')):02d}" for k in range(msg.NSat)}
+    assert later <= seen, (later, seen)

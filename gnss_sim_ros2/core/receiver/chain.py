@@ -322,6 +322,9 @@ class ReceiverChain:
         if self.rtcm_target is not None and arrays is not None:
             if self._rtcm is None:
                 self._rtcm = self._open_rtcm()
+            glo = np.char.startswith(np.asarray(states.sv, dtype=str), "R")
+            if glo.any():   # a GLONASS satellite the header's slots lack (its record valid later): its channel
+                self._rtcm.add_glonass_channels(dict(zip(states.sv[glo], states.glo_channel[glo])))
             rtcm = self._rtcm.write_epoch(t, arrays)
         return EpochProducts(t, ecef, obs, sol, text, rtcm)
 

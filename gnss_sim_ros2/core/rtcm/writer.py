@@ -164,6 +164,12 @@ class RtcmWriter:
         return res
 
     # --------------------------------------------------------------------------------------
+    def add_glonass_channels(self, channels: Mapping[str, int]):
+        """GLONASS frequency channels learnt after the header ({"R01": k}): a satellite whose broadcast record
+        becomes valid during the run (a node has no ephemeris of its own, only each epoch's states)."""
+        for sv, k in channels.items():
+            self._glo.setdefault(str(sv), int(k))
+
     def write_epoch(self, t: GnssTime, observations, clock_offset_s: float | None = None, flag: int = 0) -> bytes:
         """Append one epoch (GPS time ``t``): station and ephemeris messages when due, then the MSMs.
         ``observations`` as for RinexObsWriter.write_epoch; ``flag`` 1 (power failure) restarts every
