@@ -1,4 +1,4 @@
-"""The numpy CDR codec (gnss_sim_ros2/cdr.py) against rclpy's own serialisation, field by field and byte for
+"""The numpy CDR codec (gnss_sim_ros2/messages/cdr.py) against rclpy's own serialisation, field by field and byte for
 byte (every byte that is not alignment padding: rclpy leaves padding uninitialised), and the conversions that
 use it (conversions.encode_* / decode_*) against their message twins (states_to_msg, states_from_msg, ...)."""
 from __future__ import annotations
@@ -6,10 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from gnss_sim_ros2 import cdr, conversions
 from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris
 from gnss_sim_ros2.core.multipath.reflections import ScenePaths
 from gnss_sim_ros2.core.time import GnssTime
+from gnss_sim_ros2.messages import cdr, conversions
 
 rclpy_serialization = pytest.importorskip(
     "rclpy.serialization", reason="rclpy is not installed (run make test, or source ROS 2): the codec is checked "

@@ -45,7 +45,7 @@ def test_comparison_sees_a_changed_field():
     """The round-trip comparison is not blind: a single changed nested field is reported."""
     pytest.importorskip("gnss_sim_msgs", reason="gnss_sim_msgs is not built (run make test)")
     from gnss_sim_ros2.commands.roundtrip import _compare
-    from gnss_sim_ros2.msg_samples import MESSAGE_TYPES, sample, to_dict
+    from gnss_sim_ros2.messages.samples import MESSAGE_TYPES, sample, to_dict
 
     for name in MESSAGE_TYPES:
         a = to_dict(sample(name))
@@ -67,7 +67,7 @@ def test_every_message_type_crosses_processes():
     """Each gnss_sim_msgs type published here is received by another process with every field equal."""
     pytest.importorskip("rclpy", reason="rclpy is not installed (run make test, or source ROS 2)")
     pytest.importorskip("gnss_sim_msgs", reason="gnss_sim_msgs is not built (run make test)")
-    from gnss_sim_ros2.msg_samples import MESSAGE_TYPES
+    from gnss_sim_ros2.messages.samples import MESSAGE_TYPES
 
     env = dict(os.environ, ROS_DOMAIN_ID=str(os.getpid() % 100 + 101))
     env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")

@@ -3,8 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from gnss_sim_ros2.conversions import paths_from_msg, reflections_to_msgs
 from gnss_sim_ros2.core.multipath.reflections import ScenePaths
+from gnss_sim_ros2.messages.conversions import paths_from_msg, reflections_to_msgs
 
 
 def test_paths_cross_the_message_bit_for_bit():

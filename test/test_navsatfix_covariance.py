@@ -8,11 +8,11 @@ import pytest
 from rclpy.parameter import Parameter
 from ros_helpers import ros  # noqa: F401  (fixture)
 
-from gnss_sim_ros2.conversions import encode_states, encode_visibility
 from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris
 from gnss_sim_ros2.core.frames import az_el_from_ecef
 from gnss_sim_ros2.core.time import GnssTime
 from gnss_sim_ros2.core.vocabulary import VisibilityState
+from gnss_sim_ros2.messages.conversions import encode_states, encode_visibility
 
 T0 = GnssTime.from_iso("2025-06-01T10:00:00")
 ANTENNA_ECEF_M = np.array([4027894.0, 307045.6, 4919474.9])   # open sky (Belgium)
@@ -79,13 +79,13 @@ def test_published_covariance_is_the_solvers(ros, tmp_path):  # noqa: F811
 
 @pytest.mark.parametrize("status", ["fix", "no_fix"])
 def test_fix_message_of_a_solution(status):
-    """conversions.fix_to_msg: covariance ENU row-major as the solver gives it; no fix: unknown covariance."""
+    """messages.solution.fix_to_msg: covariance ENU row-major as the solver gives it; no fix: unknown covariance."""
     from types import SimpleNamespace
 
     from sensor_msgs.msg import NavSatFix, NavSatStatus
     from std_msgs.msg import Header
 
-    from gnss_sim_ros2.conversions import fix_to_msg
+    from gnss_sim_ros2.messages.solution import fix_to_msg
 
     cov = np.arange(9.0).reshape(3, 3) + 1.0
     sol = SimpleNamespace(is_fix=status == "fix", sv_used=["G01", "E11"], lat_deg=50.0, lon_deg=4.0, h_m=100.0,

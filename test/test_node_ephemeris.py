@@ -6,9 +6,9 @@ import pytest
 from rclpy.parameter import Parameter
 from ros_helpers import ros  # noqa: F401  (fixture)
 
-from gnss_sim_ros2.conversions import iono_from_msg, states_from_msg, states_to_msg
 from gnss_sim_ros2.core.ephemeris.broadcast import BroadcastEphemeris
 from gnss_sim_ros2.core.time import GnssTime
+from gnss_sim_ros2.messages.conversions import iono_from_msg, states_from_msg, states_to_msg
 from gnss_sim_ros2.nodes.ephemeris_node import EphemerisNode
 
 

@@ -60,9 +60,9 @@ def test_visibility_node_waits_for_a_live_source_behind_the_epoch(tmp_path):
     from ros_helpers import RosFixture
     from tf2_msgs.msg import TFMessage
 
-    from gnss_sim_ros2.conversions import encode_states
     from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris
     from gnss_sim_ros2.core.time import GnssTime
+    from gnss_sim_ros2.messages.conversions import encode_states
     from gnss_sim_ros2.nodes.visibility_node import VisibilityNode
 
     ros = RosFixture()

@@ -29,7 +29,7 @@ def _qos():
 def _listen(timeout_s: float) -> int:
     import rclpy
 
-    from gnss_sim_ros2.msg_samples import MESSAGE_TYPES, message_class, to_dict
+    from gnss_sim_ros2.messages.samples import MESSAGE_TYPES, message_class, to_dict
 
     rclpy.init()
     node = rclpy.create_node("gnss_sim_roundtrip_listener")
@@ -72,7 +72,7 @@ def run(args) -> int:
 
     import rclpy
 
-    from gnss_sim_ros2.msg_samples import MESSAGE_TYPES, message_class, sample, to_dict
+    from gnss_sim_ros2.messages.samples import MESSAGE_TYPES, message_class, sample, to_dict
 
     child = subprocess.Popen(
         [sys.executable, "-m", "gnss_sim_ros2.cli", "roundtrip", "--listen", "--timeout", str(args.timeout)],

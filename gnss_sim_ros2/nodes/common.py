@@ -153,7 +153,7 @@ class GnssSimNode(LifecycleNode):
 
     def active_subscription(self, msg_type, topic: str, callback, qos, raw: bool = False):
         """A subscription (activate), destroyed by the base class after ``deactivate()``; ``raw``: the
-        callback takes the serialised bytes (gnss_sim_ros2/cdr.py reads them)."""
+        callback takes the serialised bytes (gnss_sim_ros2/messages/cdr.py reads them)."""
         sub = self.create_subscription(msg_type, topic, self.speaking(callback), qos, raw=raw)
         self._owned_active.append(sub)
         return sub

@@ -6,7 +6,7 @@ the ROS clock (simulated time works) publishes ``satellite_states`` for each
 epoch of the grid start_time + k / rate_hz that the clock has reached, in
 order, none skipped (a late timer catches up and counts the late epochs);
 diagnostics report data problems (satellites without a valid ephemeris).
-The message goes out as its CDR bytes, written from the arrays (gnss_sim_ros2/cdr.py).
+The message goes out as its CDR bytes, written from the arrays (gnss_sim_ros2/messages/cdr.py).
 """
 from __future__ import annotations
 
@@ -14,11 +14,11 @@ import math
 import sys
 import tempfile
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from std_msgs.msg import Header
+from diagnostic_msgs.msg import DiagnosticArray
 
-from gnss_sim_ros2.conversions import encode_states
 from gnss_sim_ros2.core.time import GnssTime
+from gnss_sim_ros2.messages.conversions import encode_states
+from gnss_sim_ros2.messages.diagnostics import diagnostic_array, diagnostic_status
 from gnss_sim_ros2.nodes.common import GnssSimNode, TimeMapping, run_node, run_origin_ns
 
 
@@ -105,9 +105,7 @@ class EphemerisNode(GnssSimNode):
             self._diagnose(t, len(states))
 
     def _diagnose(self, t: GnssTime, n: int):
-        status = DiagnosticStatus(name=f"{self.get_name()}: ephemeris", hardware_id="gnss_sim")
-        values = [KeyValue(key="satellites", value=str(n)), KeyValue(key="epochs_published", value=str(self.published)),
-                  KeyValue(key="late_epochs", value=str(self.late_epochs))]
+        values = {"satellites": n, "epochs_published": self.published, "late_epochs": self.late_epochs}
         diag = getattr(self.provider, "diagnostics", None)
         problems = []
         if diag is not None:
@@ -116,11 +114,11 @@ class EphemerisNode(GnssSimNode):
                 svs = getattr(d, name, None)
                 if svs:
                     problems.append(f"{name}: {' '.join(map(str, svs))}")
-                    values.append(KeyValue(key=name, value=" ".join(map(str, svs))))
-        status.level = DiagnosticStatus.WARN if problems or n < 4 else DiagnosticStatus.OK
-        status.message = "; ".join(problems) if problems else f"{n} satellites"
-        status.values = values
-        self.diag_pub.publish(DiagnosticArray(header=Header(stamp=self.get_clock().now().to_msg()), status=[status]))
+                    values[name] = " ".join(map(str, svs))
+        status = diagnostic_status(f"{self.get_name()}: ephemeris",
+                                   "; ".join(problems) if problems else f"{n} satellites", values,
+                                   warn=bool(problems) or n < 4)
+        self.diag_pub.publish(diagnostic_array(self.get_clock().now().to_msg(), status))
 
 
 def _msg_type():

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import threading
 
-from gnss_sim_ros2.conversions import stamp_of
+from gnss_sim_ros2.messages.conversions import stamp_of
 
 
 class LatencyProbe:

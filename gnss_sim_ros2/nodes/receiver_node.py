@@ -5,7 +5,7 @@ stamp (the visibility message carries the antenna position that the
 visibility node looked up in TF at that stamp, lever arm included: one TF
 lookup serves both nodes), runs the receiver core and publishes:
 ``observations`` (gnss_sim_msgs/Observations), ``fix`` (sensor_msgs/NavSatFix,
-conversions.fix_to_msg: the solver's ENU covariance, which it scaled by the a-posteriori variance factor),
+messages.solution.fix_to_msg: the solver's ENU covariance, which it scaled by the a-posteriori variance factor),
 ``vel`` (geometry_msgs/TwistWithCovarianceStamped, ENU), ``status``
 (gnss_sim_msgs/ReceiverStatus), ``nmea`` (std_msgs/String, one epoch's
 sentences; nmea_msgs is not available on PyPI) and diagnostics; and writes
@@ -15,7 +15,7 @@ on TCP port ``rtcm_tcp_port`` (core/rtcm/tcp_server.py) for outside tools.
 
 The epoch's work is core/receiver/chain.py's ReceiverChain, the same object
 ``gnss-sim simulate`` steps: this node only converts messages. The big ones
-travel as CDR bytes read and written from arrays (gnss_sim_ros2/cdr.py): the
+travel as CDR bytes read and written from arrays (gnss_sim_ros2/messages/cdr.py): the
 states and visibility subscriptions are raw, ``observations`` is published
 serialised; the others are small rclpy messages.  The node has
 the states at the epoch, not the ephemeris: the chain goes back to the
@@ -26,25 +26,22 @@ from __future__ import annotations
 
 import sys
 
-import numpy as np
 from builtin_interfaces.msg import Time
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import TwistWithCovarianceStamped
 from sensor_msgs.msg import NavSatFix
 from std_msgs.msg import Header, String
 
-from gnss_sim_ros2.conversions import (
+from gnss_sim_ros2.messages.conversions import (
     chain_inputs_from_visibility,
     encode_observations,
-    fix_to_msg,
-    navsatfix_service_flags,
     stamp_of,
     states_from_cdr,
     visibility_from_cdr,
 )
+from gnss_sim_ros2.messages.diagnostics import diagnostic_array, diagnostic_status
+from gnss_sim_ros2.messages.solution import fix_to_msg, status_to_msg, vel_to_msg
 from gnss_sim_ros2.nodes.common import GnssSimNode, run_node
-
-SERVICE_FLAGS = navsatfix_service_flags()
 
 
 class ReceiverNode(GnssSimNode):
@@ -167,8 +164,8 @@ class ReceiverNode(GnssSimNode):
         sol = ep.sol
         header = Header(stamp=Time(sec=stamp[0], nanosec=stamp[1]), frame_id=frame)
         self.pubs["fix"].publish(fix_to_msg(header, sol))
-        self.pubs["vel"].publish(self._vel_msg(header, sol))
-        self.pubs["status"].publish(self._status_msg(header, obs, sol))
+        self.pubs["vel"].publish(vel_to_msg(header, sol))
+        self.pubs["status"].publish(status_to_msg(header, obs, sol, self.chain.settings.receiver.elevation_mask_deg))
         self.pubs["nmea"].publish(String(data=ep.nmea))
         if ep.rtcm:
             from std_msgs.msg import UInt8MultiArray
@@ -179,42 +176,13 @@ class ReceiverNode(GnssSimNode):
         if self.chain.epochs % 10 == 1:
             self._diagnose(obs, sol)
 
-    def _vel_msg(self, header, sol):
-        msg = TwistWithCovarianceStamped(header=header)
-        v = np.asarray(sol.vel_enu_mps)
-        if sol.vel_status == "fix" and np.all(np.isfinite(v)):
-            msg.twist.twist.linear.x, msg.twist.twist.linear.y, msg.twist.twist.linear.z = (float(x) for x in v)
-            cov = np.zeros((6, 6))
-            cov[:3, :3] = sol.cov_vel_enu_m2ps2     # the solver's, ENU like the velocity
-            cov[3, 3] = cov[4, 4] = cov[5, 5] = -1.0  # angular velocity unknown
-            msg.twist.covariance = [float(v) for v in cov.ravel()]
-        else:
-            msg.twist.covariance = [-1.0] + [0.0] * 35
-        return msg
-
-    def _status_msg(self, header, obs, sol):
-        from gnss_sim_msgs.msg import ReceiverStatus
-
-        above = obs.sat_el_deg >= self.chain.settings.receiver.elevation_mask_deg
-        return ReceiverStatus(
-            header=header, satellites_visible=int(np.sum(above & (obs.sat_vis_state != 1))),
-            satellites_tracked=int(obs.n_tracked_sats), satellites_used=int(sol.n_used),
-            systems_used=sorted({s[0] for s in sol.sv_used}), gdop=float(sol.gdop), pdop=float(sol.pdop),
-            hdop=float(sol.hdop), vdop=float(sol.vdop), tdop=float(sol.tdop), clock_bias_s=float(obs.clock_bias_s),
-            clock_drift_sps=float(obs.clock_drift_sps),
-            solution_type=ReceiverStatus.SOLUTION_SINGLE if sol.is_fix else ReceiverStatus.SOLUTION_NONE,
-            reason="" if sol.is_fix else sol.reason)
-
     def _diagnose(self, obs, sol):
-        level = DiagnosticStatus.OK if sol.is_fix else DiagnosticStatus.WARN
-        status = DiagnosticStatus(name=f"{self.get_name()}: receiver", hardware_id="gnss_sim", level=level,
-                                  message=f"{'fix' if sol.is_fix else 'no fix: ' + sol.reason}, "
-                                          f"{obs.n_tracked_sats} satellites tracked")
-        status.values = [KeyValue(key="epochs", value=str(self.chain.epochs)),
-                         KeyValue(key="fixes", value=str(self.chain.fixes)),
-                         KeyValue(key="hdop", value=f"{sol.hdop:.2f}")]
-        self.pubs["diag"].publish(DiagnosticArray(header=Header(stamp=self.get_clock().now().to_msg()),
-                                                  status=[status]))
+        status = diagnostic_status(f"{self.get_name()}: receiver",
+                                   f"{'fix' if sol.is_fix else 'no fix: ' + sol.reason}, "
+                                   f"{obs.n_tracked_sats} satellites tracked",
+                                   {"epochs": self.chain.epochs, "fixes": self.chain.fixes, "hdop": f"{sol.hdop:.2f}"},
+                                   warn=not sol.is_fix)
+        self.pubs["diag"].publish(diagnostic_array(self.get_clock().now().to_msg(), status))
 
 
 def main(args=None):

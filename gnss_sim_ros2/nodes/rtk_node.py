@@ -40,16 +40,16 @@ import os
 import queue
 import sys
 
-import numpy as np
-from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import TwistWithCovarianceStamped
 from rclpy.clock import Clock, ClockType
 from sensor_msgs.msg import Imu, NavSatFix
 from std_msgs.msg import Header, String, UInt8MultiArray
 
-from gnss_sim_ros2.core.rtk.solution import Q_FIX, Q_FLOAT, QUALITY_NAMES, RtkBaseline, RtkSolution
+from gnss_sim_ros2.core.rtk.solution import QUALITY_NAMES, RtkBaseline, RtkSolution
+from gnss_sim_ros2.messages.rtk import heading_to_msg, rtk_fix_to_msg, rtk_status_to_msg, rtk_vel_to_msg
+from gnss_sim_ros2.messages.solution import navsatfix_service
 from gnss_sim_ros2.nodes.common import GnssSimNode, TimeMapping, run_node, run_origin_ns
-from gnss_sim_ros2.nodes.receiver_node import SERVICE_FLAGS
 
 
 class RtkNode(GnssSimNode):
@@ -99,7 +99,7 @@ class RtkNode(GnssSimNode):
                 if not os.path.isfile(f):
                     raise ValueError(f"{where}: navigation file {f} does not exist (parameter nav_files)")
             self.schedule = EphemerisSchedule(records_as_dicts(read_nav_files(p["nav_files"]), systems), 30.0)
-        self.service_flags = int(np.bitwise_or.reduce([SERVICE_FLAGS.get(s, 0) for s in systems] or [0]))
+        self.service_flags = navsatfix_service(systems)
         self.mapping = TimeMapping(p["start_time"], p["time_mapping"])
         self.moving_base = p["rtk_mode"] == "movingbase"
         self.pubs = {
@@ -247,72 +247,17 @@ class RtkNode(GnssSimNode):
         self.last = sol
         header = Header(stamp=self.mapping.to_ros(sol.t), frame_id=self.params["antenna_frame"])
         if isinstance(sol, RtkBaseline):
-            self.pubs["heading"].publish(heading_message(header, sol))
+            self.pubs["heading"].publish(heading_to_msg(header, sol))
         else:
-            self.pubs["fix"].publish(fix_message(header, sol, self.service_flags))
-            self.pubs["vel"].publish(vel_message(header, sol))
+            self.pubs["fix"].publish(rtk_fix_to_msg(header, sol, self.service_flags))
+            self.pubs["vel"].publish(rtk_vel_to_msg(header, sol))
         self.pubs["status"].publish(self.status_message(sol))
 
     def status_message(self, sol: RtkSolution | RtkBaseline | None) -> DiagnosticStatus:
-        running = self.proc is not None and self.proc.running
-        if sol is None:
-            level, text = DiagnosticStatus.WARN, "no solution yet"
-        else:
-            level = DiagnosticStatus.OK if sol.q in (Q_FIX, Q_FLOAT) else DiagnosticStatus.WARN
-            text = f"{sol.quality}, ratio {sol.ratio:.1f}, {sol.ns} satellites, age {sol.age_s:.1f} s"
-            if isinstance(sol, RtkBaseline):
-                text += f", heading {sol.heading_deg:.2f} +- {sol.heading_sd_deg:.2f} deg"
-        stamp = self.mapping.to_ros(sol.t) if sol is not None else None
-        values = {"running": str(running).lower(), "quality": sol.quality if sol else "none",
-                  "stamp": f"{stamp.sec}.{stamp.nanosec:09d}" if stamp is not None else "",
-                  "ratio": f"{sol.ratio:.1f}" if sol else "", "satellites": str(sol.ns) if sol else "",
-                  "age_s": f"{sol.age_s:.2f}" if sol else "",
-                  **({"heading_deg": f"{sol.heading_deg:.3f}", "heading_sd_deg": f"{sol.heading_sd_deg:.3f}",
-                      "baseline_m": f"{sol.length_m:.4f}"} if isinstance(sol, RtkBaseline) else {}),
-                  **{f"epochs_{QUALITY_NAMES[q]}": str(n) for q, n in self.counts.items() if n},
-                  "rover_bytes": str(self.bytes_in["rover"]), "base_bytes": str(self.bytes_in["base"]),
-                  "rover_epochs_without_base": str(self.sync.released_unpaired if self.sync else 0)}
-        return DiagnosticStatus(level=level, name=f"{self.get_name()}: rtkrcv", message=text, hardware_id="rtkrcv",
-                                values=[KeyValue(key=k, value=v) for k, v in values.items()])
-
-
-def fix_message(header, sol: RtkSolution, service: int) -> NavSatFix:
-    """NavSatFix of one rtkrcv solution: status from its quality, ENU covariance (row-major) from its std."""
-    fix = NavSatFix(header=header)
-    fix.status.status = int(sol.status)
-    fix.status.service = int(service)
-    fix.latitude, fix.longitude, fix.altitude = float(sol.lat_deg), float(sol.lon_deg), float(sol.h_m)
-    fix.position_covariance = [float(v) for v in np.asarray(sol.cov_enu_m2).ravel()]
-    fix.position_covariance_type = NavSatFix.COVARIANCE_TYPE_KNOWN
-    return fix
-
-
-def vel_message(header, sol: RtkSolution) -> TwistWithCovarianceStamped:
-    """ENU velocity with its covariance (linear block; angular velocity unknown: -1 on its diagonal)."""
-    msg = TwistWithCovarianceStamped(header=header)
-    v = np.asarray(sol.vel_enu_mps, dtype=float)
-    msg.twist.twist.linear.x, msg.twist.twist.linear.y, msg.twist.twist.linear.z = (float(x) for x in v)
-    cov = np.zeros((6, 6))
-    cov[:3, :3] = sol.cov_vel_enu_m2ps2
-    cov[3, 3] = cov[4, 4] = cov[5, 5] = -1.0
-    if not np.any(sol.cov_vel_enu_m2ps2):          # rtkrcv wrote no velocity (dynamics off)
-        cov[0, 0] = -1.0
-    msg.twist.covariance = [float(x) for x in cov.ravel()]
-    return msg
-
-
-def heading_message(header, b: RtkBaseline) -> Imu:
-    """The baseline's yaw as an Imu orientation (ENU, counter-clockwise from east: 90 deg - heading)."""
-    msg = Imu(header=header)
-    yaw = np.radians(90.0 - b.heading_deg)
-    msg.orientation.z, msg.orientation.w = float(np.sin(yaw / 2)), float(np.cos(yaw / 2))
-    cov = np.zeros(9)
-    cov[0] = cov[4] = 1e6                                 # roll, pitch: not measured
-    cov[8] = float(np.radians(b.heading_sd_deg) ** 2)
-    msg.orientation_covariance = [float(x) for x in cov]
-    msg.angular_velocity_covariance = [-1.0] + [0.0] * 8
-    msg.linear_acceleration_covariance = [-1.0] + [0.0] * 8
-    return msg
+        """The rtk/status message of the last solution (messages.rtk.rtk_status_to_msg)."""
+        return rtk_status_to_msg(f"{self.get_name()}: rtkrcv", sol, self.mapping.to_ros(sol.t) if sol is not None
+                                 else None, self.proc is not None and self.proc.running, self.counts, self.bytes_in,
+                                 self.sync.released_unpaired if self.sync else 0)
 
 
 def main(args=None):

@@ -1,4 +1,5 @@
-"""Core arrays <-> gnss_sim_msgs (the only place that knows both)."""
+"""Core arrays <-> gnss_sim_msgs: satellite states, visibility and observations, as message objects and as the
+CDR bytes that travel (cdr.py). The receiver's solution messages: solution.py; rtkrcv's: rtk.py."""
 from __future__ import annotations
 
 import numpy as np
@@ -57,41 +58,6 @@ def observations_to_msg(header, t: GnssTime, obs):
         lock_time_s=float(obs.lock_time_s[j]), lli=int(obs.lli[j]), loss_of_lock=bool(obs.lli[j] & 1),
         half_cycle_ambiguity=bool(obs.lli[j] & 2)) for j in range(len(obs.sv))]
     return msg
-
-
-def navsatfix_service_flags() -> dict[str, int]:
-    """{system letter: NavSatStatus.service bit} (QZSS flies GPS signals; NavIC has no bit)."""
-    from sensor_msgs.msg import NavSatStatus
-
-    return {"G": NavSatStatus.SERVICE_GPS, "J": NavSatStatus.SERVICE_GPS, "R": NavSatStatus.SERVICE_GLONASS,
-            "C": NavSatStatus.SERVICE_COMPASS, "E": NavSatStatus.SERVICE_GALILEO}
-
-
-def navsatfix_service(systems) -> int:
-    """NavSatStatus.service bits of the systems (letters) a fix used."""
-    flags = navsatfix_service_flags()
-    return int(np.bitwise_or.reduce([flags.get(s, 0) for s in systems] or [0]))
-
-
-def fix_to_msg(header, sol):
-    """``sensor_msgs/NavSatFix`` of a core.solver PvtSolution. position_covariance is the solver's own
-    ``cov_enu_m2`` (already scaled by the a-posteriori variance factor, solver.SolverConfig.scale_covariance),
-    row-major East, North, Up as the message defines it (sensor_msgs/NavSatFix.msg); no fix: NaN position,
-    COVARIANCE_TYPE_UNKNOWN."""
-    from sensor_msgs.msg import NavSatFix, NavSatStatus
-
-    fix = NavSatFix(header=header)
-    fix.status.service = navsatfix_service({s[0] for s in sol.sv_used})
-    if sol.is_fix:
-        fix.status.status = NavSatStatus.STATUS_FIX
-        fix.latitude, fix.longitude, fix.altitude = float(sol.lat_deg), float(sol.lon_deg), float(sol.h_m)
-        fix.position_covariance = [float(v) for v in np.asarray(sol.cov_enu_m2, dtype=float).reshape(9)]
-        fix.position_covariance_type = NavSatFix.COVARIANCE_TYPE_KNOWN
-    else:
-        fix.status.status = NavSatStatus.STATUS_NO_FIX
-        fix.latitude = fix.longitude = fix.altitude = float("nan")
-        fix.position_covariance_type = NavSatFix.COVARIANCE_TYPE_UNKNOWN
-    return fix
 
 
 def iono_from_msg(msg) -> dict | None:
@@ -170,12 +136,12 @@ def paths_from_msg(vis_by_sv: dict, svs):
 
 
 # ---------------------------------------------------------------------------------------------------------
-# The same conversions straight between core arrays and the CDR bytes that travel (gnss_sim_ros2/cdr.py):
+# The same conversions straight between core arrays and the CDR bytes that travel (gnss_sim_ros2/messages/cdr.py):
 # no message object per satellite. Each gives what its message twin above gives (test/test_cdr_codec.py).
 
 def stamp_of(data: bytes) -> tuple[int, int]:
     """(sec, nanosec) of the header.stamp of a serialised message that starts with a std_msgs/Header."""
-    from gnss_sim_ros2.cdr import CdrError
+    from gnss_sim_ros2.messages.cdr import CdrError
 
     if len(data) < 12 or data[:2] != b"\x00\x01":
         raise CdrError("not little-endian CDR")
@@ -189,7 +155,7 @@ def _header(stamp, frame_id: str) -> dict:
 
 def encode_states(states: SatelliteStates, t: GnssTime, stamp, frame_id: str, iono: dict | None = None) -> bytes:
     """The CDR bytes of states_to_msg(states, t, Header(stamp, frame_id), iono)."""
-    from gnss_sim_ros2.cdr import STATES_CODEC
+    from gnss_sim_ros2.messages.cdr import STATES_CODEC
 
     week, tow = t.week_tow()
     sv = [str(s) for s in states.sv]
@@ -219,7 +185,7 @@ def encode_states(states: SatelliteStates, t: GnssTime, stamp, frame_id: str, io
 def decode_states(data: bytes) -> tuple[tuple[int, int], GnssTime, SatelliteStates, dict | None]:
     """(stamp (sec, nanosec), epoch, SatelliteStates, iono) of serialised gnss_sim_msgs/SatelliteStates: what
     states_from_msg and iono_from_msg give of the message. Raises cdr.CdrError on bytes it does not read."""
-    from gnss_sim_ros2.cdr import STATES_CODEC
+    from gnss_sim_ros2.messages.cdr import STATES_CODEC
 
     c = STATES_CODEC.decode(data)
     t = GnssTime.from_week_tow(int(c["gps_week"][0]), float(c["gps_tow_s"][0]))
@@ -252,7 +218,7 @@ def encode_visibility(stamp, frame_id: str, antenna_world_m, antenna_ecef_m, sv,
     """The CDR bytes of a gnss_sim_msgs/Visibility with one SatelliteVisibility per row (what the visibility
     node's message gave: the reflections of row ``path_rows[i]`` of ``paths`` (all rows when None) as
     reflections_to_msgs gives them)."""
-    from gnss_sim_ros2.cdr import VISIBILITY_CODEC
+    from gnss_sim_ros2.messages.cdr import VISIBILITY_CODEC
 
     n = len(sv)
     if paths is not None and path_rows is not None:
@@ -288,7 +254,7 @@ class _Rows:
 def decode_visibility(data: bytes) -> dict:
     """Columns of serialised gnss_sim_msgs/Visibility (cdr.VISIBILITY: "satellites" -> (counts, columns),
     its "reflections" -> (counts, flat columns)). Raises cdr.CdrError on bytes it does not read."""
-    from gnss_sim_ros2.cdr import VISIBILITY_CODEC
+    from gnss_sim_ros2.messages.cdr import VISIBILITY_CODEC
 
     return VISIBILITY_CODEC.decode(data)
 
@@ -298,7 +264,7 @@ def visibility_antenna(data: bytes) -> tuple[np.ndarray, np.ndarray]:
     after the header, read without the satellites."""
     import struct
 
-    from gnss_sim_ros2.cdr import CdrError
+    from gnss_sim_ros2.messages.cdr import CdrError
 
     if len(data) < 16 or data[:2] != b"\x00\x01":
         raise CdrError("not little-endian CDR")
@@ -349,7 +315,7 @@ def _complex(re, im) -> np.ndarray:
 
 def encode_observations(stamp, frame_id: str, t: GnssTime, obs) -> bytes:
     """The CDR bytes of observations_to_msg(Header(stamp, frame_id), t, obs)."""
-    from gnss_sim_ros2.cdr import OBSERVATIONS_CODEC
+    from gnss_sim_ros2.messages.cdr import OBSERVATIONS_CODEC
 
     week, tow = t.week_tow()
     lli = np.asarray(obs.lli, dtype=np.int64)
@@ -368,7 +334,7 @@ def encode_observations(stamp, frame_id: str, t: GnssTime, obs) -> bytes:
 
 def states_from_cdr(data: bytes) -> tuple[tuple[int, int], GnssTime, SatelliteStates, dict | None]:
     """decode_states, falling back to rclpy's deserialize_message + states_from_msg / iono_from_msg."""
-    from gnss_sim_ros2.cdr import CdrError
+    from gnss_sim_ros2.messages.cdr import CdrError
 
     try:
         return decode_states(data)
@@ -383,7 +349,7 @@ def states_from_cdr(data: bytes) -> tuple[tuple[int, int], GnssTime, SatelliteSt
 
 def visibility_from_cdr(data: bytes) -> dict:
     """decode_visibility, falling back to rclpy's deserialize_message (then the message's columns)."""
-    from gnss_sim_ros2.cdr import CdrError
+    from gnss_sim_ros2.messages.cdr import CdrError
 
     try:
         return decode_visibility(data)
@@ -396,7 +362,7 @@ def visibility_from_cdr(data: bytes) -> dict:
 
 def visibility_columns(msg) -> dict:
     """decode_visibility's columns of a gnss_sim_msgs/Visibility message object."""
-    from gnss_sim_ros2.cdr import REFLECTED_PATH
+    from gnss_sim_ros2.messages.cdr import REFLECTED_PATH
 
     sats = msg.satellites
     refl = [r for s in sats for r in s.reflections]
