@@ -2,10 +2,10 @@
 
     python bench/bench_scaling.py [--quick] [--max-hours 1] [--json FILE] [--plot docs/bench_scaling.png]
 
-The same as ``gnss-sim bench --scaling`` (gnss_sim_ros2/commands/bench_scaling.py
+The same as ``gnss-sim bench --scaling`` (gnss_sim_ros2/benchmarks/scaling.py
 says what each axis runs): each point in a fresh process, one after another;
 spans longer than ``--max-hours`` (to 24 h) extrapolated from the longest
-measured span (commands/bench_scaling.py says how), and marked so.  The load
+measured span (benchmarks/scaling.py says how), and marked so.  The load
 average before and after is printed with the figures: on a shared machine the
 wall times move, the CPU times much less.
 """
@@ -20,7 +20,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from gnss_sim_ros2.commands.bench_scaling import run_scaling, scaling_plot, scaling_table  # noqa: E402
+from gnss_sim_ros2.benchmarks.scaling import run_scaling, scaling_plot, scaling_table  # noqa: E402
 
 
 def main(argv=None) -> int:

@@ -36,7 +36,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from gnss_sim_ros2.commands.bench import shared_data_dir  # noqa: E402
+from gnss_sim_ros2.benchmarks.presets import shared_data_dir  # noqa: E402
 from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris  # noqa: E402
 from gnss_sim_ros2.core.frames import az_el_from_ecef  # noqa: E402
 from gnss_sim_ros2.core.receiver.engine import Receiver, ReceiverConfig  # noqa: E402

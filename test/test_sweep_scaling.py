@@ -7,8 +7,8 @@ import json
 import numpy as np
 import pytest
 
+from gnss_sim_ros2.benchmarks.scaling import EPOCH_SPANS_S, box_city, extrapolate_epochs
 from gnss_sim_ros2.cli import main
-from gnss_sim_ros2.commands.bench_scaling import EPOCH_SPANS_S, box_city, extrapolate_epochs
 
 
 def test_box_city_has_the_triangles_asked_closed_boxes_and_an_open_square():

@@ -1,4 +1,4 @@
-"""``gnss-sim bench --speed``: the offline speed targets of issue 18, measured in one run.
+"""The offline speed targets of issue 18, measured in one run (``gnss-sim bench --speed``).
 
 * ``demo hour``: ``gnss-sim simulate --duration 3600 --quiet --out DIR`` (the demo: courtyard world,
   demo path, every system, default preset, 1 Hz), a child process timed from its start to its end
@@ -29,7 +29,7 @@ from pathlib import Path
 DEMO_TARGET_RTF = 1000.0
 PEER_TARGET_RATIO = 20.0
 GPS_START = "2025-06-01T10:00:00"
-#: the OPEC marker (bench.py OPEC_ECEF_M): a static station
+#: the OPEC marker (benchmarks/presets.py OPEC_ECEF_M): a static station
 GPS_STATION_ECEF_M = (3149785.9652, 598260.8822, 5495348.4927)
 PEER_SCRIPT = Path(__file__).resolve().parents[2] / "bench" / "peer_gnss_lib_py.py"
 
