@@ -9,7 +9,7 @@ of ROS time, ``sky_view`` (sensor_msgs/Image, a polar sky plot for RViz);
 diagnostics count the epochs processed and dropped (no TF in time).
 With ``antenna_position`` the antenna stands still there (a base station):
 no TF lookup. Messages travel as CDR bytes read and written from arrays
-(gnss_sim_ros2/cdr.py): ``satellite_states`` is a raw subscription and the
+(gnss_sim_ros2/messages/cdr.py): ``satellite_states`` is a raw subscription and the
 visibility is published serialised.
 """
 from __future__ import annotations
@@ -20,12 +20,15 @@ import time
 
 import numpy as np
 from builtin_interfaces.msg import Time
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.clock import Clock, ClockType
 from sensor_msgs.msg import Image
 from std_msgs.msg import Header
 
-from gnss_sim_ros2.conversions import encode_visibility, stamp_of, states_from_cdr
+from gnss_sim_ros2.core.scene.sky_view import SkyView
+from gnss_sim_ros2.messages.conversions import encode_visibility, stamp_of, states_from_cdr
+from gnss_sim_ros2.messages.diagnostics import diagnostic_array, diagnostic_status
+from gnss_sim_ros2.messages.images import rgb8_image
 from gnss_sim_ros2.nodes.common import GnssSimNode, run_node
 from gnss_sim_ros2.nodes.tf_source import TfSource
 
@@ -47,7 +50,7 @@ class VisibilityNode(GnssSimNode):
         self.processed = 0
         self.dropped = 0
         self._last_image_s = -1e9
-        self._sky = None
+        self.sky_view = None          # core.scene.sky_view.SkyView of the scene (configure .. cleanup)
 
     def configure(self, p):
         from gnss_sim_ros2.core.receiver.chain import VisibilityOptions
@@ -66,7 +69,7 @@ class VisibilityNode(GnssSimNode):
         self.fixed_world_m = self._fixed_antenna(p) if p["antenna_position"] else None
         self.processed = self.dropped = 0
         self._last_image_s = -1e9
-        self._sky = None
+        self.sky_view = SkyView(self.scene)
         from gnss_sim_msgs.msg import Visibility
 
         self.pub = self.lifecycle_publisher(Visibility, "visibility", 100)
@@ -110,7 +113,7 @@ class VisibilityNode(GnssSimNode):
             self.tf.close()
             self.tf = None
         self.scene = self.options = None
-        self._sky = None
+        self.sky_view = None
 
     # ------------------------------------------------------------------
     def _on_states(self, data: bytes):
@@ -166,47 +169,16 @@ class VisibilityNode(GnssSimNode):
         if t_s - self._last_image_s >= SKY_VIEW_PERIOD_S and self.image_pub.get_subscription_count() > 0:
             self._last_image_s = t_s
             header = Header(stamp=Time(sec=sec, nanosec=nanosec), frame_id=self.params["world_frame"])
-            self.image_pub.publish(self._sky_image(header, az, el, state, antenna_world_m))
+            self.image_pub.publish(rgb8_image(header, self.sky_view.rgb(antenna_world_m, az, el, state)))
         if self.processed % 10 == 1:
             self._diagnose(len(rows))
 
-    def _sky_image(self, header, az_deg, el_deg, state, antenna_world_m, size: int = 241) -> Image:
-        """A polar sky view (north up, zenith centre): blocked sky grey, foliage pale green, satellites
-        green (visible), red (blocked), yellow (attenuated), blue (reflection only)."""
-        img = np.full((size, size, 3), 255, dtype=np.uint8)
-        c = size // 2
-        yy, xx = np.mgrid[0:size, 0:size]
-        dx, dy = xx - c, c - yy
-        r = np.hypot(dx, dy) / c  # 0 at zenith, 1 at the horizon
-        az = np.degrees(np.arctan2(dx, dy)) % 360.0
-        if self._sky is None or np.linalg.norm(self._sky[0] - antenna_world_m) > 1.0:
-            # what the casts find over the sky (open sky under an overhang stays open), cached per metre moved
-            self._sky = (np.array(antenna_world_m), self.scene.sky_grid(antenna_world_m, az_step_deg=2.0))
-        az_e, el_e, opaque, foliage = self._sky[1]
-        el_px = 90.0 * (1.0 - r)
-        inside = r <= 1.0
-        ia = np.clip(np.searchsorted(az_e, az, side="right") - 1, 0, opaque.shape[0] - 1)
-        ie = np.clip(np.searchsorted(el_e, el_px, side="right") - 1, 0, opaque.shape[1] - 1)
-        img[inside & opaque[ia, ie]] = (170, 170, 170)
-        img[inside & foliage[ia, ie] & ~opaque[ia, ie]] = (200, 230, 200)
-        img[(r > 1.0)] = (40, 40, 40)
-        colors = {0: (0, 170, 0), 1: (200, 0, 0), 2: (230, 170, 0), 3: (0, 0, 200)}
-        for a, e, st in zip(np.asarray(az_deg, dtype=float), np.asarray(el_deg, dtype=float), np.asarray(state)):
-            rr = (90.0 - e) / 90.0 * c
-            x = int(round(c + rr * np.sin(np.radians(a))))
-            y = int(round(c - rr * np.cos(np.radians(a))))
-            img[max(0, y - 3):y + 4, max(0, x - 3):x + 4] = colors.get(int(st), (0, 0, 0))
-        return Image(header=header, height=size, width=size, encoding="rgb8", is_bigendian=0, step=3 * size,
-                     data=img.tobytes())
-
     def _diagnose(self, n: int):
-        status = DiagnosticStatus(name=f"{self.get_name()}: visibility", hardware_id="gnss_sim",
-                                  level=DiagnosticStatus.WARN if self.dropped else DiagnosticStatus.OK,
-                                  message=f"{self.processed} epochs, {self.dropped} dropped (no TF)")
-        status.values = [KeyValue(key="satellites_above_horizon", value=str(n)),
-                         KeyValue(key="epochs_processed", value=str(self.processed)),
-                         KeyValue(key="epochs_dropped", value=str(self.dropped))]
-        self.diag_pub.publish(DiagnosticArray(header=Header(stamp=self.get_clock().now().to_msg()), status=[status]))
+        status = diagnostic_status(f"{self.get_name()}: visibility",
+                                   f"{self.processed} epochs, {self.dropped} dropped (no TF)",
+                                   {"satellites_above_horizon": n, "epochs_processed": self.processed,
+                                    "epochs_dropped": self.dropped}, warn=bool(self.dropped))
+        self.diag_pub.publish(diagnostic_array(self.get_clock().now().to_msg(), status))
 
 
 def main(args=None):
