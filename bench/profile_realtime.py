@@ -52,7 +52,7 @@ STAGES = [
     ("rclpy take (SingleThreadedExecutor: deserialisation)", "rclpy.executors", "Executor._take_subscription"),
     ("recorder: bag writes (rosbags Writer.write)", "rosbags.rosbag2", "Writer.write"),
     ("trajectory player tick", "gnss_sim_ros2.nodes.trajectory_player", "TrajectoryPlayer._tick"),
-    ("run driver: /clock messages", "gnss_sim_ros2.commands.run", "Runner.set_clock"),
+    ("run driver: /clock messages", "gnss_sim_ros2.commands.run.clock", "ClockDriver.set_clock"),
     ("executor spin_once (everything dispatched)", "rclpy.executors", "SingleThreadedExecutor.spin_once"),
 ]
 
@@ -90,16 +90,16 @@ class StageClock:
         return True
 
     def wrap_executor(self, label: str):
-        """spin_once of whichever executor run.py makes (a C++ EventsExecutor cannot be patched: wrapped at
-        the call site through the runner's attribute)."""
-        from gnss_sim_ros2.commands import run
+        """spin_once of whichever executor the run makes (a C++ EventsExecutor cannot be patched: wrapped at
+        the call site through the clock driver's attribute)."""
+        from gnss_sim_ros2.commands.run.runner import Runner
 
-        start = run.Runner.start
+        start = Runner.start
         clock = self
 
         def start_timed(runner):
             start(runner)
-            ex = runner.executor
+            ex = runner.clock.executor
             spin_once = clock.timed(label, ex.spin_once)
 
             class Timed:
@@ -109,11 +109,11 @@ class StageClock:
                 def spin_once(self, *a, **k):
                     return spin_once(*a, **k)
 
-            runner.executor = Timed()
+            runner.clock.executor = Timed()
 
         self.cpu.setdefault(label, 0.0)
         self.calls.setdefault(label, 0)
-        run.Runner.start = start_timed
+        Runner.start = start_timed
 
 
 def main() -> int:

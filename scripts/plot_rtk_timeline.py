@@ -4,7 +4,7 @@ and the horizontal error against the true path, with the parts of the path shade
     gnss-sim run --rtk --duration 175 --out demo_rtk          # the demo path's full length
     python scripts/plot_rtk_timeline.py demo_rtk --out docs/rtk-demo-timeline.png
 
-Reads the run's ``rtk_timeline.csv`` and ``summary.json`` (commands/run.py, core/rtk/summary.py).
+Reads the run's ``rtk_timeline.csv`` and ``summary.json`` (commands/run/summary.py, core/rtk/summary.py).
 """
 from __future__ import annotations
 
