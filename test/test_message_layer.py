@@ -146,3 +146,26 @@ def test_sky_view_picture():
     assert tuple(img[c, c + 45]) == OPAQUE_RGB                                  # east, 9 deg
     assert tuple(img[c, c - 45]) == (255, 255, 255)                             # west, 9 deg: open
     assert tuple(img[0, 0]) == BELOW_HORIZON_RGB
+
+
+def test_transform_round_trip():
+    from builtin_interfaces.msg import Time
+
+    from gnss_sim_ros2.messages.tf import tf_message, transform_to_msg
+
+    tf = transform_to_msg("world", "base_link", Time(sec=4, nanosec=7), [1.5, -2.0, 0.25], yaw_deg=-120.0)
+    t = tf.transform
+    assert (tf.header.frame_id, tf.child_frame_id, tf.header.stamp.nanosec) == ("world", "base_link", 7)
+    assert (t.translation.x, t.translation.y, t.translation.z) == (1.5, -2.0, 0.25)
+    assert np.degrees(2.0 * np.arctan2(t.rotation.z, t.rotation.w)) == pytest.approx(-120.0)
+    assert t.rotation.x == t.rotation.y == 0.0 and np.hypot(t.rotation.z, t.rotation.w) == pytest.approx(1.0)
+    assert list(tf_message([tf, tf]).transforms) == [tf, tf]
+
+
+def test_streams_round_trip():
+    from gnss_sim_ros2.messages.streams import nmea_to_msg, rtcm_from_msg, rtcm_to_msg
+
+    frames = bytes([0xD3, 0x00, 0x13, 0x3E, 0xD0, 0x00, 0xFF])
+    assert rtcm_from_msg(rtcm_to_msg(frames)) == frames
+    text = "$GPGGA,...*47\r\n$GPRMC,...*11\r\n"
+    assert nmea_to_msg(text).data == text

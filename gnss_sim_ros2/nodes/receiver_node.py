@@ -41,6 +41,7 @@ from gnss_sim_ros2.messages.conversions import (
 )
 from gnss_sim_ros2.messages.diagnostics import diagnostic_array, diagnostic_status
 from gnss_sim_ros2.messages.solution import fix_to_msg, status_to_msg, vel_to_msg
+from gnss_sim_ros2.messages.streams import nmea_to_msg, rtcm_to_msg
 from gnss_sim_ros2.nodes.common import GnssSimNode, run_node
 
 
@@ -166,11 +167,9 @@ class ReceiverNode(GnssSimNode):
         self.pubs["fix"].publish(fix_to_msg(header, sol))
         self.pubs["vel"].publish(vel_to_msg(header, sol))
         self.pubs["status"].publish(status_to_msg(header, obs, sol, self.chain.settings.receiver.elevation_mask_deg))
-        self.pubs["nmea"].publish(String(data=ep.nmea))
+        self.pubs["nmea"].publish(nmea_to_msg(ep.nmea))
         if ep.rtcm:
-            from std_msgs.msg import UInt8MultiArray
-
-            self.pubs["rtcm"].publish(UInt8MultiArray(data=ep.rtcm))
+            self.pubs["rtcm"].publish(rtcm_to_msg(ep.rtcm))
             if self.tcp is not None:
                 self.tcp.write(ep.rtcm)
         if self.chain.epochs % 10 == 1:

@@ -49,6 +49,7 @@ from std_msgs.msg import Header, String, UInt8MultiArray
 from gnss_sim_ros2.core.rtk.solution import QUALITY_NAMES, RtkBaseline, RtkSolution
 from gnss_sim_ros2.messages.rtk import heading_to_msg, rtk_fix_to_msg, rtk_status_to_msg, rtk_vel_to_msg
 from gnss_sim_ros2.messages.solution import navsatfix_service
+from gnss_sim_ros2.messages.streams import nmea_to_msg, rtcm_from_msg
 from gnss_sim_ros2.nodes.common import GnssSimNode, TimeMapping, run_node, run_origin_ns
 
 
@@ -208,7 +209,7 @@ class RtkNode(GnssSimNode):
 
     # ----------------------------------------------------------------------------- data
     def _feed(self, which: str, msg) -> None:
-        data = bytes(msg.data)
+        data = rtcm_from_msg(msg)
         self.bytes_in[which] += len(data)
         for to, chunk in self.sync.push(which, data):
             if self.proc is not None:
@@ -232,7 +233,7 @@ class RtkNode(GnssSimNode):
             except queue.Empty:
                 break
             if self.pubs:
-                self.pubs["nmea"].publish(String(data=line))
+                self.pubs["nmea"].publish(nmea_to_msg(line))
         while True:
             try:
                 sol = self._solutions.get_nowait()

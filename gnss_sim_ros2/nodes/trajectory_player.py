@@ -10,15 +10,14 @@ or the demo path through worlds/courtyard.sdf.
 """
 from __future__ import annotations
 
-import math
 import sys
 
 import numpy as np
-from geometry_msgs.msg import TransformStamped
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.time import Time
 
 from gnss_sim_ros2.core.trajectory import Trajectory, robot_path
+from gnss_sim_ros2.messages.tf import tf_message, transform_to_msg
 from gnss_sim_ros2.nodes.common import GnssSimNode, run_node, run_origin_ns
 
 STATIC_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
@@ -28,18 +27,6 @@ def _tf_type():
     from tf2_msgs.msg import TFMessage
 
     return TFMessage
-
-
-def transform(parent: str, child: str, stamp, xyz, yaw_deg: float = 0.0) -> TransformStamped:
-    tf = TransformStamped()
-    tf.header.stamp = stamp
-    tf.header.frame_id = parent
-    tf.child_frame_id = child
-    tf.transform.translation.x, tf.transform.translation.y, tf.transform.translation.z = (float(v) for v in xyz)
-    half = math.radians(yaw_deg) / 2.0
-    tf.transform.rotation.z = math.sin(half)
-    tf.transform.rotation.w = math.cos(half)
-    return tf
 
 
 class TrajectoryPlayer(GnssSimNode):
@@ -76,16 +63,14 @@ class TrajectoryPlayer(GnssSimNode):
         return self.path.position(t_s), float(self.path.yaw(t_s))
 
     def _tick(self):
-        from tf2_msgs.msg import TFMessage
-
         p = self.params
         now_ns = self.get_clock().now().nanoseconds
         if self._static_pending:
             stamp = Time(nanoseconds=now_ns).to_msg()
-            static = [transform(p["base_frame"], p["antenna_frame"], stamp, p["antenna_offset_m"])]
+            static = [transform_to_msg(p["base_frame"], p["antenna_frame"], stamp, p["antenna_offset_m"])]
             if p["antenna2_frame"]:          # the second antenna of a moving baseline (heading)
-                static.append(transform(p["base_frame"], p["antenna2_frame"], stamp, p["antenna2_offset_m"]))
-            self.static_pub.publish(TFMessage(transforms=static))
+                static.append(transform_to_msg(p["base_frame"], p["antenna2_frame"], stamp, p["antenna2_offset_m"]))
+            self.static_pub.publish(tf_message(static))
             self._static_pending = False
         ticks = []
         while self.next_tick <= now_ns:
@@ -96,9 +81,9 @@ class TrajectoryPlayer(GnssSimNode):
         ts = np.array(ticks, dtype=np.int64)
         pos = self.path.position((ts - self.origin_ns) * 1e-9)
         yaw = self.path.yaw((ts - self.origin_ns) * 1e-9)
-        msgs = [transform(p["world_frame"], p["base_frame"], Time(nanoseconds=int(t)).to_msg(), pos[i], float(yaw[i]))
-                for i, t in enumerate(ts)]
-        self.tf_pub.publish(TFMessage(transforms=msgs))
+        msgs = [transform_to_msg(p["world_frame"], p["base_frame"], Time(nanoseconds=int(t)).to_msg(), pos[i],
+                                 float(yaw[i])) for i, t in enumerate(ts)]
+        self.tf_pub.publish(tf_message(msgs))
 
 
 def main(args=None):
