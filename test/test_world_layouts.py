@@ -25,11 +25,10 @@ import numpy as np
 import pytest
 
 from gnss_sim_ros2.cli import main
-from gnss_sim_ros2.core.receiver.chain import VisibilityOptions
 from gnss_sim_ros2.core.scene.loader import load_sdf_world
 from gnss_sim_ros2.core.scene.mesh_files import DroppedTrianglesWarning
 from gnss_sim_ros2.core.scene.scene_report import LeftOutWarning, SceneWarning
-from gnss_sim_ros2.core.simulation import load_scene
+from gnss_sim_ros2.core.visibility import VisibilityOptions, load_scene
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED_WORLDS = Path(os.environ.get("GNSS_SIM_SHARED_WORLDS", REPO.parent / "shared" / "worlds"))
@@ -354,3 +353,19 @@ def test_nan_vertex_obj_is_dropped_and_the_rest_blocks(tmp_path, capsys):
     assert main(["export-world", str(w), "--out", str(tmp_path / "walls.ply")]) == 0
     out = capsys.readouterr().out
     assert f"dropped 2 of 4 triangles of {obj}" in out and "14 triangles" in out
+
+
+def test_zero_area_triangles_alone_are_dropped_without_a_warning(tmp_path):
+    """Zero-area triangles (1,150 in each of the Hong Kong city's meshes) lose no geometry: counted in the
+    scene report, no warning a user must read at every load."""
+    import warnings
+
+    from gnss_sim_ros2.core.scene.mesh_files import SubMesh, drop_bad_triangles
+
+    v = np.array([[5, -10, 0], [5, 10, 0], [5, 10, 20], [2, 2, 2]], dtype=float)
+    faces = np.array([[0, 1, 2], [3, 3, 1]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DroppedTrianglesWarning)
+        subs, info = drop_bad_triangles([SubMesh("m", v, faces, ["m"])], tmp_path / "m.dae")
+    assert info["degenerate"] == 1 and info["non_finite"] == 0 and info["triangles"] == 1
+    assert [len(s.faces) for s in subs] == [1]

@@ -191,7 +191,8 @@ def bad_triangles(vertices_m: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray
 
 def drop_bad_triangles(subs: list[SubMesh], path: Path) -> tuple[list[SubMesh], dict | None]:
     """``subs`` without their NaN/infinite, badly indexed and zero-area triangles, and what was dropped
-    ({file, triangles, of, non_finite, bad_index, degenerate}) or None; one warning naming the file."""
+    ({file, triangles, of, non_finite, bad_index, degenerate}) or None; one warning naming the file when a
+    triangle with a NaN/infinite vertex or a bad index went (geometry the file meant to hold)."""
     out, counts, total = [], [0, 0, 0], 0
     for s in subs:
         drop, nf, bi, dg = bad_triangles(s.vertices_m, s.faces)
@@ -212,8 +213,9 @@ def drop_bad_triangles(subs: list[SubMesh], path: Path) -> tuple[list[SubMesh], 
                                                          "range", "degenerate (zero area)")) if k)
     info = {"file": str(path), "triangles": n, "of": total, "non_finite": counts[0], "bad_index": counts[1],
             "degenerate": counts[2]}
-    warnings.warn(f"mesh file {path}: dropped {n} of {total} triangles ({why}); the rest of the file is kept",
-                  DroppedTrianglesWarning, stacklevel=2)
+    if counts[0] or counts[1]:   # zero-area triangles alone lose nothing (no ray hits them): counted, not warned
+        warnings.warn(f"mesh file {path}: dropped {n} of {total} triangles ({why}); the rest of the file is kept",
+                      DroppedTrianglesWarning, stacklevel=2)
     return out, info
 
 
