@@ -34,9 +34,9 @@ def _inputs(n_epochs: int, rate_hz: float, multipath: str):
     """(chain settings params, epochs [(t, ecef, states, vis_state, att, paths)], cast ms/epoch,
     states ms/epoch)."""
     from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris
-    from gnss_sim_ros2.core.receiver.chain import VisibilityOptions
-    from gnss_sim_ros2.core.simulation import AntennaPath, load_scene, setup_from_config
+    from gnss_sim_ros2.core.simulation import AntennaPath, setup_from_config
     from gnss_sim_ros2.core.time import GnssTime
+    from gnss_sim_ros2.core.visibility import VisibilityOptions, load_scene
     from gnss_sim_ros2.core.vocabulary import VisibilityState
     from gnss_sim_ros2.parameters import load_config
 

@@ -26,9 +26,10 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from gnss_sim_ros2.core.comparison import drive_check  # noqa: E402
 from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris  # noqa: E402
-from gnss_sim_ros2.core.multipath import drive_check  # noqa: E402
-from gnss_sim_ros2.core.receiver.chain import ChainSettings, ReceiverChain, VisibilityOptions  # noqa: E402
+from gnss_sim_ros2.core.receiver.chain import ChainSettings, ReceiverChain  # noqa: E402
+from gnss_sim_ros2.core.visibility import VisibilityOptions  # noqa: E402
 from gnss_sim_ros2.parameters import validate_node  # noqa: E402
 
 DATA = ROOT.parent / "shared" / "data"

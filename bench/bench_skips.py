@@ -48,11 +48,11 @@ from gnss_sim_ros2.core.simulation import (  # noqa: E402
     AntennaPath,
     SimulationSetup,
     crop_world_mesh,
-    load_scene,
     run_simulation,
 )
 from gnss_sim_ros2.core.time import GnssTime  # noqa: E402
 from gnss_sim_ros2.core.trajectory import demo_trajectory  # noqa: E402
+from gnss_sim_ros2.core.visibility import load_scene  # noqa: E402
 
 START = GnssTime.from_iso("2025-06-01T10:00:00")
 

@@ -157,7 +157,7 @@ def _measure(args):
 def _measure_robots(args):
     path, env, robots, shared = args
     os.environ.update(env)
-    from gnss_sim_ros2.core.simulation import load_scene
+    from gnss_sim_ros2.core.visibility import load_scene
 
     warnings.simplefilter("ignore")
     import open3d  # noqa: F401 - imported before the first figure: the loads alone are measured

@@ -32,7 +32,7 @@ STAGES = [
     ("visibility node: one epoch", "gnss_sim_ros2.nodes.visibility_node", "VisibilityNode.process"),
     ("  message -> states (visibility)", "gnss_sim_ros2.nodes.visibility_node", "states_from_msg"),
     ("  CDR bytes -> states (codec, visibility)", "gnss_sim_ros2.nodes.visibility_node", "states_from_cdr"),
-    ("  cast (core VisibilityOptions.cast)", "gnss_sim_ros2.core.receiver.chain", "VisibilityOptions.cast"),
+    ("  cast (core VisibilityOptions.cast)", "gnss_sim_ros2.core.visibility.options", "VisibilityOptions.cast"),
     ("  visibility -> CDR bytes (codec)", "gnss_sim_ros2.nodes.visibility_node", "encode_visibility"),
     ("receiver node: one epoch", "gnss_sim_ros2.nodes.receiver_node", "ReceiverNode.process"),
     ("  message -> states (receiver)", "gnss_sim_ros2.nodes.receiver_node", "states_from_msg"),

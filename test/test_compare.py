@@ -337,7 +337,7 @@ _BODY = "> 2022 01 01 00 00 00.0000000  0  1\r\nC20  22103073.242   115096519.13
 def test_rtklib_copy_renames_beidou_b1i_only(tmp_path):
     """BeiDou band-2 codes with attribute X become I in the obs types and phase shifts (not B1C "1X", not
     "7X", not GPS); every other byte, CRLF line ends included, is the original's."""
-    from gnss_sim_ros2.core.rtklib import rtklib_observation_copy
+    from gnss_sim_ros2.core.comparison.rtklib import rtklib_observation_copy
 
     src = tmp_path / "in" / "a_MO.rnx"
     src.parent.mkdir()
@@ -352,7 +352,7 @@ def test_rtklib_copy_renames_beidou_b1i_only(tmp_path):
 def test_rtklib_copy_leaves_files_alone(tmp_path):
     """Nothing to rename (C2I already there beside C2X: no duplicate code; no BeiDou X code; not RINEX 3
     text): the original path comes back and nothing is written."""
-    from gnss_sim_ros2.core.rtklib import rtklib_observation_copy
+    from gnss_sim_ros2.core.comparison.rtklib import rtklib_observation_copy
 
     both = tmp_path / "both.rnx"
     both.write_text(_HDR.replace("C5X L5X", "C2I L2I") + _BODY)

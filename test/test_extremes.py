@@ -123,7 +123,7 @@ def test_visibility_rays_at_exactly_0_and_90_deg(tmp_path):
 def test_simulation_100km_from_world_origin(tmp_path, synthetic):
     """A path 100 km east of the courtyard's origin (world frame): noise-free fixes within 1 cm."""
     from gnss_sim_ros2.core.scene.demo_world import demo_world_path
-    from gnss_sim_ros2.core.simulation import load_scene
+    from gnss_sim_ros2.core.visibility import load_scene
 
     scene = load_scene(str(demo_world_path()))
     tr = Trajectory(np.array([0.0, 20.0]), np.array([[100e3, 0.0, 1.5], [100e3, 30.0, 1.5]]), "world")

@@ -50,8 +50,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from gnss_sim_ros2.core.comparison.rtklib import rtklib_observation_copy
 from gnss_sim_ros2.core.frames import ecef_to_enu, ecef_to_geodetic, enu_to_ecef
-from gnss_sim_ros2.core.rtklib import rtklib_observation_copy
 
 OPEC_ECEF_M = np.array([3149785.9652, 598260.8822, 5495348.4927])   # RINEX header APPROX POSITION XYZ
 START = "2022-01-01T00:00:00"

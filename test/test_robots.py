@@ -142,9 +142,8 @@ def test_shared_scene_is_built_once_while_held(tmp_path):
     import gc
     import shutil
 
-    from gnss_sim_ros2.core.receiver.chain import VisibilityOptions
     from gnss_sim_ros2.core.scene.demo_world import demo_world_path
-    from gnss_sim_ros2.core.simulation import SCENE_LOADS, load_scene
+    from gnss_sim_ros2.core.visibility import SCENE_LOADS, VisibilityOptions, load_scene
 
     world = tmp_path / "w.sdf"
     shutil.copy(demo_world_path(), world)

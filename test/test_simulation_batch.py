@@ -12,9 +12,10 @@ from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris
 from gnss_sim_ros2.core.scene.demo_world import demo_world_path
 from gnss_sim_ros2.core.scene.georeference import SphericalCoordinates
 from gnss_sim_ros2.core.scene.visibility import Scene
-from gnss_sim_ros2.core.simulation import SimulationSetup, load_scene, run_simulation, setup_from_config
+from gnss_sim_ros2.core.simulation import SimulationSetup, run_simulation, setup_from_config
 from gnss_sim_ros2.core.time import GnssTime
 from gnss_sim_ros2.core.trajectory import Trajectory
+from gnss_sim_ros2.core.visibility import load_scene
 from gnss_sim_ros2.core.vocabulary import VisibilityState
 from gnss_sim_ros2.parameters import load_config
 

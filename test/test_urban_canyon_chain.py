@@ -85,7 +85,7 @@ def test_full_mode_perturbs_line_of_sight_signals(tmp_path, eph):
 
 def test_off_casts_no_path_and_far_facets_cost_no_ray(eph, monkeypatch):
     from gnss_sim_ros2.core.multipath import reflections
-    from gnss_sim_ros2.core.receiver.chain import VisibilityOptions
+    from gnss_sim_ros2.core.visibility import VisibilityOptions
 
     prov = eph["synthetic"][0]
     st = prov.states(T0, systems="GC")

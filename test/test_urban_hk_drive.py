@@ -1,14 +1,14 @@
 """Issue 16 acceptance on the Hong Kong drive: simulated u-blox M8T against the real one (minutes to run).
 
-Method: core/multipath/drive_check.py.  The figures of the last run are in the README ("Urban canyons").
+Method: core/comparison/drive_check.py.  The figures of the last run are in the README ("Urban canyons").
 """
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
+from gnss_sim_ros2.core.comparison import drive_check
 from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris
-from gnss_sim_ros2.core.multipath import drive_check
 
 
 @pytest.fixture(scope="module")

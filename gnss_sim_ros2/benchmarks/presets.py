@@ -284,8 +284,8 @@ def run_bench(quick: bool = False, presets=PRESET_ORDER, repeats: int | None = N
               use_real: bool = True, workdir: Path | None = None, log=print) -> dict:
     from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris
     from gnss_sim_ros2.core.scene.demo_world import demo_world_path
-    from gnss_sim_ros2.core.simulation import load_scene
     from gnss_sim_ros2.core.time import GnssTime
+    from gnss_sim_ros2.core.visibility import load_scene
 
     for p in presets:
         if p not in PRESET_ORDER:

@@ -81,9 +81,10 @@ def measure_point(point: dict) -> dict:
     from gnss_sim_ros2.benchmarks.presets import DEMO_START
     from gnss_sim_ros2.core.scene.demo_world import demo_world_path
     from gnss_sim_ros2.core.scene.visibility import Scene
-    from gnss_sim_ros2.core.simulation import SimulationSetup, load_scene, run_simulation
+    from gnss_sim_ros2.core.simulation import SimulationSetup, run_simulation
     from gnss_sim_ros2.core.time import GnssTime
     from gnss_sim_ros2.core.trajectory import Trajectory, demo_trajectory
+    from gnss_sim_ros2.core.visibility import load_scene
 
     base_kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     demo = load_scene(str(demo_world_path()))

@@ -89,10 +89,9 @@ def run(args) -> int:
 def _run(args) -> int:
     from gnss_sim_ros2.commands.export_world import strict_world
     from gnss_sim_ros2.core.frames import check_receiver_position
-    from gnss_sim_ros2.core.receiver.chain import VisibilityOptions
     from gnss_sim_ros2.core.scene.visibility import STATE_NAMES
-    from gnss_sim_ros2.core.simulation import load_scene
     from gnss_sim_ros2.core.time import GnssTime
+    from gnss_sim_ros2.core.visibility import VisibilityOptions, load_scene
     from gnss_sim_ros2.parameters import param
 
     at = _parse_at(args.at)

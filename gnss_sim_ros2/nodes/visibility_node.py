@@ -42,7 +42,7 @@ class VisibilityNode(GnssSimNode):
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
         self.scene = None             # core.scene.visibility.Scene (configure .. cleanup)
-        self.options = None           # core.receiver.chain.VisibilityOptions
+        self.options = None           # core.visibility.VisibilityOptions
         self.tf = None
         self.fixed_world_m = None     # antenna_position in the world frame, or None: the antenna from TF
         self.pub = self.image_pub = self.diag_pub = None
@@ -53,9 +53,8 @@ class VisibilityNode(GnssSimNode):
         self.sky_view = None          # core.scene.sky_view.SkyView of the scene (configure .. cleanup)
 
     def configure(self, p):
-        from gnss_sim_ros2.core.receiver.chain import VisibilityOptions
         from gnss_sim_ros2.core.scene.demo_world import demo_world_path
-        from gnss_sim_ros2.core.simulation import load_scene
+        from gnss_sim_ros2.core.visibility import VisibilityOptions, load_scene
 
         try:
             self.options = VisibilityOptions.from_params(p)

@@ -39,7 +39,7 @@ def run_summary(runner, n_epochs, dropped, wall_s, period) -> dict:
         "peak_rss_mb": round(runner.peak_rss_mb, 1) if runner.peak_rss_mb is not None else None,
     }
     if n > 1:
-        from gnss_sim_ros2.core.simulation import SCENE_LOADS
+        from gnss_sim_ros2.core.visibility import SCENE_LOADS
 
         out["robots"] = n
         out["scene_loads"] = dict(SCENE_LOADS)     # this process's: one world for every composed robot
@@ -121,9 +121,8 @@ def sky_plot(out_dir, cfg, vis_msg, sky=None):
 
     at = antenna_world_m(m)
     if sky is None:
-        from gnss_sim_ros2.core.receiver.chain import VisibilityOptions
         from gnss_sim_ros2.core.scene.demo_world import demo_world_path
-        from gnss_sim_ros2.core.simulation import load_scene
+        from gnss_sim_ros2.core.visibility import VisibilityOptions, load_scene
 
         vis = cfg.node("visibility")
         world = vis["world_file"] if vis["world_file"] or vis["mesh_file"] else str(demo_world_path())

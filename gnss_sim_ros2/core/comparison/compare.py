@@ -51,12 +51,16 @@ from pathlib import Path
 import numpy as np
 
 from .. import constants as k
+from ..ephemeris.broadcast import BroadcastEphemeris
+from ..frames import az_el_from_ecef
+from ..receiver.outputs import write_navigation
+from ..rinex.header import read_obs_header
 from ..rinex.obs_table import GPS_EPOCH_NP, ObsTable, match_epochs
-from ..rtklib import rtklib_solutions
-from ..spp import Solutions, spp_solutions
 from ..time import GnssTime
 from .pairing import SignalPair, pair_signals
+from .rtklib import rtklib_solutions
 from .sources import load_observations
+from .spp import Solutions, spp_solutions
 from .statistics import (
     GROSS_LIMITS,
     KINDS,
@@ -167,8 +171,6 @@ SITE_APART_M = 5000.0
 def _first_day(tab: ObsTable, path) -> np.datetime64:
     """Day of the first observation of a file (RINEX header TIME OF FIRST OBS, else its first epoch)."""
     if tab.kind == "rinex":
-        from ..rinex.header import read_obs_header
-
         first = read_obs_header(Path(path))["first_obs"]
         if first is not None:
             return first.astype("datetime64[D]")
@@ -196,8 +198,6 @@ def _input_warnings(cmp: Comparison, sim_path, real_path) -> list[str]:
 
 def _elevations(eph, times: np.ndarray, svs: np.ndarray, rx_ecef: np.ndarray) -> np.ndarray:
     """(E, S) elevation [deg] from the broadcast ephemeris at ``rx_ecef`` ((E, 3)); NaN without a record."""
-    from ..frames import az_el_from_ecef
-
     col = {s: j for j, s in enumerate(svs.tolist())}
     el = np.full((len(times), len(svs)), np.nan)
     systems = "".join(sorted({s[0] for s in svs.tolist()} & set("GRECJI")))
@@ -339,8 +339,6 @@ def compare(sim_path, real_path, nav_paths=None, truth_ecef_m=None, truth_csv=No
             dst[p] = m
 
     if nav_paths:
-        from ..ephemeris.broadcast import BroadcastEphemeris
-
         nav_paths = [str(p) for p in nav_paths]
         for p in nav_paths:
             if not Path(p).is_file():
@@ -359,8 +357,6 @@ def compare(sim_path, real_path, nav_paths=None, truth_ecef_m=None, truth_csv=No
             cmp.position_note = "RTKLIB needs RINEX inputs: gnss_sim solve_pvt used instead"
             solver = "ours"
         if solver == "rtklib":
-            from ..receiver.outputs import write_navigation
-
             wd = Path(workdir) if workdir is not None else Path(sim_path).parent
             wd.mkdir(parents=True, exist_ok=True)
             # RTKLIB gets the navigation data as our reader understood it (one merged RINEX 3.04 file):

@@ -6,6 +6,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..rinex.obs_table import ObsTable
+from ..signals import PROFILES
 
 
 @dataclass(frozen=True)
@@ -33,8 +34,6 @@ def _attributes(tab: ObsTable, system: str) -> list[str]:
         if np.isfinite(a[:, cols]).any() and code[1:] not in out:
             out.append(code[1:])
     if tab.kind == "bag":   # a bag has no header order: the simulator's geodetic profile order (first = primary)
-        from ..signals import PROFILES
-
         order = PROFILES["geodetic"].get(system, [])
         out.sort(key=lambda c: order.index(c) if c in order else len(order))
     return out

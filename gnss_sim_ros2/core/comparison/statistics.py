@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..frames import ecef_to_enu, ecef_to_geodetic
 from ..rinex.obs_table import REFERENCE_ORDER
 from .pairing import SignalPair
 
@@ -101,8 +102,6 @@ def remove_common_offsets(diffs: dict[SignalPair, np.ndarray], sys_of_col: np.nd
 
 def enu_errors_m(pos_ecef_m: np.ndarray, ref_ecef_m: np.ndarray) -> np.ndarray:
     """(E, 3) east, north, up of ``pos`` relative to ``ref`` ((3,) or (E, 3)), ENU at each reference point."""
-    from ..frames import ecef_to_enu, ecef_to_geodetic
-
     ref = np.broadcast_to(np.asarray(ref_ecef_m, float), pos_ecef_m.shape)
     out = np.full(pos_ecef_m.shape, np.nan)
     ok = np.all(np.isfinite(pos_ecef_m), axis=1) & np.all(np.isfinite(ref), axis=1)

@@ -6,14 +6,13 @@ from pathlib import Path
 
 import numpy as np
 
+from ..frames import geodetic_to_ecef
 from ..rinex.obs_table import EPOCH_MATCH_NS, GPS_EPOCH_NP
 
 
 def truth_from_csv(path, times: np.ndarray) -> np.ndarray:
     """Ground truth (E, 3) ECEF at ``times`` from a CSV with a ``time`` column (ISO 8601, GPS) and either
     ``x_m,y_m,z_m`` (ECEF) or ``lat_deg,lon_deg,h_m``; linear interpolation, NaN outside its span."""
-    from ..frames import geodetic_to_ecef
-
     path = Path(path)
     if not path.is_file():
         raise ValueError(f"--truth-csv {path}: no such file")

@@ -3,12 +3,12 @@
 Elevation is the arrival direction seen from the antenna (negative: from below, e.g. a ground
 reflection).  Two patterns, linear interpolation in dB between the tabulated points:
 
-- ``patch``: the generic mass-market patch of receiver/cn0.py (PATCH_GAIN_DBIC, +4 dBic at zenith,
-  -4 dBic at 10 deg) for RHCP.  LHCP = RHCP - XPD(el): cross-polar discrimination about 15 dB at
-  zenith falling to 0-3 dB at the horizon: small ceramic patches have an axial ratio of 2-3 dB at zenith
-  (XPD = 20 log10((AR + 1) / (AR - 1)) = 19-15 dB) that widens towards the horizon (patch data sheets,
-  e.g. u-blox ANN-MB; Hannah 2001, ch. 3; figures from memory, not re-read here).  Below the horizon
-  the back lobe (-15 to -25 dBic).
+- ``patch``: the generic mass-market patch (PATCH_GAIN_DBIC, also the C/N0 link budget's in
+  receiver/cn0.py; +4 dBic at zenith, -4 dBic at 10 deg) for RHCP.  LHCP = RHCP - XPD(el):
+  cross-polar discrimination about 15 dB at zenith falling to 0-3 dB at the horizon: small ceramic
+  patches have an axial ratio of 2-3 dB at zenith (XPD = 20 log10((AR + 1) / (AR - 1)) = 19-15 dB)
+  that widens towards the horizon (patch data sheets, e.g. u-blox ANN-MB; Hannah 2001, ch. 3; figures
+  from memory, not re-read here).  Below the horizon the back lobe (-15 to -25 dBic).
 - ``choke_ring``: a geodetic choke ring (e.g. Dorne-Margolin / Leica AR25 class): RHCP +5 dBic at
   zenith rolling off to -5 dBic at 5 deg, steeper below the horizon (-25 dBic at -30 deg and below);
   XPD about 25 dB at zenith, 10 dB at 10 deg (Tranquilla et al., "Analysis of a choke ring groundplane
@@ -21,7 +21,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..receiver.cn0 import PATCH_EL_DEG, PATCH_GAIN_DBIC
+#: generic patch antenna RHCP gain pattern: elevation [deg] -> gain [dBic] (+4 dBic at zenith, -4 dBic at
+#: 10 deg, -5.5 dBic at 5 deg, -8 dBic at the horizon; the link budget's default, receiver/cn0.py docstring)
+PATCH_EL_DEG = np.array([-90.0, -10.0, 0.0, 5.0, 10.0, 15.0, 20.0, 30.0, 45.0, 60.0, 75.0, 90.0])
+PATCH_GAIN_DBIC = np.array([-25.0, -12.0, -8.0, -5.5, -4.0, -2.8, -1.8, -0.2, 1.8, 3.0, 3.7, 4.0])
 
 _PATCH_XPD_EL = np.array([-90.0, -10.0, 0.0, 10.0, 30.0, 60.0, 90.0])
 _PATCH_XPD_DB = np.array([0.0, 0.0, 1.0, 4.0, 9.0, 13.0, 15.0])

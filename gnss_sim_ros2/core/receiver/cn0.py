@@ -10,7 +10,8 @@
   P_rx = P_min + margin + 20 log10(rho_edge / rho).  rho_edge follows from the
   satellite's own orbit radius (derived from range and elevation on a
   spherical Earth, R = 6371 km), so MEO, IGSO and GEO need no table.
-- G_ant(el): a generic right-hand circularly polarised patch, +4 dBic at
+- G_ant(el): a generic right-hand circularly polarised patch (the table
+  PATCH_GAIN_DBIC of core/multipath/antenna.py), +4 dBic at
   zenith, -4 dBic at 10 deg, -5.5 dBic at 5 deg, -8 dBic at the horizon
   (an 8 dB roll-off from zenith to 10 deg; NovAtel documents >= +5 dBic at
   zenith for its elements; AML reports ~15 dB from 90 to 5 deg for high-end
@@ -38,13 +39,10 @@ import numpy as np
 
 from gnss_sim_ros2.core import constants as k
 from gnss_sim_ros2.core import signals as _signals
+from gnss_sim_ros2.core.multipath.antenna import PATCH_EL_DEG, PATCH_GAIN_DBIC
 
 #: median attenuation of a single tree at L-band/UHF [dB] (Vogel & Goldhirsh 1986, 869 MHz)
 FOLIAGE_MEDIAN_DB = 12.0
-
-#: generic patch antenna gain pattern: elevation [deg] -> gain [dBic] (see module docstring)
-PATCH_EL_DEG = np.array([-90.0, -10.0, 0.0, 5.0, 10.0, 15.0, 20.0, 30.0, 45.0, 60.0, 75.0, 90.0])
-PATCH_GAIN_DBIC = np.array([-25.0, -12.0, -8.0, -5.5, -4.0, -2.8, -1.8, -0.2, 1.8, 3.0, 3.7, 4.0])
 
 
 @dataclass

@@ -53,6 +53,7 @@ from .. import propagation as prop
 from .. import signals as sig
 from ..ephemeris.states import SatelliteStates
 from ..frames import az_el_at, ecef_to_geodetic
+from ..multipath.antenna import PATTERNS
 from ..nequick import NeQuickG
 from ..nequick import available as nequick_available
 from ..time import GnssTime
@@ -150,8 +151,6 @@ class ReceiverConfig:
         if self.tracking is None:
             self.tracking = TrackingConfig(acquisition_cn0_dbhz=tr.acquisition_cn0_dbhz,
                                            tracking_cn0_dbhz=tr.tracking_cn0_dbhz)
-        from ..multipath.antenna import PATTERNS
-
         if self.antenna not in PATTERNS:
             raise ValueError(f"receiver: parameter 'antenna' = {self.antenna!r} (one of {PATTERNS})")
         if not (self.frontend_bandwidth_hz > 0 and 0 < self.dll_spacing_chips <= 1):
@@ -539,7 +538,7 @@ class Receiver:
 
     def _scene_multipath(self, paths, sat_i, vis_j, att_j, el_j, chip, lam):
         """(signal rows with reflected paths, multipath.composite.CompositeErrors) or None (none this epoch)."""
-        from ..multipath.composite import composite_errors
+        from ..multipath.composite import composite_errors  # scipy.special: imported with multipath on only
 
         cfg = self.cfg
         has = paths.valid.any(axis=1)[sat_i]

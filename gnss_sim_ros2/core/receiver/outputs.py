@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import constants as k
+from ..multipath.antenna import RINEX_ANTENNA_TYPE
 from ..rinex.obs_write import EpochArrays, RinexObsHeader, ssi_from_cn0
 from ..solver import PvtSolution, SolverConfig, solve_pvt_many
 from ..time import GnssTime
@@ -101,8 +102,6 @@ def header(obs_types, marker_name: str, approx_pos_ecef_m, interval_s: float, gl
            comments=(), antenna: str = "patch") -> RinexObsHeader:
     """The RINEX observation header of a simulated receiver; ``antenna``: its pattern (multipath/antenna.py
     PATTERNS, the profile's ReceiverConfig.antenna), named in ANT # / TYPE."""
-    from ..multipath.antenna import RINEX_ANTENNA_TYPE
-
     return RinexObsHeader(
         obs_types=obs_types, marker_name=marker_name, marker_type="NON_GEODETIC",
         observer="gnss_sim", agency="gnss_sim", receiver_number="1", receiver_type="GNSS_SIM",

@@ -57,7 +57,8 @@ class SetupCache:
     def prepare(self, setup, workdir: Path):
         """``setup`` with its scene and ephemeris from the cache; (setup, warnings of loading them)."""
         from ..ephemeris.provider import open_ephemeris
-        from ..simulation import load_scene, orbit_source, visibility_options
+        from ..simulation import orbit_source, visibility_options
+        from ..visibility import load_scene
 
         notes: list[str] = []
         extra: dict = {}

@@ -1,11 +1,13 @@
 """RTKLIB rnx2rtkp single point solutions, and the observation copy RTKLIB 2.4.3 reads correctly."""
 from __future__ import annotations
 
+import shutil
+import subprocess
 from pathlib import Path
 
 import numpy as np
 
-from .rinex.obs_table import match_epochs
+from ..rinex.obs_table import match_epochs
 from .spp import Solutions
 
 #: RTKLIB pos1-navsys bits (rtklib.h SYS_GPS 1, SYS_GLO 4, SYS_GAL 8, SYS_QZS 16, SYS_CMP 32, SYS_IRN 64)
@@ -79,9 +81,6 @@ def rtklib_solutions(obs_path, nav_paths, systems: str, times: np.ndarray, workd
                      elevation_mask_deg: float = 10.0, options: dict | None = None) -> Solutions:
     """RTKLIB rnx2rtkp single point solutions (broadcast ionosphere, Saastamoinen) at ``times``;
     ``options``: further rnx2rtkp configuration lines (e.g. {"stats-eratio1": "10000"})."""
-    import shutil
-    import subprocess
-
     if shutil.which("rnx2rtkp") is None:
         raise ValueError("solver 'rtklib': rnx2rtkp is not installed")
     workdir = Path(workdir)

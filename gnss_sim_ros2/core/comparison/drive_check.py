@@ -21,6 +21,9 @@ Method (the same for the real and the simulated observation file):
 from __future__ import annotations
 
 import csv
+import gzip
+import os
+import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -30,9 +33,15 @@ from .. import constants as k
 from .. import propagation as prop
 from ..frames import az_el_from_ecef, ecef_to_geodetic, geodetic_to_ecef
 from ..rinex.obs_table import GPS_EPOCH_NP, match_epochs
+from ..scene.visibility import Scene
 from ..signals import frequency_hz, group_delay_factor
+from ..simulation import SimulationSetup, horizontal_errors_m, run_simulation
 from ..time import GnssTime
+from ..trajectory import Trajectory
+from ..visibility import VisibilityOptions
 from ..vocabulary import VisibilityState
+from .rtklib import rtklib_solutions
+from .sources import load_observations
 
 #: RTKLIB 2.4.3 single point options on both files: its code variance is (100 x stats-errphase)^2 +
 #: (100 x stats-errphaseel)^2 / sin^2(el) (pntpos.c varerr(), err[0] = 100); the defaults (0.003 m) give
@@ -81,8 +90,6 @@ def load_drive(truth_csv, scene, antenna_height_m: float = 1.8, offset_m=(0.0, 0
 
 
 def horizontal_stats(est_ecef_m, true_ecef_m) -> dict:
-    from ..simulation import horizontal_errors_m
-
     ok = np.all(np.isfinite(est_ecef_m), axis=1)
     e = horizontal_errors_m(est_ecef_m[ok], true_ecef_m[ok])
     return {"rms_m": float(np.sqrt(np.mean(e**2))) if len(e) else np.nan,
@@ -108,9 +115,6 @@ class FileView:
 def file_view(obs_path, drive: Drive, truth_ecef_m, provider, scene, systems: str = "GC",
               mask_deg: float = 15.0) -> FileView:
     """Tracked sets, model states and residuals of one RINEX observation file (module docstring)."""
-    from ..comparison.sources import load_observations
-    from ..receiver.chain import VisibilityOptions
-
     tab = load_observations(obs_path)
     i_d, i_f = match_epochs(drive.times_np, tab.time, 50_000_000)
     code = {"G": "1C", "C": "2I", "E": "1C", "R": "1C", "J": "1C"}
@@ -232,8 +236,6 @@ def model_offset_m(drive: Drive, scene, provider, real: FileView, *, strong_cn0_
     blocks, plus the share of the satellites above the mask it does not track that the model leaves in the
     line of sight; minimised on a grid of ``step_m`` within +-``span_m``, then of step_m / 4 within +-step_m
     around the best, on every ``every``-th epoch.  Returns (offset (2,), criterion at 0, criterion at it)."""
-    from ..receiver.chain import VisibilityOptions
-
     opts = VisibilityOptions(mask_deg=mask_deg)
     col = {s: j for j, s in enumerate(real.sv)}
     epochs = []
@@ -286,12 +288,6 @@ def write_trajectory_csv(drive: Drive, path) -> Path:
 def city_scene(model_dir, workdir):
     """The Hong Kong city model (``hk-tst-city-model``: models/, worlds/hong_kong_city_only.world) as a Scene:
     copied into ``workdir`` with the gzipped terrain mesh unpacked (its README), then loaded from the SDF."""
-    import gzip
-    import os
-    import shutil
-
-    from ..scene.visibility import Scene
-
     src, dst = Path(model_dir), Path(workdir)
     world = src / "worlds" / "hong_kong_city_only.world"
     if not world.is_file():
@@ -322,10 +318,6 @@ def run_drive(drive: Drive, scene, provider, nav_files, real_obs, workdir, *, mu
 
     ``real``: the real file's part from a previous call (``out["real_part"]``), to skip recomputing it;
     ``range_m``: the visibility parameter multipath_range_m; ``receiver``: ReceiverConfig overrides."""
-    from ..rtklib import rtklib_solutions
-    from ..simulation import SimulationSetup, run_simulation
-    from ..trajectory import Trajectory
-
     workdir = Path(workdir)
     t_s = np.asarray(drive.t - drive.t[0], dtype=float)
     setup = SimulationSetup(start=drive.t[0], duration_s=float(t_s[-1]), interval_s=1.0,
@@ -373,8 +365,6 @@ def clear_sky_shares(drive: Drive, scene, provider, view: FileView, *, mask_deg:
     (elevation band 0: below ``split_el_deg`` / 1: above, azimuth bin start [deg]) -> (tracked share, satellite-
     epochs) and ``clear``, ``tracked_clear`` are (K, S) bool on ``view.sv`` (epochs not visited: False).  A sky
     sector the file leaves untracked where the model is clear points at what the model lacks there."""
-    from ..receiver.chain import VisibilityOptions
-
     opts = VisibilityOptions(mask_deg=mask_deg)
     col = {s: j for j, s in enumerate(view.sv)}
     clear = np.zeros(view.tracked.shape, bool)

@@ -7,9 +7,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import constants as k
-from .rinex.obs_table import ObsTable
-from .time import GnssTime
+from .. import constants as k
+from .. import propagation as prop
+from ..constants import OMEGA_BY_SYSTEM
+from ..frames import az_el_from_ecef, ecef_to_geodetic
+from ..receiver.engine import KLOBUCHAR_FALLBACK_ALPHA, KLOBUCHAR_FALLBACK_BETA
+from ..rinex.obs_table import ObsTable
+from ..signals import frequency_hz, group_delay_factor
+from ..solver import SolverConfig, pseudorange_sigma_m, solve_pvt
+from ..time import GnssTime
 
 #: single point error budget of RTKLIB pntpos.c (2.4.3): URA of a healthy broadcast (GPS URA index 0 =
 #: 2.0 m, IS-GPS-200N 20.3.3.3.1.3), code bias ERR_CBIAS, ionosphere ERR_BRDCI (fraction of the model),
@@ -31,8 +37,6 @@ class Solutions:
 
 
 def _klobuchar(eph):
-    from .receiver.engine import KLOBUCHAR_FALLBACK_ALPHA, KLOBUCHAR_FALLBACK_BETA
-
     iono = getattr(eph, "iono", None) or {}
     a, b = iono.get("GPSA"), iono.get("GPSB")
     if a is not None and b is not None and len(a) == 4 and len(b) == 4:
@@ -51,8 +55,6 @@ def spp_sigma_m(sv, el_deg, iono_m, config=None):
     (SolverConfig elevation model, system factors) + broadcast orbit/clock (URA, ``SPP_URA_M``) +
     code bias (ERR_CBIAS 0.3 m) + ionosphere model (ERR_BRDCI: 50 % of the Klobuchar delay) +
     troposphere model (ERR_SAAS 0.3 m / (sin el + 0.1))."""
-    from .solver import pseudorange_sigma_m
-
     el = np.asarray(el_deg, dtype=float)
     var = (pseudorange_sigma_m(el, sv, config=config) ** 2 + SPP_URA_M**2 + SPP_CODE_BIAS_M**2
            + (SPP_IONO_FRACTION * np.asarray(iono_m, dtype=float)) ** 2
@@ -69,12 +71,6 @@ def spp_epoch(eph, t_rx: GnssTime, sv, pseudorange_m, code_of_system: dict[str, 
     with Niell mapping.  A first solution without atmosphere and without residual test, then twice:
     light time, ionosphere and troposphere at the previous solution, sigmas of :func:`spp_sigma_m`,
     with solve_pvt's residual test.  Returns a PvtSolution or None (fewer than 4 satellites)."""
-    from . import propagation as prop
-    from .constants import OMEGA_BY_SYSTEM
-    from .frames import az_el_from_ecef, ecef_to_geodetic
-    from .signals import frequency_hz, group_delay_factor
-    from .solver import SolverConfig, solve_pvt
-
     sv = np.asarray(sv, dtype="<U3")
     pr = np.asarray(pseudorange_m, dtype=float)
     ok = np.isfinite(pr)

@@ -1,0 +1,69 @@
+"""How the scene is cast for one epoch: :class:`VisibilityOptions`, from the visibility node's parameters
+(``parameters.py``) and the preset (``core/presets.py``); the visibility node and the offline loop call
+:meth:`VisibilityOptions.cast`."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..multipath.scene_paths import cast_paths
+from ..presets import preset as preset_switches
+from ..vocabulary import VisibilityState
+
+
+@dataclass(frozen=True)
+class VisibilityOptions:
+    """How the scene is cast for one epoch (visibility node and offline loop alike)."""
+
+    mask_deg: float = 10.0
+    fresnel_rays: int = 0
+    foliage: str = "path"
+    use_visuals: bool = False
+    #: world loading: non-static models kept as obstacles; unloadable parts an error (parameter strict_world)
+    keep_dynamic: bool = False
+    strict_world: bool = True
+    #: reflections from the scene (core/multipath): "off", "nlos" (blocked satellites only) or "full"
+    multipath: str = "off"
+    multipath_range_m: float = 100.0
+    multipath_max_paths: int = 3
+    #: knife-edge diffraction of blocked satellites over the nearest edge (multipath modes only)
+    multipath_diffraction: bool = False
+    #: 1: single bounces; 2: also double bounces between facing walls
+    multipath_bounces: int = 2
+    #: diffuse scattering from the walls (core/multipath/scattering.py) on top of the specular paths
+    multipath_scattering: bool = False
+
+    @classmethod
+    def from_params(cls, p: dict, switches: dict | None = None) -> VisibilityOptions:
+        """From the visibility node's parameters (shared ones included) and the preset's switches."""
+        sw = switches if switches is not None else preset_switches(p["preset"])
+        fresnel = p.get("fresnel_rays", -1)
+        return cls(mask_deg=float(p["elevation_mask_deg"]),
+                   fresnel_rays=int(fresnel if fresnel >= 0 else sw["fresnel_rays"]),
+                   foliage=sw["foliage"], use_visuals=bool(p.get("use_visuals", False)),
+                   keep_dynamic=bool(p.get("keep_dynamic_models", False)),
+                   strict_world=bool(p.get("strict_world", True)),
+                   multipath=p.get("multipath") or sw.get("multipath", "off"),
+                   multipath_range_m=float(p.get("multipath_range_m", 100.0)),
+                   multipath_max_paths=int(p.get("multipath_max_paths", 3)),
+                   multipath_diffraction=bool(p.get("multipath_diffraction", False)),
+                   multipath_bounces=int(p.get("multipath_bounces", 2)),
+                   multipath_scattering=bool(p.get("multipath_scattering", False)))
+
+    def cast(self, scene, antenna_world_m, sat_ecef_m):
+        """(state, attenuation_db, VisibilityResult) of satellites (N, 3) or (M, N, 3) seen from the antenna(s).
+
+        ``state`` uses VisibilityState; satellites below the mask are not cast and count as visible (the
+        receiver does not track them).  With ``multipath`` on, ``v.paths`` holds the reflected paths
+        (core/multipath/scene_paths.py), blocked satellites diffracted over an edge with a loss below 40 dB are
+        ATTENUATED by it, those with a reflected path REFLECTED_ONLY, and ``v.extra_path_m`` is the shortest
+        path's excess."""
+        v = scene.visibility_ecef(antenna_world_m, sat_ecef_m, mask_deg=self.mask_deg,
+                                  fresnel_rays=self.fresnel_rays, foliage=self.foliage)
+        state = np.where(v.state < 0, int(VisibilityState.VISIBLE), v.state).astype(np.int64)
+        att = v.attenuation_db + v.diffraction_db
+        if self.multipath != "off":
+            state, edge_db = cast_paths(self, scene, antenna_world_m, sat_ecef_m, v, state)
+            att = att + edge_db
+        return state, att, v
