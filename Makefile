@@ -1,6 +1,7 @@
 # The two commands of the README:
 #   make demo   set up (first time) and run the main job on built-in defaults
-#   make test   set up (first time) and run lint + the test suite + the launch tests
+#   make test   set up (first time) and run lint (ruff, the import contract .importlinter) + the test suite
+#               + the launch tests
 #               (these with ../shared/ros2-tools where it exists: scripts/launch_tests.sh)
 # Both are idempotent: a second run skips finished setup steps.
 SHELL := /bin/bash
@@ -20,9 +21,11 @@ demo: setup
 
 lint: setup
 	$(VENV)/bin/ruff check gnss_sim_ros2 test bench launch scripts
+	$(VENV)/bin/lint-imports --no-cache --no-logo .importlinter
 
 test: setup
 	$(VENV)/bin/ruff check gnss_sim_ros2 test bench launch scripts
+	$(VENV)/bin/lint-imports --no-cache --no-logo .importlinter
 	$(VENV)/bin/python -m pytest -q -p no:cacheprovider $(PYTEST_ARGS) test
 	@GNSS_SIM_VENV=$(VENV) scripts/launch_tests.sh
 
