@@ -8,7 +8,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from gnss_sim_ros2.parameters import INSTANCE_NODE_NAMES, NODE_NAMES, robot_namespace
+from gnss_sim_ros2.graph_params import INSTANCE_NODE_NAMES, instance_params, robot_namespace, robot_params
+from gnss_sim_ros2.parameters import NODE_NAMES
 
 #: the ROS package, and the scheme of Python classes in its component index (nodes/components.py)
 PACKAGE = "gnss_sim"
@@ -22,7 +23,7 @@ class NodeSpec:
     module: str       # python module (``python -m``)
     cls: str          # node class (composition in one process)
     #: "" for the rover's chain and the rtk node; "base", "antenna2", "heading": an RTK run's other instances
-    #: of the class (parameters.INSTANCE_NODE_NAMES)
+    #: of the class (graph_params.INSTANCE_NODE_NAMES)
     instance: str = ""
     #: ROS namespace without slashes: "" (the root) or "robot<k>" (a run with several robots)
     namespace: str = ""
@@ -177,7 +178,7 @@ def ros_args(spec: NodeSpec, params_file: str | None, use_sim_time: bool) -> lis
 
 
 # ---------------------------------------------------------------------------- RTK (gnss-sim run --rtk, rtk:=true)
-#: the base station (the rover's visibility and receiver classes at a static antenna, parameters.base_station_params)
+#: the base station (the rover's visibility and receiver classes at a static antenna, graph_params.base_station_params)
 #: and the rtk node (rtkrcv on the rover's and the base's RTCM3), started after the rover's chain
 RTK_NODES = (
     NodeSpec("visibility", "visibility_node", "gnss_sim_ros2.nodes.visibility_node", "VisibilityNode", "base"),
@@ -245,8 +246,6 @@ def rtk_nodes(cfg=None) -> list[NodeSpec]:
 
 def node_parameters(cfg, spec: NodeSpec, robots: int = 1) -> dict:
     """The parameters of one node of the graph from the configuration (parameters.Config)."""
-    from gnss_sim_ros2.parameters import instance_params, robot_params
-
     if spec.robot >= 0:
         return robot_params(cfg, spec.robot, robots, spec.key)
     out = instance_params(cfg, spec.instance, spec.key) if spec.instance else cfg.node(spec.key)

@@ -49,7 +49,8 @@ from launch_ros.actions import ComposableNodeContainer, LifecycleNode, Node
 from launch_ros.descriptions import ComposableNode
 
 from gnss_sim_ros2 import graph
-from gnss_sim_ros2.parameters import check_robot_config, check_robots, load_config
+from gnss_sim_ros2.graph_params import check_robot_config, check_robots
+from gnss_sim_ros2.parameters import load_config
 
 #: launch argument -> (default, description): `ros2 launch gnss_sim sim.launch.py --show-args` prints them
 ARGS = {

@@ -7,15 +7,8 @@ import yaml
 
 from gnss_sim_ros2 import graph
 from gnss_sim_ros2.core.trajectory import robot_path
-from gnss_sim_ros2.parameters import (
-    MAX_ROBOTS,
-    NODE_NAMES,
-    check_robot_config,
-    check_robots,
-    defaults,
-    load_config,
-    robot_params,
-)
+from gnss_sim_ros2.graph_params import MAX_ROBOTS, check_robot_config, check_robots, robot_params
+from gnss_sim_ros2.parameters import NODE_NAMES, defaults, load_config
 
 
 def test_one_robot_is_the_graph_of_before():

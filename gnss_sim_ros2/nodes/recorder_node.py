@@ -27,7 +27,7 @@ def main(args=None) -> int:
         if not bag_dir:
             raise ValueError("node gnss_sim_recorder: parameter 'bag_dir' is empty (the bag folder to write)")
         from gnss_sim_ros2.graph import RECORDED_RTK, recorded
-        from gnss_sim_ros2.parameters import check_robots
+        from gnss_sim_ros2.graph_params import check_robots
         from gnss_sim_ros2.recorder import BagRecorder
 
         topics = recorded(check_robots(robots, "node gnss_sim_recorder: parameter 'robots'"))

@@ -12,7 +12,7 @@ import sys
 
 from gnss_sim_ros2 import graph
 from gnss_sim_ros2.commands.run.isolation import die_with_parent
-from gnss_sim_ros2.parameters import robot_namespace
+from gnss_sim_ros2.graph_params import robot_namespace
 
 #: summary.json "mode" of each layout ("processes": one per node, as before --layout)
 LAYOUT_MODES = {"composed": "composed", "robot": "robot_processes", "node": "processes"}

@@ -9,8 +9,8 @@ import numpy as np
 
 from gnss_sim_ros2 import graph
 from gnss_sim_ros2.core.frames import ecef_to_enu, ecef_to_geodetic, geodetic_to_ecef
+from gnss_sim_ros2.graph_params import robot_namespace
 from gnss_sim_ros2.messages.conversions import stamp_of, visibility_antenna
-from gnss_sim_ros2.parameters import robot_namespace
 
 
 class RunOutputs:
