@@ -1,7 +1,8 @@
 """``gnss-sim`` command line tool.
 
-Each subcommand lives in ``gnss_sim_ros2/commands/<name>.py`` and exposes
-``add_arguments(parser)`` and ``run(args) -> int``.  Modules are imported only
+Each subcommand is a module of ``gnss_sim_ros2/commands/`` (``commands/<name>.py``, or a package
+along its seams: ``commands/run/``), named in ``COMMANDS``, exposing ``add_arguments(parser)`` and
+``run(args) -> int`` (a package from its ``__init__``).  Modules are imported only
 when their subcommand runs, so ``gnss-sim --help`` stays fast and a command
 never pays for another's dependencies.
 """

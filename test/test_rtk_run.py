@@ -8,7 +8,7 @@
   other directions from code; its MSM decoder turns the half-cycle indicator (DF420) into a loss of lock
   every epoch (rtcm3.c: LLI = lossoflock + 3), so a re-acquired data signal's phase is unusable until its
   half cycle is resolved (tracking.py: the first frame sync word, not a fixed 6 s): 4.4 cm with the
-  default seeds (2.9-6.7 cm over seeds 1, 3, 5, 7: README "RTK in the loop").
+  default seeds (2.9-6.7 cm over seeds 1, 3, 5, 7: docs/VALIDATION.md "RTK").
 - The same graph on open ground (a 120 s drive south of the block): RTK horizontal error RMS of the fixed
   solutions <= 0.05 m, >= 90 % of the epochs with a solution, >= 80 % fixed after the first quarter.
 - The base station: same world errors, its own noise (RINEX of its own in output_dir/base).

@@ -20,7 +20,7 @@ peak memory is its own):
 Each point's process runs on one thread (BLAS, OpenMP and Open3D limited to one,
 as a sweep worker): the figures of one core, and a multi-threaded OpenBLAS
 would otherwise spend more time waiting for its threads than computing the
-solver's 8 x 8 matrices (see the README).
+solver's 8 x 8 matrices (docs/BENCHMARKS.md, "Offline speed").
 
 Per point: ``ms_per_epoch`` (wall time of the epoch loop per epoch),
 ``cpu_ms_per_epoch`` (its CPU time: insensitive to other processes on a shared

@@ -4,7 +4,7 @@ A preset is a dict of switches; ``SimulationSetup.switches`` overrides single
 ones, ``ReceiverConfig`` overrides (``SimulationSetup.receiver``) win over both.
 Costs are per epoch of the demo scenario (courtyard world, demo path, synthetic
 GRECJI constellation, ~45 satellites above the horizon, 2-core machine);
-effects are measured by ``gnss-sim bench`` (README trade table) and
+effects are measured by ``gnss-sim bench`` (docs/BENCHMARKS.md, the presets' table) and
 ``bench/bench_skips.py``.
 
 - ``orbit``: "broadcast" keeps the navigation message; "precise" uses the SP3
@@ -32,8 +32,8 @@ effects are measured by ``gnss-sim bench`` (README trade table) and
   ~0.2-0.5 ms per epoch (core/nequick.py).  Effect: with Klobuchar as the
   truth a receiver's Klobuchar correction leaves only a common scale error
   (no horizontal gradient at night); with NeQuick-G it leaves a residual with
-  a real receiver's north-south structure (OPEC 2022-001, README "How it
-  compares with a real receiver").
+  a real receiver's north-south structure (OPEC 2022-001, docs/VALIDATION.md "A
+  geodetic receiver in open sky").
 - ``noise``: thermal noise, multipath, clock wander, ionosphere residual,
   SISRE.  Cost ~0.1 ms (vectorised per signal).
   On in every preset: the errors are what a receiver simulator is for; the

@@ -42,7 +42,7 @@ def _srv():
         raise ComponentError(
             "the container needs the composition_interfaces package (LoadNode, UnloadNode, ListNodes), which is "
             "not importable: on a ROS 2 install it comes with ros-<distro>-composition-interfaces; with the "
-            "PyPI wheels, install ../shared/ros2-tools (README: 'install-into') and use its venv") from None
+            "PyPI wheels, install ../shared/ros2-tools (docs/ROS.md: 'install-into') and use its venv") from None
     return srv
 
 

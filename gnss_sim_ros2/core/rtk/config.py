@@ -79,7 +79,7 @@ def default_options(systems: str = "GE", frequencies: int = 2, elevation_mask_de
 
     Left at RTKLIB 2.4.3's defaults: pos2-arlockcnt 0, pos2-arelmask 0, pos2-maxout 5 epochs,
     pos2-rejionno 30 m, pos1-snrmask off.  On the demo path fix-and-hold (pos2-armode) helps some noise
-    draws and not others (README "RTK in the loop"), so continuous stays."""
+    draws and not others (docs/VALIDATION.md "RTK"), so continuous stays."""
     if mode not in MODES:
         raise RtkConfigError(f"rtk mode {mode!r}: one of {MODES} (parameter rtk_mode)")
     bad = [s for s in systems if s not in NAVSYS_BITS]
