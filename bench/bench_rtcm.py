@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from gnss_sim_ros2.core.receiver.outputs import epoch_arrays, header, obs_types_for
-from gnss_sim_ros2.core.rinex.nav_read import read_nav_file, records_as_dicts
+from gnss_sim_ros2.core.rinex.nav import read_nav_file, records_as_dicts
 from gnss_sim_ros2.core.rtcm.writer import RtcmWriter
 from gnss_sim_ros2.core.simulation import SimulationSetup, receiver_config, run_simulation
 from gnss_sim_ros2.core.time import GnssTime

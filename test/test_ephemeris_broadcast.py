@@ -20,7 +20,7 @@ from gnss_sim_ros2.core import constants as K
 from gnss_sim_ros2.core.ephemeris.broadcast import BroadcastEphemeris
 from gnss_sim_ros2.core.ephemeris.glonass import glonass_acceleration
 from gnss_sim_ros2.core.ephemeris.kepler import kepler_states
-from gnss_sim_ros2.core.rinex.nav_read import parse_nav_text, read_nav_files, records_as_dicts, toe_time
+from gnss_sim_ros2.core.rinex.nav import parse_nav_text, read_nav_files, records_as_dicts, toe_time
 from gnss_sim_ros2.core.time import GnssTime
 
 # ------------------------------------------------------------------------------------------------
@@ -531,7 +531,7 @@ def test_records_roundtrip_through_rinex3_writer(tmp_path):
             + _rec3("G30", G30_EPOCH, gps_values(G30))
             + _rec3("R07", (2022, 1, 1, 2, 15, 0), glo_values(_glonass_record(R_POS, R_VEL, R_ACC))))
     nav = parse_nav_text(text)
-    from gnss_sim_ros2.core.rinex.nav_read import header_dict
+    from gnss_sim_ros2.core.rinex.nav import header_dict
 
     out = writer.write_rinex3_nav(tmp_path / "rt.rnx", records_as_dicts(nav), header_dict(nav))
     back = read_nav_files([out])

@@ -73,7 +73,7 @@ def test_ionosphere_coefficients_round_trip(opec_dir):
     """states_to_msg -> iono_from_msg keeps Klobuchar and NeQuick-G coefficients (the receiver node's input)."""
     from std_msgs.msg import Header
 
-    from gnss_sim_ros2.core.rinex.nav_read import read_nav_files
+    from gnss_sim_ros2.core.rinex.nav import read_nav_files
 
     nav = read_nav_files([str(opec_dir / f"OPEC00NOR_S_20220010000_01D_{s}N.rnx") for s in "GE"])
     eph = BroadcastEphemeris(nav)

@@ -13,7 +13,7 @@ from gnss_sim_ros2.core.ephemeris.broadcast import BroadcastEphemeris
 from gnss_sim_ros2.core.ephemeris.coverage import EphemerisCoverageError, EphemerisCoverageWarning
 from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris
 from gnss_sim_ros2.core.ephemeris.synthetic import write_synthetic_nav
-from gnss_sim_ros2.core.rinex.nav_read import NavDataWarning, header_dict, read_nav_file, records_as_dicts
+from gnss_sim_ros2.core.rinex.nav import NavDataWarning, header_dict, read_nav_file, records_as_dicts
 from gnss_sim_ros2.core.rinex.nav_write import write_rinex3_nav
 from gnss_sim_ros2.core.time import GnssTime
 

@@ -13,7 +13,7 @@ import pytest
 
 from gnss_sim_ros2.core.comparison import compare, load_observations
 from gnss_sim_ros2.core.ephemeris.sp3 import Sp3Ephemeris
-from gnss_sim_ros2.core.rinex.nav_read import NavDataWarning, read_nav_file
+from gnss_sim_ros2.core.rinex.nav import NavDataWarning, read_nav_file
 
 OPEC_OBS = "OPEC00NOR_S_20220010000_0340_30S_MO.rnx"
 

@@ -146,7 +146,7 @@ def elevation_table(opec_dir: Path, times, svs) -> np.ndarray:
     elevation even when it is flagged unhealthy or between two records of this station's file)."""
     from gnss_sim_ros2.core.ephemeris.broadcast import BroadcastEphemeris
     from gnss_sim_ros2.core.frames import az_el_from_ecef
-    from gnss_sim_ros2.core.rinex.nav_read import read_nav_files
+    from gnss_sim_ros2.core.rinex.nav import read_nav_files
     from gnss_sim_ros2.core.time import GnssTime
 
     nav = read_nav_files(nav_files(opec_dir))
@@ -237,7 +237,7 @@ def test_spp_default_errors_realistic(opec_runs, real_antenna_ecef_m, systems):
 
 def _zero_beidou_tgd1(nav_path: Path, out: Path) -> Path:
     """A copy of a navigation file with every BeiDou TGD1 set to zero (our reader and writer)."""
-    from gnss_sim_ros2.core.rinex.nav_read import header_dict, read_nav_files, records_as_dicts
+    from gnss_sim_ros2.core.rinex.nav import header_dict, read_nav_files, records_as_dicts
     from gnss_sim_ros2.core.rinex.nav_write import write_rinex3_nav
 
     nav = read_nav_files([nav_path])

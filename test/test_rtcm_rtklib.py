@@ -24,7 +24,7 @@ import numpy as np
 import pytest
 
 from gnss_sim_ros2.core.frames import ecef_to_geodetic, enu_to_ecef
-from gnss_sim_ros2.core.rinex.nav_read import read_nav_file, records_as_dicts
+from gnss_sim_ros2.core.rinex.nav import read_nav_file, records_as_dicts
 from gnss_sim_ros2.core.rinex.obs_read import load_rinex
 from gnss_sim_ros2.core.simulation import SimulationSetup, run_simulation
 from gnss_sim_ros2.core.time import GnssTime
@@ -250,7 +250,7 @@ def test_rnx2rtkp_fixes_our_rtcm_base_and_rover(tmp_path):
 def test_real_broadcast_records_survive_rtcm(opec_dir, tmp_path):
     """Every GPS, GLONASS, Galileo (I/NAV and F/NAV) and BeiDou record of a real station's day (OPEC
     2022-001) goes through our ephemeris messages and comes out of convbin equal within the RTCM resolution."""
-    from gnss_sim_ros2.core.rinex.nav_read import header_dict, read_nav_files
+    from gnss_sim_ros2.core.rinex.nav import header_dict, read_nav_files
     from gnss_sim_ros2.core.rinex.nav_write import write_rinex3_nav
     from gnss_sim_ros2.core.rtcm.ephemeris import encode_record
     from gnss_sim_ros2.core.rtcm.frame import frame

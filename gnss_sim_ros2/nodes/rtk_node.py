@@ -93,7 +93,7 @@ class RtkNode(GnssSimNode):
                 raise ValueError(f"{where}: {exc}") from None
         self.schedule = None
         if p["nav_files"]:
-            from gnss_sim_ros2.core.rinex.nav_read import read_nav_files, records_as_dicts
+            from gnss_sim_ros2.core.rinex.nav import read_nav_files, records_as_dicts
             from gnss_sim_ros2.core.rtcm.writer import EphemerisSchedule
 
             for f in p["nav_files"]:

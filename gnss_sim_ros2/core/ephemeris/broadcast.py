@@ -1,6 +1,6 @@
 """Broadcast ephemeris provider: RINEX navigation files -> satellite states at any instant.
 
-Layers (as RTKLIB): records (core/rinex/nav_read.py) -> selection per satellite and
+Layers (as RTKLIB): records (core/rinex/nav/) -> selection per satellite and
 instant (select.py) -> states (kepler.py, glonass.py) -> SatelliteStates.
 
     eph = BroadcastEphemeris.from_files(["brdc.rnx"], start=t0, end=t1)
@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..rinex.nav_read import KEPLER_SYSTEMS, SUPPORTED_SYSTEMS, NavData, read_nav_files
+from ..rinex.nav import KEPLER_SYSTEMS, SUPPORTED_SYSTEMS, NavData, read_nav_files
 from ..time import GnssTime
 from . import glonass as glo
 from .kepler import KeplerParams

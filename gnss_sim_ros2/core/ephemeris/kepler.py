@@ -58,7 +58,7 @@ def is_bds_geo(sv) -> np.ndarray:
 class KeplerParams:
     """Per-record constants of Keplerian records, precomputed once.
 
-    ``rec`` is a table with the KEPLER_DTYPE fields of core/rinex/nav_read.py
+    ``rec`` is a table with the KEPLER_DTYPE fields of core/rinex/nav/
     (``sys``, ``sv``, ``sqrt_a`` ... ``af2``, ``toe_sec``/``toe_frac``, ``toc_sec``/``toc_frac``).
     """
 

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..rinex.nav_read import KEPLER_SYSTEMS, NavData, SystemTable, epoch_key
+from ..rinex.nav import KEPLER_SYSTEMS, NavData, SystemTable, epoch_key
 from . import glonass as glo
 from .kepler import KeplerParams
 
@@ -101,7 +101,7 @@ def drop_outliers(nav: NavData) -> NavData:
     """Remove the outlier records of every system of ``nav`` (in place), one warning (nav.drop) each."""
     import warnings
 
-    from ..rinex.nav_read import NavDataWarning
+    from ..rinex.nav import NavDataWarning
 
     for s, tab in list(nav.tables.items()):
         if s not in KEPLER_SYSTEMS and s != "R":

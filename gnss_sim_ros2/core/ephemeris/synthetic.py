@@ -465,9 +465,9 @@ class SyntheticConstellation:
         return write_rinex3_nav(path, self.records(), self.header())
 
     def nav(self):
-        """The records as reading the file :meth:`write` writes gives them (rinex.nav_read.NavData), without
-        the text: the same values to the last bit (nav_read.nav_from_records)."""
-        from ..rinex.nav_read import nav_from_records
+        """The records as reading the file :meth:`write` writes gives them (rinex.nav.NavData), without
+        the text: the same values to the last bit (rinex.nav.nav_from_records)."""
+        from ..rinex.nav import nav_from_records
 
         return nav_from_records(self.records(), self.header(), name=f"synthetic constellation {self.systems}")
 

@@ -333,7 +333,7 @@ class ReceiverChain:
         nav = getattr(self.provider, "nav", None) if self.rtcm_ephemeris else None
         navigation = None
         if nav is not None:
-            from ..rinex.nav_read import records_as_dicts
+            from ..rinex.nav import records_as_dicts
 
             navigation = records_as_dicts(nav, self.settings.receiver.systems)
         if self.rtcm_target is True:

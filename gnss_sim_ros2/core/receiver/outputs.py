@@ -180,7 +180,7 @@ def write_navigation(path: Path, provider, systems: str) -> Path | None:
     nav = getattr(provider, "nav", None)
     if nav is None:
         return None
-    from ..rinex.nav_read import header_dict, records_as_dicts
+    from ..rinex.nav import header_dict, records_as_dicts
     from ..rinex.nav_write import write_rinex3_nav
 
     return write_rinex3_nav(path, records_as_dicts(nav, systems), header_dict(nav))

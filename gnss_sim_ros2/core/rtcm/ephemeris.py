@@ -1,7 +1,7 @@
 """RTCM3 broadcast ephemeris messages from RINEX navigation records (RTCM 10403.3, 3.5.6-3.5.9):
 1019 GPS, 1020 GLONASS, 1041 NavIC, 1042 BeiDou, 1044 QZSS, 1045 Galileo F/NAV, 1046 Galileo I/NAV.
 
-Records are the dicts of core/rinex/nav_read.records_as_dicts (georinex
+Records are the dicts of core/rinex/nav.records_as_dicts (georinex
 variable names, RINEX units: seconds, radians, metres; ``"time"`` = toc in the
 system's time scale, UTC for GLONASS).  Angles go out in semicircles with the
 ICD value of pi; each field is rounded to its RTCM resolution (the scale

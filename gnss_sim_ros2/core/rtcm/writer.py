@@ -48,7 +48,7 @@ class RtcmWriter:
     ``header``: the :class:`RinexObsHeader` (or its dict) of the RINEX file of
     the same run: observation types, approximate position (the station's
     antenna reference point), antenna height, GLONASS slots and biases.
-    ``navigation``: ``{system: [record dicts]}`` as rinex.nav_read.records_as_dicts
+    ``navigation``: ``{system: [record dicts]}`` as rinex.nav.records_as_dicts
     gives them (None: no ephemeris messages).
     """
 
@@ -245,7 +245,7 @@ class EphemerisSchedule:
     toc at or before it (the nearest one where none is before; Galileo I/NAV before F/NAV of the same
     toc), sent when it changes and again every ``interval_s``, as a base station repeats them.
 
-    ``navigation``: ``{system: [record dicts]}`` (rinex.nav_read.records_as_dicts).
+    ``navigation``: ``{system: [record dicts]}`` (rinex.nav.records_as_dicts).
     """
 
     def __init__(self, navigation: Mapping, interval_s: float = 60.0):
