@@ -44,7 +44,7 @@ def _inputs(n_epochs: int, rate_hz: float, multipath: str):
     setup = setup_from_config(cfg, Path(tempfile.mkdtemp(prefix="gnss_sim_step_")))
     vis_p = {**cfg.node("visibility"), "multipath": multipath}
     opt = VisibilityOptions.from_params(vis_p)
-    scene = load_scene(setup.world_file, setup.mesh_file, setup.materials_file, opt)
+    scene = load_scene(*setup.scene_files(), opt)
     path = AntennaPath(setup.trajectory, scene)
     rcv = cfg.node("receiver")
     start = GnssTime.from_iso(rcv["start_time"])

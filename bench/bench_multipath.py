@@ -39,8 +39,6 @@ CITY = DATA / "hk-tst-city-model"
 
 def demo_figures() -> None:
     """The demo scenario through the whole offline chain with each multipath mode."""
-    import dataclasses
-
     from gnss_sim_ros2.core.simulation import run_simulation, setup_from_config
     from gnss_sim_ros2.parameters import load_config
 
@@ -68,8 +66,7 @@ def demo_figures() -> None:
 
         with tempfile.TemporaryDirectory() as tmp:
             setup = setup_from_config(load_config(), Path(tmp), progress=False, observer=observer)
-            setup = dataclasses.replace(setup, visibility={**setup.visibility, "multipath": mode,
-                                                           "multipath_scattering": scattering})
+            setup = setup.with_params(multipath=mode, multipath_scattering=scattering)
             VisibilityOptions.cast = cast
             try:
                 res = run_simulation(setup)

@@ -20,21 +20,23 @@ import numpy as np
 from gnss_sim_ros2.core.receiver.outputs import epoch_arrays, header, obs_types_for
 from gnss_sim_ros2.core.rinex.nav import read_nav_file, records_as_dicts
 from gnss_sim_ros2.core.rtcm.writer import RtcmWriter
-from gnss_sim_ros2.core.simulation import SimulationSetup, receiver_config, run_simulation
+from gnss_sim_ros2.core.simulation import chain_settings, run_simulation, setup_from_config
 from gnss_sim_ros2.core.time import GnssTime
 from gnss_sim_ros2.core.trajectory import Trajectory
+from gnss_sim_ros2.parameters import load_config
 
 POS = np.array([3149785.9652, 598260.8822, 5495348.4927])
 
 
 def main(duration_s: float = 120.0) -> None:
     with tempfile.TemporaryDirectory() as tmp:
-        setup = SimulationSetup(start=GnssTime.from_iso("2022-01-01T01:00:00"), duration_s=duration_s, interval_s=1.0,
-                                out_dir=Path(tmp), trajectory=Trajectory.static(POS, "ecef"), systems="GRECJI")
+        setup = setup_from_config(load_config(), Path(tmp), Trajectory.static(POS, "ecef"),
+                                  start=GnssTime.from_iso("2022-01-01T01:00:00"), duration_s=duration_s,
+                                  interval_s=1.0).with_params(systems="GRECJI")
         epochs = []
         setup.observer = lambda t, ecef, obs, sol: epochs.append((t, obs))
         res = run_simulation(setup)
-        obs_types = obs_types_for(receiver_config(setup).profile, setup.systems)
+        obs_types = obs_types_for(chain_settings(setup).receiver.profile, setup.systems)
         nav = records_as_dicts(read_nav_file(res.nav_path))
         st = [(t, epoch_arrays(o, obs_types)) for t, o in epochs]
         glo = {sv: 1 for _, o in epochs for sv in o.sv.tolist() if sv[0] == "R"}

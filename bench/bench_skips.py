@@ -46,13 +46,14 @@ from gnss_sim_ros2.core.scene.visibility import Scene  # noqa: E402
 from gnss_sim_ros2.core.scene.world_mesh import WorldMesh  # noqa: E402
 from gnss_sim_ros2.core.simulation import (  # noqa: E402
     AntennaPath,
-    SimulationSetup,
     crop_world_mesh,
     run_simulation,
+    setup_from_config,
 )
 from gnss_sim_ros2.core.time import GnssTime  # noqa: E402
 from gnss_sim_ros2.core.trajectory import demo_trajectory  # noqa: E402
 from gnss_sim_ros2.core.visibility import load_scene  # noqa: E402
+from gnss_sim_ros2.parameters import load_config  # noqa: E402
 
 START = GnssTime.from_iso("2025-06-01T10:00:00")
 
@@ -203,9 +204,9 @@ def main() -> int:
     print(f"     same visibility states with and without the crop: {same}")
 
     # 6. batched epochs
-    setup = SimulationSetup(start=START, duration_s=float(n - 1), interval_s=1.0, out_dir=work / "run",
-                            trajectory=demo_trajectory(loop=True), scene=scene,
-                            ephemeris={"synthetic": (provider, [])}, preset="balanced")
+    setup = setup_from_config(load_config(), work / "run", demo_trajectory(loop=True), start=START,
+                              duration_s=float(n - 1), interval_s=1.0, scene=scene,
+                              ephemeris={"synthetic": (provider, [])}).with_params(preset="balanced")
     print("6. batched precomputation in run_simulation (balanced preset)")
     t_b = min(run_simulation(setup).wall_s for _ in range(rep))
     t_1 = min(run_simulation(dataclasses.replace(setup, batch_epochs=1)).wall_s for _ in range(rep))

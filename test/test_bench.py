@@ -49,9 +49,10 @@ def test_bench_rejects_unknown_preset(capsys):
 def test_batched_chain_equals_epoch_by_epoch(tmp_path):
     """Blocks of 50 epochs (one ephemeris call, one raycast) give the observations of block size 1, noise on."""
     from gnss_sim_ros2.core.scene.demo_world import demo_world_path
-    from gnss_sim_ros2.core.simulation import SimulationSetup, run_simulation
+    from gnss_sim_ros2.core.simulation import run_simulation, setup_from_config
     from gnss_sim_ros2.core.time import GnssTime
     from gnss_sim_ros2.core.trajectory import demo_trajectory
+    from gnss_sim_ros2.parameters import load_config
 
     got = {}
 
@@ -60,9 +61,9 @@ def test_batched_chain_equals_epoch_by_epoch(tmp_path):
         return lambda t, ecef, obs, sol: got[tag].append((obs.sv.copy(), obs.code.copy(), obs.pseudorange_m.copy(),
                                                            obs.cn0_dbhz.copy(), obs.sat_vis_state.copy()))
 
-    base = SimulationSetup(start=GnssTime.from_iso("2025-06-01T10:00:00"), duration_s=40.0, interval_s=1.0,
-                           out_dir=tmp_path / "a", trajectory=demo_trajectory(), world_file=str(demo_world_path()),
-                           systems="GE", preset="accurate")
+    base = setup_from_config(load_config(), tmp_path / "a", demo_trajectory(),
+                             start=GnssTime.from_iso("2025-06-01T10:00:00"), duration_s=40.0, interval_s=1.0
+                             ).with_params(world_file=str(demo_world_path()), systems="GE", preset="accurate")
     run_simulation(dataclasses.replace(base, batch_epochs=1, observer=observer_for("one")))
     run_simulation(dataclasses.replace(base, batch_epochs=50, out_dir=tmp_path / "b", observer=observer_for("blk")))
     assert len(got["one"]) == len(got["blk"]) == 41

@@ -24,9 +24,10 @@ from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris
 from gnss_sim_ros2.core.frames import az_el_from_ecef, ecef_to_enu, ecef_to_geodetic, enu_to_ecef, geodetic_to_ecef
 from gnss_sim_ros2.core.receiver.engine import Receiver, ReceiverConfig
 from gnss_sim_ros2.core.receiver.outputs import position_fix
-from gnss_sim_ros2.core.simulation import SimulationSetup, run_simulation
+from gnss_sim_ros2.core.simulation import run_simulation, setup_from_config
 from gnss_sim_ros2.core.time import GnssTime
 from gnss_sim_ros2.core.trajectory import Trajectory
+from gnss_sim_ros2.parameters import load_config
 
 START = GnssTime.from_iso("2025-06-01T10:00:00")
 FIX_TOL_M = 0.01
@@ -127,9 +128,9 @@ def test_simulation_100km_from_world_origin(tmp_path, synthetic):
 
     scene = load_scene(str(demo_world_path()))
     tr = Trajectory(np.array([0.0, 20.0]), np.array([[100e3, 0.0, 1.5], [100e3, 30.0, 1.5]]), "world")
-    setup = SimulationSetup(start=START, duration_s=20.0, interval_s=5.0, out_dir=tmp_path, trajectory=tr,
-                            systems="GE", source="synthetic", scene=scene, ephemeris={"synthetic": synthetic},
-                            receiver={"noise": False})
+    setup = setup_from_config(load_config(), tmp_path, tr, start=START, duration_s=20.0, interval_s=5.0, scene=scene,
+                              ephemeris={"synthetic": synthetic}, receiver_overrides={"noise": False}).with_params(
+        systems="GE", source="synthetic")
     res = run_simulation(setup)
     assert res.epochs == 5 and res.fixes == 5
     assert max(res.horizontal_error_m) < FIX_TOL_M
@@ -181,9 +182,9 @@ def gps_seconds(ep):
 
 
 def simulate(tmp_path, start_iso, duration_s, interval_s, systems="GE"):
-    setup = SimulationSetup(start=GnssTime.from_iso(start_iso), duration_s=duration_s, interval_s=interval_s,
-                            out_dir=tmp_path, trajectory=Trajectory.static((48.0, 11.0, 500.0), "geodetic"),
-                            systems=systems, source="synthetic", receiver={"noise": False})
+    setup = setup_from_config(load_config(), tmp_path, Trajectory.static((48.0, 11.0, 500.0), "geodetic"),
+                              start=GnssTime.from_iso(start_iso), duration_s=duration_s, interval_s=interval_s,
+                              receiver_overrides={"noise": False}).with_params(systems=systems, source="synthetic")
     return setup, run_simulation(setup)
 
 

@@ -14,7 +14,7 @@ import pytest
 import yaml
 
 from gnss_sim_ros2.core.frames import geodetic_to_ecef
-from gnss_sim_ros2.core.simulation import SimulationSetup, run_simulation
+from gnss_sim_ros2.core.simulation import SimulationSetup, run_simulation, setup_from_config
 from gnss_sim_ros2.core.time import GnssTime
 from gnss_sim_ros2.core.trajectory import Trajectory
 from gnss_sim_ros2.parameters import load_config
@@ -124,9 +124,9 @@ def test_run_and_simulate_give_one_answer_with_reflections(tmp_path, multipath):
     assert np.abs(d).max() <= 1e-3
 
 
-def _setup(tmp_path, trajectory, **kw) -> SimulationSetup:
-    return SimulationSetup(start=GnssTime.from_iso("2025-06-01T10:00:00"), duration_s=kw.pop("duration_s", 120.0),
-                           interval_s=1.0, out_dir=tmp_path, trajectory=trajectory, progress=False, **kw)
+def _setup(tmp_path, trajectory, observer, **params) -> SimulationSetup:
+    return setup_from_config(load_config(), tmp_path, trajectory, start=GnssTime.from_iso("2025-06-01T10:00:00"),
+                             duration_s=120.0, interval_s=1.0, observer=observer).with_params(**params)
 
 
 def test_the_fix_uses_the_tracked_satellites_above_a_low_mask(tmp_path):
@@ -136,8 +136,7 @@ def test_the_fix_uses_the_tracked_satellites_above_a_low_mask(tmp_path):
         tracked.append(obs.n_tracked_sats)
         used.append(sol.n_used)
 
-    setup = _setup(tmp_path, Trajectory.static(OPEC_ECEF_M, "ecef"), systems="G", elevation_mask_deg=5.0,
-                   observer=observer)
+    setup = _setup(tmp_path, Trajectory.static(OPEC_ECEF_M, "ecef"), observer, systems="G", elevation_mask_deg=5.0)
     run_simulation(setup)
     ratio = np.sum(used) / np.sum(tracked)
     print(f"mask 5 deg, GPS, open sky: {np.mean(tracked):.1f} satellites tracked, {np.mean(used):.1f} used "
@@ -159,7 +158,7 @@ def test_offline_velocity_of_a_moving_antenna(tmp_path):
         if sol.vel_status == "fix":
             vel.append(np.asarray(sol.vel_enu_mps))
 
-    run_simulation(_setup(tmp_path, path, systems="GE", observer=observer))
+    run_simulation(_setup(tmp_path, path, observer, systems="GE"))
     v = np.array(vel[1:])                    # the first epoch has no previous position
     speed_err = np.abs(np.hypot(v[:, 0], v[:, 1]) - 3.0)
     print(f"offline velocity: {len(v)} epochs, mean {v.mean(axis=0).round(3)} m/s ENU, horizontal speed error "

@@ -131,14 +131,15 @@ def test_a_second_simulate_replaces_exactly_its_own_files(tmp_path):
 def test_a_failure_while_writing_leaves_the_previous_results(tmp_path):
     import dataclasses
 
-    from gnss_sim_ros2.core.simulation import SimulationSetup, run_simulation
+    from gnss_sim_ros2.core.simulation import run_simulation, setup_from_config
     from gnss_sim_ros2.core.time import GnssTime
     from gnss_sim_ros2.core.trajectory import Trajectory
+    from gnss_sim_ros2.parameters import load_config
 
     out = tmp_path / "o"
-    setup = SimulationSetup(start=GnssTime.from_iso("2025-06-01T10:00:00"), duration_s=20.0, interval_s=1.0,
-                            out_dir=out, trajectory=Trajectory.static((50.0, 4.0, 100.0), "geodetic"), systems="G",
-                            batch_epochs=1, batch_observables=False)
+    setup = setup_from_config(load_config(), out, Trajectory.static((50.0, 4.0, 100.0), "geodetic"),
+                              start=GnssTime.from_iso("2025-06-01T10:00:00"), duration_s=20.0, interval_s=1.0,
+                              batch_epochs=1, batch_observables=False).with_params(systems="G")
     res = run_simulation(setup)
     assert res.obs_path.parent == out.resolve() and res.obs_path.is_file()
     before = _contents(out)

@@ -26,9 +26,10 @@ import pytest
 from gnss_sim_ros2.core.frames import ecef_to_geodetic, enu_to_ecef
 from gnss_sim_ros2.core.rinex.nav import read_nav_file, records_as_dicts
 from gnss_sim_ros2.core.rinex.obs_read import load_rinex
-from gnss_sim_ros2.core.simulation import SimulationSetup, run_simulation
+from gnss_sim_ros2.core.simulation import run_simulation, setup_from_config
 from gnss_sim_ros2.core.time import GnssTime
 from gnss_sim_ros2.core.trajectory import Trajectory
+from gnss_sim_ros2.parameters import load_config
 
 pytestmark = pytest.mark.skipif(shutil.which("convbin") is None or shutil.which("rnx2rtkp") is None,
                                 reason="RTKLIB convbin/rnx2rtkp are not installed (scripts/setup_env.sh: rtklib)")
@@ -51,9 +52,9 @@ def simulate_to_rtcm(out: Path, position_ecef_m, systems: str, duration_s: float
         trajectory = Trajectory.static(np.asarray(position_ecef_m), "ecef")
     rtcm = out / f"{marker}.rtcm3"
     # the product's path: the chain writes the RTCM3 epoch by epoch next to the RINEX (simulate --rtcm)
-    setup = SimulationSetup(start=GnssTime.from_iso(START), duration_s=duration_s, interval_s=interval_s,
-                            out_dir=out, trajectory=trajectory, systems=systems, seed=seed, marker_name=marker,
-                            params={"rtcm_msm": msm}, rtcm_path=str(rtcm), rtcm_ephemeris=with_navigation)
+    setup = setup_from_config(load_config(), out, trajectory, start=GnssTime.from_iso(START), duration_s=duration_s,
+                              interval_s=interval_s, rtcm_path=str(rtcm), rtcm_ephemeris=with_navigation).with_params(
+        systems=systems, seed=seed, marker_name=marker, rtcm_msm=msm)
     res = run_simulation(setup)
     assert res.rtcm_path == rtcm
     ours = load_rinex(res.obs_path)

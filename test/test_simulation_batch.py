@@ -12,7 +12,7 @@ from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris
 from gnss_sim_ros2.core.scene.demo_world import demo_world_path
 from gnss_sim_ros2.core.scene.georeference import SphericalCoordinates
 from gnss_sim_ros2.core.scene.visibility import Scene
-from gnss_sim_ros2.core.simulation import SimulationSetup, run_simulation, setup_from_config
+from gnss_sim_ros2.core.simulation import run_simulation, setup_from_config
 from gnss_sim_ros2.core.time import GnssTime
 from gnss_sim_ros2.core.trajectory import Trajectory
 from gnss_sim_ros2.core.visibility import load_scene
@@ -62,8 +62,7 @@ def test_demo_scenario_every_system_batch_equals_epoch_by_epoch(tmp_path):
     """The demo (courtyard world, demo path, GRECJI, default preset), 5 min at 1 Hz in blocks of 60 epochs."""
     cfg = load_config(None)
     scene = load_scene(str(demo_world_path()))
-    setup = setup_from_config(cfg, tmp_path / "demo", scene=scene, batch_epochs=60)
-    setup.duration_s = 300.0
+    setup = setup_from_config(cfg, tmp_path / "demo", scene=scene, batch_epochs=60, duration_s=300.0)
     ra, a = _record(dataclasses.replace(setup, out_dir=tmp_path / "epoch"), batch=False)
     rb, b = _record(dataclasses.replace(setup, out_dir=tmp_path / "batch"), batch=True)
     fixes = _assert_same(a, b, 301)
@@ -91,10 +90,10 @@ def test_street_canyon_nlos_batch_equals_epoch_by_epoch(tmp_path, canyon_eph):
     """A two-wall canyon with multipath 'nlos' (reflected paths, REFLECTED_ONLY tracking), blocks of 25."""
     w = canyon_scene().world
     scene = Scene(dataclasses.replace(w, spherical_coordinates=SphericalCoordinates(22.2982, 114.1788, 0.0)))
-    setup = SimulationSetup(start=T0, duration_s=90.0, interval_s=1.0, out_dir=tmp_path / "c",
-                            trajectory=Trajectory.static(np.array([0.0, 0.0, 2.0]), "world"), systems="GC",
-                            source="synthetic", scene=scene, ephemeris=canyon_eph, visibility={"multipath": "nlos"},
-                            params={"profile": "ublox_m8t"}, switches={"ionosphere": "klobuchar"}, batch_epochs=25)
+    setup = setup_from_config(load_config(), tmp_path / "c", Trajectory.static(np.array([0.0, 0.0, 2.0]), "world"),
+                              start=T0, duration_s=90.0, interval_s=1.0, scene=scene, ephemeris=canyon_eph,
+                              switches={"ionosphere": "klobuchar"}, batch_epochs=25).with_params(
+        systems="GC", source="synthetic", multipath="nlos", profile="ublox_m8t")
     _, a = _record(dataclasses.replace(setup, out_dir=tmp_path / "epoch"), batch=False)
     _, b = _record(dataclasses.replace(setup, out_dir=tmp_path / "batch"), batch=True)
     _assert_same(a, b, 91)

@@ -56,15 +56,15 @@ def test_relative_paths_reach_the_workers_absolute(tmp_path, monkeypatch):
     monkeypatch.chdir(demo_world_path().parent)
     args = sweep_args("--worlds", demo_world_path().name, "--out", "sweep_out", "--duration", "5")
     [(_, setup)] = sweep_cmd.build_tasks(args, Path("sweep_out"))
-    assert setup.world_file == str(demo_world_path()) and setup.out_dir == demo_world_path().parent / "sweep_out" / \
-        "runs" / "run00001"
+    assert setup.visibility_params["world_file"] == str(demo_world_path())
+    assert setup.out_dir == demo_world_path().parent / "sweep_out" / "runs" / "run00001"
 
 
 def test_axis_options_map_onto_simulate_and_bad_values_name_the_option(tmp_path):
     args = sweep_args("--seeds", "4-5", "--presets", "fast,accurate", "--dates", "2025-06-03", "--duration", "20",
                       "--out", str(tmp_path))
     tasks = sweep_cmd.build_tasks(args, tmp_path)
-    assert [(s.seed, s.preset, s.start.isoformat("GPS")) for _, s in tasks] == [
+    assert [(s.receiver_params["seed"], s.preset, s.start.isoformat("GPS")) for _, s in tasks] == [
         (4, "fast", "2025-06-03T10:00:00"), (5, "fast", "2025-06-03T10:00:00"),
         (4, "accurate", "2025-06-03T10:00:00"), (5, "accurate", "2025-06-03T10:00:00")]
     assert [s.out_dir for _, s in tasks] == [tmp_path / "runs" / f"run0000{i}" for i in range(1, 5)]

@@ -10,10 +10,11 @@ from multipath_scenes import canyon_scene
 from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris
 from gnss_sim_ros2.core.scene.georeference import SphericalCoordinates
 from gnss_sim_ros2.core.scene.visibility import Scene
-from gnss_sim_ros2.core.simulation import SimulationSetup, run_simulation
+from gnss_sim_ros2.core.simulation import run_simulation, setup_from_config
 from gnss_sim_ros2.core.time import GnssTime
 from gnss_sim_ros2.core.trajectory import Trajectory
 from gnss_sim_ros2.core.vocabulary import VisibilityState
+from gnss_sim_ros2.parameters import load_config
 
 T0 = GnssTime.from_iso("2019-04-28T05:00:00")
 
@@ -31,13 +32,13 @@ def _scene(shift_m=0.0):
     return Scene(world)
 
 
-def _run(tmp_path, eph, scene, multipath, name, **kw):
+def _run(tmp_path, eph, scene, multipath, name):
     seen = []
-    setup = SimulationSetup(start=T0, duration_s=60.0, interval_s=1.0, out_dir=tmp_path / name,
-                            trajectory=Trajectory.static(np.array([0.0, 0.0, 2.0]), "world"), systems="GC",
-                            source="synthetic", scene=scene, ephemeris=eph, visibility={"multipath": multipath},
-                            params={"profile": "ublox_m8t"}, switches={"ionosphere": "klobuchar"},
-                            observer=lambda t, ecef, obs, sol: seen.append((obs, sol)), **kw)
+    setup = setup_from_config(load_config(), tmp_path / name, Trajectory.static(np.array([0.0, 0.0, 2.0]), "world"),
+                              start=T0, duration_s=60.0, interval_s=1.0, scene=scene, ephemeris=eph,
+                              switches={"ionosphere": "klobuchar"},
+                              observer=lambda t, ecef, obs, sol: seen.append((obs, sol))).with_params(
+        systems="GC", source="synthetic", multipath=multipath, profile="ublox_m8t")
     return run_simulation(setup), seen
 
 

@@ -10,6 +10,7 @@ import pytest
 
 from gnss_sim_ros2.core.comparison import drive_check
 from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris
+from gnss_sim_ros2.parameters import load_config
 
 
 @pytest.fixture(scope="module")
@@ -40,7 +41,8 @@ def _ratio(m, key):
 @pytest.fixture(scope="module")
 def off_run(hk):
     drive, scene, prov, nav, real_obs, tmp, _ = hk
-    return drive_check.run_drive(drive, scene, prov, nav, real_obs, tmp / "off", multipath="off")
+    return drive_check.run_drive(drive, scene, prov, nav, real_obs, tmp / "off", config=load_config(),
+                                 multipath="off")
 
 
 @pytest.fixture(scope="module")
@@ -80,7 +82,8 @@ def test_hk_drive_with_reflections(hk, off_run, placed):
     model states use it)."""
     _, scene, prov, nav, real_obs, tmp, _ = hk
     drive = placed[0]
-    m = drive_check.run_drive(drive, scene, prov, nav, real_obs, tmp / "nlos", multipath="nlos", scattering=True)
+    m = drive_check.run_drive(drive, scene, prov, nav, real_obs, tmp / "nlos", config=load_config(),
+                               multipath="nlos", scattering=True)
     print({k: v for k, v in m.items() if k != "real_part"})
     h_rms = m["h_sim"]["rms_m"] / m["h_real"]["rms_m"]
     h_95 = m["h_sim"]["p95_m"] / m["h_real"]["p95_m"]

@@ -186,26 +186,28 @@ def compare_real(run: Recorder, real: RealObs) -> dict:
 
 # ============================================================================ scenarios
 def _demo_setup(out: Path, duration_s: float, scene, ephemeris):
-    from gnss_sim_ros2.core.simulation import SimulationSetup
+    from gnss_sim_ros2.core.simulation import setup_from_config
     from gnss_sim_ros2.core.time import GnssTime
     from gnss_sim_ros2.core.trajectory import demo_trajectory
+    from gnss_sim_ros2.parameters import load_config
 
-    return SimulationSetup(start=GnssTime.from_iso(DEMO_START), duration_s=duration_s, interval_s=0.0, out_dir=out,
-                           trajectory=demo_trajectory(loop=True), systems="GRECJI", source="synthetic",
-                           scene=scene, ephemeris=ephemeris)
+    return setup_from_config(load_config(), out, demo_trajectory(loop=True), start=GnssTime.from_iso(DEMO_START),
+                             duration_s=duration_s, interval_s=0.0, scene=scene, ephemeris=ephemeris).with_params(
+        systems="GRECJI", source="synthetic")
 
 
 def _opec_setup(out: Path, duration_s: float, data: Path, ephemeris):
-    from gnss_sim_ros2.core.simulation import SimulationSetup
+    from gnss_sim_ros2.core.simulation import setup_from_config
     from gnss_sim_ros2.core.time import GnssTime
     from gnss_sim_ros2.core.trajectory import Trajectory
+    from gnss_sim_ros2.parameters import load_config
 
     d = data / "opec-2022-001"
-    return SimulationSetup(start=GnssTime.from_iso(OPEC_START), duration_s=duration_s, interval_s=30.0, out_dir=out,
-                           trajectory=Trajectory.static(OPEC_ECEF_M, "ecef"), systems="GE", source="broadcast",
-                           nav_files=[str(d / f"OPEC00NOR_S_20220010000_01D_{s}N.rnx") for s in "GE"],
-                           sp3_files=[str(d / "COD0MGXFIN_20220010000_01D_05M_ORB.SP3")], ephemeris=ephemeris,
-                           marker_name="OPEC")
+    return setup_from_config(load_config(), out, Trajectory.static(OPEC_ECEF_M, "ecef"),
+                             start=GnssTime.from_iso(OPEC_START), duration_s=duration_s, interval_s=30.0,
+                             ephemeris=ephemeris).with_params(
+        systems="GE", source="broadcast", nav_files=[str(d / f"OPEC00NOR_S_20220010000_01D_{s}N.rnx") for s in "GE"],
+        sp3_files=[str(d / "COD0MGXFIN_20220010000_01D_05M_ORB.SP3")], marker_name="OPEC")
 
 
 def _run(setup, preset: str, noise: bool | None, record: bool, tag: str):
@@ -215,7 +217,8 @@ def _run(setup, preset: str, noise: bool | None, record: bool, tag: str):
 
     rec = Recorder(setup.systems) if record else None
     sw = {} if noise is None else {"noise": bool(noise)}
-    s = dataclasses.replace(setup, preset=preset, switches=sw, observer=rec, out_dir=Path(setup.out_dir) / tag)
+    s = dataclasses.replace(setup, switches=sw, observer=rec, out_dir=Path(setup.out_dir) / tag).with_params(
+        preset=preset)
     res = run_simulation(s)
     return res, rec
 
@@ -320,8 +323,9 @@ def run_bench(quick: bool = False, presets=PRESET_ORDER, repeats: int | None = N
         t0 = time.perf_counter()
         base = _opec_setup(work / "opec", opec_s, data, {})
         start = GnssTime.from_iso(OPEC_START)
-        base.ephemeris["broadcast"] = open_ephemeris("broadcast", start, opec_s, "GE", base.nav_files)
-        base.ephemeris["sp3"] = open_ephemeris("sp3", start, opec_s, "GE", sp3_files=base.sp3_files)
+        nav_files, sp3_files, _ = base.orbit_files()
+        base.ephemeris["broadcast"] = open_ephemeris("broadcast", start, opec_s, "GE", nav_files)
+        base.ephemeris["sp3"] = open_ephemeris("sp3", start, opec_s, "GE", sp3_files=sp3_files)
         real = RealObs(data / "opec-2022-001" / OPEC_REAL_OBS, "GE")
         log(f"[bench] OPEC scenario loaded in {time.perf_counter() - t0:.1f} s")
         opec = bench_scenario("opec", base, presets, repeats, real, log)

@@ -81,10 +81,11 @@ def measure_point(point: dict) -> dict:
     from gnss_sim_ros2.benchmarks.presets import DEMO_START
     from gnss_sim_ros2.core.scene.demo_world import demo_world_path
     from gnss_sim_ros2.core.scene.visibility import Scene
-    from gnss_sim_ros2.core.simulation import SimulationSetup, run_simulation
+    from gnss_sim_ros2.core.simulation import run_simulation, setup_from_config
     from gnss_sim_ros2.core.time import GnssTime
     from gnss_sim_ros2.core.trajectory import Trajectory, demo_trajectory
     from gnss_sim_ros2.core.visibility import load_scene
+    from gnss_sim_ros2.parameters import load_config
 
     base_kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     demo = load_scene(str(demo_world_path()))
@@ -100,9 +101,9 @@ def measure_point(point: dict) -> dict:
         scene, trajectory = demo, demo_trajectory(loop=True)
         out["triangles"] = int(len(demo.world.triangles))
     with tempfile.TemporaryDirectory(prefix="gnss_sim_scaling_") as tmp:
-        res = run_simulation(SimulationSetup(
-            start=GnssTime.from_iso(DEMO_START), duration_s=point["duration_s"], interval_s=1.0 / point["rate_hz"],
-            out_dir=Path(tmp), trajectory=trajectory, systems=point["systems"], source="synthetic", scene=scene))
+        res = run_simulation(setup_from_config(
+            load_config(), Path(tmp), trajectory, start=GnssTime.from_iso(DEMO_START), duration_s=point["duration_s"],
+            interval_s=1.0 / point["rate_hz"], scene=scene).with_params(systems=point["systems"], source="synthetic"))
     peak_kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     out.update({"epochs": res.epochs, "loop_s": res.wall_s, "cpu_s": res.cpu_s, "setup_s": res.setup_s,
                 "ms_per_epoch": 1e3 * res.wall_s / max(res.epochs, 1),

@@ -142,11 +142,12 @@ def absolute_paths(setup):
     def absolute(p):
         return str(Path(p).absolute()) if p else p
 
-    return dataclasses.replace(
-        setup, out_dir=Path(setup.out_dir).absolute(), world_file=absolute(setup.world_file),
-        mesh_file=absolute(setup.mesh_file), materials_file=absolute(setup.materials_file),
-        nav_files=[absolute(f) for f in setup.nav_files], sp3_files=[absolute(f) for f in setup.sp3_files],
-        clk_files=[absolute(f) for f in setup.clk_files])
+    world, mesh, materials = setup.scene_files()
+    nav, sp3, clk = setup.orbit_files()
+    return dataclasses.replace(setup, out_dir=Path(setup.out_dir).absolute()).with_params(
+        world_file=absolute(world), mesh_file=absolute(mesh), materials_file=absolute(materials),
+        nav_files=[absolute(f) for f in nav], sp3_files=[absolute(f) for f in sp3],
+        clk_files=[absolute(f) for f in clk])
 
 
 def run(args) -> int:
@@ -168,8 +169,9 @@ def run(args) -> int:
         tasks = build_tasks(args, out)
         if args.print_setup:
             for point, setup in tasks:
-                print(point.name, setup.seed, setup.start.isoformat("GPS"), setup.preset, setup.world_file,
-                      setup.mesh_file, setup.out_dir)
+                world, mesh, _ = setup.scene_files()
+                print(point.name, setup.receiver_params["seed"], setup.start.isoformat("GPS"), setup.preset, world,
+                      mesh, setup.out_dir)
             return 0
         # matplotlib is imported while the runs go (this process only waits for them)
         threading.Thread(target=pyplot, name="import-matplotlib", daemon=True).start()

@@ -1,7 +1,7 @@
 """Fidelity presets: default values of the model switches (speed against accuracy).
 
 A preset is a dict of switches; ``SimulationSetup.switches`` overrides single
-ones, ``ReceiverConfig`` overrides (``SimulationSetup.receiver``) win over both.
+ones, ``ReceiverConfig`` overrides (``SimulationSetup.receiver_overrides``) win over both.
 Costs are per epoch of the demo scenario (courtyard world, demo path, synthetic
 GRECJI constellation, ~45 satellites above the horizon, 2-core machine);
 effects are measured by ``gnss-sim bench`` (docs/BENCHMARKS.md, the presets' table) and

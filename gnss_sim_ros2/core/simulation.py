@@ -14,11 +14,17 @@ drops everything below 0 degrees itself); only the systems simulated are
 evaluated; the ephemeris is loaded for the simulated span only (provider.py).
 The results equal the epoch-by-epoch chain (test_simulation_batch.py).
 
-Model switches come from the preset (core/presets.py) with
-``SimulationSetup.switches`` overriding single ones.
+The run holds the nodes' parameters (``SimulationSetup.receiver_params``,
+``visibility_params``, ``ephemeris_params``: every parameter of the table, as
+``parameters.load_config`` gives them to the nodes), and the chain and the
+visibility options are built from them as the nodes build them
+(``ChainSettings.from_params``, ``VisibilityOptions.from_params``;
+test_parameter_path.py).  Model switches come from the preset (core/presets.py)
+with ``SimulationSetup.switches`` overriding single ones.
 """
 from __future__ import annotations
 
+import dataclasses
 import shutil
 import sys
 import time
@@ -39,40 +45,33 @@ from .receiver.outputs import rinex_name, write_navigation
 from .time import GnssTime
 from .trajectory import Trajectory
 from .visibility import VisibilityOptions, load_scene
-from .vocabulary import SYSTEMS
 
 
 @dataclass
 class SimulationSetup:
+    """One offline run: the nodes' parameters (what a node would get from the same configuration) and what is
+    specific to running it here (span, output folder, path, block size, observer, caches)."""
+
     start: GnssTime
     duration_s: float
+    #: epoch interval [s]; <= 0: the preset's epoch_interval_s
     interval_s: float
     out_dir: Path
     trajectory: Trajectory
-    systems: str = SYSTEMS
-    elevation_mask_deg: float = 10.0
-    source: str = "synthetic"
-    nav_files: list = field(default_factory=list)
-    sp3_files: list = field(default_factory=list)
-    clk_files: list = field(default_factory=list)
-    world_file: str = ""
-    mesh_file: str = ""
-    materials_file: str = ""
-    preset: str = "balanced"
-    fresnel_rays: int = -1
+    #: the receiver node's parameters, every one (shared ones included: ``parameters.load_config(...).node
+    #: ("receiver")``): ChainSettings.from_params builds the chain from them as the node does, with output_dir
+    #: the run's folder and the epoch interval above
+    receiver_params: dict
+    #: the visibility node's parameters, every one: the scene files and VisibilityOptions.from_params
+    visibility_params: dict
+    #: the ephemeris node's parameters, every one: source, nav_files, sp3_files, clk_files
+    ephemeris_params: dict
     #: RTCM3 file written next to the RINEX (None: none; "": the RINEX observation name with .rtcm3)
     rtcm_path: str | None = None
     #: with broadcast ephemeris messages (1019-1046) from the navigation records
     rtcm_ephemeris: bool = True
-    #: the visibility node's other parameters (use_visuals, keep_dynamic_models, strict_world, multipath*;
-    #: parameters.py), read by VisibilityOptions.from_params; absent ones take its defaults
-    visibility: dict = field(default_factory=dict)
-    #: the receiver node's other parameters (profile, noise, ionosphere, troposphere, cn0_*, write_nmea_file;
-    #: parameters.py); absent ones take the receiver model's defaults
-    params: dict = field(default_factory=dict)
-    receiver: dict = field(default_factory=dict)   # ReceiverConfig overrides (benchmarks, tests)
-    marker_name: str = "GSIM"
-    seed: int = 1
+    #: ReceiverConfig overrides (benchmarks, tests), set after the parameters
+    receiver_overrides: dict = field(default_factory=dict)
     progress: bool = False
     #: preset switch overrides (core/presets.SWITCHES), e.g. {"foliage": "touch"}
     switches: dict = field(default_factory=dict)
@@ -91,39 +90,73 @@ class SimulationSetup:
     #: used instead of opening the files again (benchmarks running one scenario many times)
     ephemeris: dict = field(default_factory=dict)
 
+    def node_params(self) -> dict[str, dict]:
+        """{"ephemeris": ..., "visibility": ..., "receiver": ...}: the parameters of the nodes this run stands for."""
+        return {"ephemeris": self.ephemeris_params, "visibility": self.visibility_params,
+                "receiver": self.receiver_params}
 
-#: the visibility node's parameters a SimulationSetup carries in ``visibility`` (the rest are its own fields)
-VISIBILITY_OWN = ("use_visuals", "keep_dynamic_models", "strict_world", "multipath", "multipath_range_m",
-                  "multipath_max_paths", "multipath_diffraction", "multipath_bounces", "multipath_scattering")
+    def with_params(self, **values) -> SimulationSetup:
+        """A copy with parameters set by name in every node holding them (``systems``, ``preset``: all three;
+        ``profile``: the receiver's; ``multipath``: the visibility node's), values as the parameter table takes
+        them; a name no node has is a ValueError."""
+        nodes = {key: dict(p) for key, p in self.node_params().items()}
+        for name, value in values.items():
+            holders = [p for p in nodes.values() if name in p]
+            if not holders:
+                raise ValueError(f"parameter {name!r}: no node of an offline run has it")
+            for p in holders:
+                p[name] = value
+        return dataclasses.replace(self, ephemeris_params=nodes["ephemeris"], visibility_params=nodes["visibility"],
+                                   receiver_params=nodes["receiver"])
+
+    # the parameters the loop itself reads (one value per configuration: shared ones from the receiver's)
+    @property
+    def systems(self) -> str:
+        return self.receiver_params["systems"]
+
+    @property
+    def preset(self) -> str:
+        return self.receiver_params["preset"]
+
+    @property
+    def marker_name(self) -> str:
+        return self.receiver_params["marker_name"]
+
+    @property
+    def elevation_mask_deg(self) -> float:
+        return self.receiver_params["elevation_mask_deg"]
+
+    def scene_files(self) -> tuple[str, str, str]:
+        """(world_file, mesh_file, materials_file) of the visibility node."""
+        v = self.visibility_params
+        return v["world_file"], v["mesh_file"], v["materials_file"]
+
+    def orbit_files(self) -> tuple[list, list, list]:
+        """(nav_files, sp3_files, clk_files) of the ephemeris node."""
+        e = self.ephemeris_params
+        return list(e["nav_files"]), list(e["sp3_files"]), list(e["clk_files"])
 
 
 def setup_from_config(cfg, out_dir: Path, trajectory: Trajectory | None = None, **extra) -> SimulationSetup:
-    """The offline run of one configuration (``parameters.load_config``): the values the nodes get.
+    """The offline run of one configuration (``parameters.load_config``): the nodes' parameters as they get them.
 
     ``trajectory``: the antenna's path (static position, CSV); None: the trajectory player's path
     (``trajectory_file``, ``waypoints`` or the demo path) with its ``antenna_offset_m``, in the world
-    given (the demo courtyard when none is).  ``extra``: other SimulationSetup fields.
+    given (the demo courtyard when none is).  ``extra``: other SimulationSetup fields (``start``,
+    ``duration_s``, ``interval_s`` replace start_time, duration_s and 1 / rate_hz).
     """
     from .scene.demo_world import demo_world_path
     from .trajectory import antenna_path, robot_path
 
     eph, vis, rcv, trj = cfg.node("ephemeris"), cfg.node("visibility"), cfg.node("receiver"), cfg.node("trajectory")
-    world, mesh = vis["world_file"], vis["mesh_file"]
     if trajectory is None:
         trajectory = antenna_path(robot_path(trj), trj["antenna_offset_m"])
-        if not world and not mesh:
-            world = str(demo_world_path())
-    own = {"profile", "noise", "ionosphere", "troposphere", "cn0_acquire_dbhz", "cn0_lose_dbhz", "write_nmea_file",
-           "rtcm_msm", "rtcm_station_id", "smoothing_s"}
-    return SimulationSetup(
-        start=GnssTime.from_iso(rcv["start_time"]), duration_s=eph["duration_s"], interval_s=1.0 / rcv["rate_hz"],
-        out_dir=Path(out_dir), trajectory=trajectory, systems=rcv["systems"],
-        elevation_mask_deg=rcv["elevation_mask_deg"], source=eph["source"], nav_files=list(eph["nav_files"]),
-        sp3_files=list(eph["sp3_files"]), clk_files=list(eph["clk_files"]), world_file=world, mesh_file=mesh,
-        materials_file=vis["materials_file"], preset=rcv["preset"], fresnel_rays=vis["fresnel_rays"],
-        visibility={k: v for k, v in vis.items() if k in VISIBILITY_OWN},
-        params={k: v for k, v in rcv.items() if k in own},
-        marker_name=rcv["marker_name"], seed=rcv["seed"], **extra)
+        if not vis["world_file"] and not vis["mesh_file"]:
+            vis["world_file"] = str(demo_world_path())
+    run = {"start": GnssTime.from_iso(rcv["start_time"]), "duration_s": eph["duration_s"],
+           "interval_s": 1.0 / rcv["rate_hz"], **extra}
+    return SimulationSetup(out_dir=Path(out_dir), trajectory=trajectory, receiver_params=rcv, visibility_params=vis,
+                           ephemeris_params=eph, **run)
 
 
 @dataclass
@@ -249,31 +282,28 @@ def orbit_source(setup: SimulationSetup, sw: dict | None = None) -> str:
     """The ephemeris source after the ``orbit`` switch: "precise" takes SP3 when sp3_files are given,
     "broadcast" takes the navigation files when they are given."""
     sw = sw or switches(setup)
-    if sw["orbit"] == "precise" and setup.sp3_files and setup.source in ("broadcast", "sp3"):
+    source = setup.ephemeris_params["source"]
+    nav_files, sp3_files, _ = setup.orbit_files()
+    if sw["orbit"] == "precise" and sp3_files and source in ("broadcast", "sp3"):
         return "sp3"
-    if sw["orbit"] == "broadcast" and setup.source == "sp3" and setup.nav_files:
+    if sw["orbit"] == "broadcast" and source == "sp3" and nav_files:
         return "broadcast"
-    return setup.source
-
-
-def receiver_params(setup: SimulationSetup, interval_s: float) -> dict:
-    """The receiver node's parameters that this setup stands for (the chain is built from them)."""
-    return {**setup.params, "systems": setup.systems, "elevation_mask_deg": setup.elevation_mask_deg,
-            "seed": setup.seed, "preset": setup.preset, "marker_name": setup.marker_name,
-            "rate_hz": 1.0 / interval_s, "output_dir": str(setup.out_dir)}
+    return source
 
 
 def chain_settings(setup: SimulationSetup, interval_s: float | None = None) -> ChainSettings:
+    """The receiver node's ChainSettings.from_params on the setup's receiver parameters, writing into the run's
+    folder at its epoch interval, the ephemeris at hand (transmit time evaluated, not expanded)."""
     sw = switches(setup)
     interval_s = interval_s if interval_s is not None else _interval_s(setup, sw)
-    return ChainSettings.from_params(receiver_params(setup, interval_s), switches=sw, interval_s=interval_s,
-                                     receiver_overrides=setup.receiver, have_ephemeris=True)
+    return ChainSettings.from_params({**setup.receiver_params, "output_dir": str(setup.out_dir)}, switches=sw,
+                                     interval_s=interval_s, receiver_overrides=setup.receiver_overrides,
+                                     have_ephemeris=True)
 
 
 def visibility_options(setup: SimulationSetup) -> VisibilityOptions:
-    return VisibilityOptions.from_params({**setup.visibility, "elevation_mask_deg": setup.elevation_mask_deg,
-                                          "preset": setup.preset, "fresnel_rays": setup.fresnel_rays},
-                                         switches(setup))
+    """The visibility node's VisibilityOptions.from_params on the setup's visibility parameters."""
+    return VisibilityOptions.from_params(setup.visibility_params, switches(setup))
 
 
 def _interval_s(setup: SimulationSetup, sw: dict) -> float:
@@ -288,12 +318,9 @@ def run_simulation(setup: SimulationSetup) -> SimulationResult:
     not write is refused; the run writes into a staging folder beside it whose files replace the previous run's
     at the end; a run that fails leaves the previous results as they were (one stopped by Ctrl-C / SIGTERM
     after its first epoch keeps what it wrote, closed, as ``gnss-sim run`` does)."""
-    import dataclasses
-
     from .output_folder import OutputFolder
 
-    inputs = [*setup.nav_files, *setup.sp3_files, *setup.clk_files, setup.world_file, setup.mesh_file,
-              setup.materials_file]
+    inputs = [*(f for files in setup.orbit_files() for f in files), *setup.scene_files()]
     folder = OutputFolder(setup.out_dir, command="gnss-sim simulate", inputs=inputs)
     staging = folder.acquire()
     rtcm_path = setup.rtcm_path     # an RTCM file named inside the folder is one of the run's files too
@@ -323,8 +350,7 @@ def _simulate_into(setup: SimulationSetup) -> SimulationResult:
         raise ValueError(f"batch_epochs = {setup.batch_epochs!r}: must be >= 1")
     n_epochs = int(np.floor(setup.duration_s / interval_s + 1e-9)) + 1
     vis_opt = visibility_options(setup)
-    scene = setup.scene if setup.scene is not None else load_scene(setup.world_file, setup.mesh_file,
-                                                                   setup.materials_file, vis_opt)
+    scene = setup.scene if setup.scene is not None else load_scene(*setup.scene_files(), vis_opt)
     path = AntennaPath(setup.trajectory, scene)
     if scene is not None and setup.crop_scene:
         scene = _cropped_scene(scene, path, n_epochs, interval_s, setup.elevation_mask_deg, vis_opt.fresnel_rays)
@@ -333,19 +359,19 @@ def _simulate_into(setup: SimulationSetup) -> SimulationResult:
     out = Path(setup.out_dir)
 
     source = orbit_source(setup, sw)
+    nav_files, sp3_files, clk_files = setup.orbit_files()
     if source in setup.ephemeris:
         provider, nav_paths = setup.ephemeris[source]
     else:
-        provider, nav_paths = open_ephemeris(source, setup.start, setup.duration_s, setup.systems, setup.nav_files,
-                                             setup.sp3_files, setup.clk_files, workdir=out / ".ephemeris")
+        provider, nav_paths = open_ephemeris(source, setup.start, setup.duration_s, setup.systems, nav_files,
+                                             sp3_files, clk_files, workdir=out / ".ephemeris")
     if (source == "sp3" and not isinstance(provider, PreciseWithBroadcastGroupDelay)
-            and (setup.nav_files or "broadcast" in setup.ephemeris)):
+            and (nav_files or "broadcast" in setup.ephemeris)):
         brdc, brdc_paths = setup.ephemeris.get("broadcast") or open_ephemeris(
-            "broadcast", setup.start, setup.duration_s, setup.systems, setup.nav_files)
+            "broadcast", setup.start, setup.duration_s, setup.systems, nav_files)
         provider, nav_paths = PreciseWithBroadcastGroupDelay(provider, brdc, setup.start, setup.duration_s), brdc_paths
         # the pair serves the satellites both files have: no usable one is an error before anything is written
-        check_coverage(provider, setup.start, setup.duration_s, setup.systems,
-                       list(setup.sp3_files) + list(setup.nav_files), warn=False)
+        check_coverage(provider, setup.start, setup.duration_s, setup.systems, sp3_files + nav_files, warn=False)
 
     out.mkdir(parents=True, exist_ok=True)   # the staging folder: exactly one observation, navigation, fix.csv
     nav_path = out / rinex_name(setup.marker_name, setup.start, setup.duration_s, interval_s, "MN")

@@ -35,7 +35,7 @@ from ..frames import az_el_from_ecef, ecef_to_geodetic, geodetic_to_ecef
 from ..rinex.obs_table import GPS_EPOCH_NP, match_epochs
 from ..scene.visibility import Scene
 from ..signals import frequency_hz, group_delay_factor
-from ..simulation import SimulationSetup, horizontal_errors_m, run_simulation
+from ..simulation import horizontal_errors_m, run_simulation, setup_from_config
 from ..time import GnssTime
 from ..trajectory import Trajectory
 from ..visibility import VisibilityOptions
@@ -310,26 +310,26 @@ def city_scene(model_dir, workdir):
             os.environ["GZ_SIM_RESOURCE_PATH"] = old
 
 
-def run_drive(drive: Drive, scene, provider, nav_files, real_obs, workdir, *, multipath: str = "nlos",
+def run_drive(drive: Drive, scene, provider, nav_files, real_obs, workdir, *, config, multipath: str = "nlos",
               diffraction: bool = False, bounces: int = 2, profile: str = "ublox_m8t", mask_deg: float = 15.0,
               systems: str = "GC", real: dict | None = None, range_m: float = 100.0,
               receiver: dict | None = None, scattering: bool = False) -> dict:
     """The whole check (module docstring): simulate along the drive, RTKLIB on both files, the metrics.
 
-    ``real``: the real file's part from a previous call (``out["real_part"]``), to skip recomputing it;
-    ``range_m``: the visibility parameter multipath_range_m; ``receiver``: ReceiverConfig overrides."""
+    ``config``: the parameter values the run starts from (``parameters.load_config()``), the drive's own
+    settings set on top; ``real``: the real file's part from a previous call (``out["real_part"]``), to skip
+    recomputing it; ``range_m``: the visibility parameter multipath_range_m; ``receiver``: ReceiverConfig
+    overrides."""
     workdir = Path(workdir)
     t_s = np.asarray(drive.t - drive.t[0], dtype=float)
-    setup = SimulationSetup(start=drive.t[0], duration_s=float(t_s[-1]), interval_s=1.0,
-                            out_dir=workdir / f"{multipath}_{int(diffraction)}_{bounces}_{range_m:g}_{int(scattering)}",
-                            trajectory=Trajectory(t_s, drive.antenna_world_m, "world"), systems=systems,
-                            elevation_mask_deg=mask_deg, source="broadcast", nav_files=list(nav_files), scene=scene,
-                            ephemeris={"broadcast": (provider, list(nav_files))}, params={"profile": profile},
-                            receiver=dict(receiver or {}),
-                            visibility={"multipath": multipath, "multipath_diffraction": diffraction,
-                                        "multipath_bounces": bounces, "multipath_range_m": range_m,
-                                        "multipath_scattering": scattering},
-                            switches={"ionosphere": "klobuchar"})
+    setup = setup_from_config(
+        config, workdir / f"{multipath}_{int(diffraction)}_{bounces}_{range_m:g}_{int(scattering)}",
+        Trajectory(t_s, drive.antenna_world_m, "world"), start=drive.t[0], duration_s=float(t_s[-1]), interval_s=1.0,
+        scene=scene, ephemeris={"broadcast": (provider, list(nav_files))}, receiver_overrides=dict(receiver or {}),
+        switches={"ionosphere": "klobuchar"}).with_params(
+        systems=systems, elevation_mask_deg=mask_deg, source="broadcast", nav_files=list(nav_files), profile=profile,
+        multipath=multipath, multipath_diffraction=diffraction, multipath_bounces=bounces, multipath_range_m=range_m,
+        multipath_scattering=scattering)
     res = run_simulation(setup)
     times = drive.times_np
     sim_sol = rtklib_solutions(res.obs_path, nav_files, systems, times, workdir / "rtk_sim", mask_deg, RTKLIB_OPTIONS)

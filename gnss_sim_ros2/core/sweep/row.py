@@ -62,14 +62,14 @@ class SetupCache:
 
         notes: list[str] = []
         extra: dict = {}
-        if setup.scene is None and (setup.world_file or setup.mesh_file):
+        world, mesh, materials = setup.scene_files()
+        if setup.scene is None and (world or mesh):
             opts = visibility_options(setup)
-            key = ("scene", setup.world_file, _mtime(setup.world_file), setup.mesh_file, _mtime(setup.mesh_file),
-                   setup.materials_file, _mtime(setup.materials_file), opts.use_visuals, opts.keep_dynamic,
-                   opts.strict_world)
+            key = ("scene", world, _mtime(world), mesh, _mtime(mesh), materials, _mtime(materials), opts.use_visuals,
+                   opts.keep_dynamic, opts.strict_world)
 
             def make_scene():
-                scene = load_scene(setup.world_file, setup.mesh_file, setup.materials_file, opts)
+                scene = load_scene(world, mesh, materials, opts)
                 scene.rays.nthreads = self.scene_threads
                 return scene
 
@@ -79,13 +79,12 @@ class SetupCache:
         source = orbit_source(setup)
         eph = dict(setup.ephemeris)
         if source not in eph:
-            files = (tuple(setup.nav_files), tuple(setup.sp3_files), tuple(setup.clk_files))
+            files = tuple(tuple(group) for group in setup.orbit_files())
             key = ("ephemeris", source, int(setup.start.sec), float(setup.start.frac), float(setup.duration_s),
                    setup.systems, *files, *(_mtime(f) for group in files for f in group))
             where = Path(workdir) / f"eph{next(self._made):04d}"
             eph[source], w = self.get(key, lambda: open_ephemeris(
-                source, setup.start, setup.duration_s, setup.systems, setup.nav_files, setup.sp3_files,
-                setup.clk_files, workdir=where))
+                source, setup.start, setup.duration_s, setup.systems, *setup.orbit_files(), workdir=where))
             notes += w
         extra["ephemeris"] = eph
         return dataclasses.replace(setup, **extra), notes
@@ -146,10 +145,11 @@ def run_row(point, setup, cache_dir: str | Path | None = None) -> dict:
 
 def base_row(point, setup) -> dict:
     """Every column of a run's row: its inputs set, the rest null."""
-    return {**dict.fromkeys(COLUMNS), "index": point.index, "run": point.name, "seed": int(setup.seed),
-            "start_time": setup.start.isoformat("GPS", 0),
+    world, mesh, _ = setup.scene_files()
+    return {**dict.fromkeys(COLUMNS), "index": point.index, "run": point.name,
+            "seed": int(setup.receiver_params["seed"]), "start_time": setup.start.isoformat("GPS", 0),
             "preset": setup.preset, "trajectory": point.trajectory or "",
-            "world": setup.world_file or setup.mesh_file or "", "systems": setup.systems,
+            "world": world or mesh or "", "systems": setup.systems,
             "duration_s": float(setup.duration_s), "interval_s": float(setup.interval_s)}
 
 
