@@ -81,7 +81,7 @@ def _chain(rcv: dict, out_dir: Path, rtcm: bool, marker: str = "GSIM"):
 #: (stage, owner, attribute): the calls timed; owner a module or class, looked up at run time
 def _stages():
     from gnss_sim_ros2.core import nmea, solver
-    from gnss_sim_ros2.core.receiver import chain, engine, noise, tracking
+    from gnss_sim_ros2.core.receiver import chain, code_multipath, engine, noise, tracking
     from gnss_sim_ros2.core.receiver import clock as clock_mod
     from gnss_sim_ros2.core.receiver import cn0 as cn0_mod
     from gnss_sim_ros2.core.rinex import obs_write
@@ -99,7 +99,7 @@ def _stages():
         ("noise sigmas (DLL/PLL/FLL)", noise, "dll_sigma_m"),
         ("noise sigmas (DLL/PLL/FLL)", noise, "pll_sigma_m"),
         ("noise sigmas (DLL/PLL/FLL)", noise, "doppler_sigma_hz"),
-        ("multipath state", engine.Receiver, "_multipath_state"),
+        ("multipath state", code_multipath.CodeMultipath, "state"),
         ("tracking", tracking.Tracker, "update_many"),
         ("carrier smoothing", chain.ReceiverChain, "_smoothed_many"),
         ("solver (position + velocity)", chain, "position_fix"),

@@ -35,7 +35,8 @@ SYSTEMS = "GRECJ"
 def bench_epoch(n_epochs: int, n_sats: int = 40) -> dict:
     from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris
     from gnss_sim_ros2.core.frames import az_el_from_ecef
-    from gnss_sim_ros2.core.receiver.engine import Receiver, ReceiverConfig
+    from gnss_sim_ros2.core.receiver.config import ReceiverConfig
+    from gnss_sim_ros2.core.receiver.engine import Receiver
     from gnss_sim_ros2.core.receiver.outputs import position_fix
     from gnss_sim_ros2.core.time import GnssTime
 

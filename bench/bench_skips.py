@@ -39,7 +39,8 @@ sys.path.insert(0, str(REPO))
 from gnss_sim_ros2.benchmarks.presets import shared_data_dir  # noqa: E402
 from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris  # noqa: E402
 from gnss_sim_ros2.core.frames import az_el_from_ecef  # noqa: E402
-from gnss_sim_ros2.core.receiver.engine import Receiver, ReceiverConfig  # noqa: E402
+from gnss_sim_ros2.core.receiver.config import ReceiverConfig  # noqa: E402
+from gnss_sim_ros2.core.receiver.engine import Receiver  # noqa: E402
 from gnss_sim_ros2.core.scene.demo_world import demo_world_path  # noqa: E402
 from gnss_sim_ros2.core.scene.materials import MaterialTable  # noqa: E402
 from gnss_sim_ros2.core.scene.visibility import Scene  # noqa: E402

@@ -22,7 +22,8 @@ from hypothesis import strategies as st
 
 from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris
 from gnss_sim_ros2.core.frames import az_el_from_ecef, ecef_to_enu, ecef_to_geodetic, enu_to_ecef, geodetic_to_ecef
-from gnss_sim_ros2.core.receiver.engine import Receiver, ReceiverConfig
+from gnss_sim_ros2.core.receiver.config import ReceiverConfig
+from gnss_sim_ros2.core.receiver.engine import Receiver
 from gnss_sim_ros2.core.receiver.outputs import position_fix
 from gnss_sim_ros2.core.simulation import run_simulation, setup_from_config
 from gnss_sim_ros2.core.time import GnssTime

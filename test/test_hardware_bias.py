@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from gnss_sim_ros2.core.receiver import hardware_bias as hb
-from gnss_sim_ros2.core.receiver.engine import Receiver, ReceiverConfig
+from gnss_sim_ros2.core.receiver.config import ReceiverConfig
+from gnss_sim_ros2.core.receiver.engine import Receiver
 from gnss_sim_ros2.core.time import GnssTime
 
 

@@ -9,7 +9,8 @@ from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris
 from gnss_sim_ros2.core.multipath import dll
 from gnss_sim_ros2.core.multipath.composite import reflection_amplitudes
 from gnss_sim_ros2.core.multipath.reflections import ScenePaths
-from gnss_sim_ros2.core.receiver.engine import Receiver, ReceiverConfig
+from gnss_sim_ros2.core.receiver.config import ReceiverConfig
+from gnss_sim_ros2.core.receiver.engine import Receiver
 from gnss_sim_ros2.core.time import GnssTime
 from gnss_sim_ros2.core.vocabulary import VisibilityState
 

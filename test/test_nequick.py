@@ -9,7 +9,8 @@ from nequick import NeQuick
 
 from gnss_sim_ros2.core import nequick as nq
 from gnss_sim_ros2.core import propagation as prop
-from gnss_sim_ros2.core.receiver.engine import Receiver, ReceiverConfig
+from gnss_sim_ros2.core.receiver.config import ReceiverConfig
+from gnss_sim_ros2.core.receiver.engine import Receiver
 from gnss_sim_ros2.core.time import GnssTime
 
 #: OPEC 2022-001 Galileo header (RINEX IONOSPHERIC CORR GAL), and a high solar activity set

@@ -21,7 +21,8 @@ from test_propagation import CircularOrbits, _rz  # the same independent referen
 
 from gnss_sim_ros2.core import propagation as prop
 from gnss_sim_ros2.core.constants import OMEGA_BY_SYSTEM
-from gnss_sim_ros2.core.receiver.engine import Receiver, ReceiverConfig
+from gnss_sim_ros2.core.receiver.config import ReceiverConfig
+from gnss_sim_ros2.core.receiver.engine import Receiver
 from gnss_sim_ros2.core.receiver.outputs import epoch_arrays, obs_types_for
 from gnss_sim_ros2.core.receiver.tracking import LLI_LOSS_OF_LOCK, Tracker
 from gnss_sim_ros2.core.solver import solve_pvt
@@ -122,14 +123,14 @@ def test_multipath_is_a_gauss_markov_process_per_key():
     cfg = ReceiverConfig()
     rcv = Receiver(cfg)
     ref_rng = np.random.default_rng(0)
-    ref_rng.bit_generator.state = rcv._mp_rng.bit_generator.state      # the same draws
+    ref_rng.bit_generator.state = rcv.code_multipath.rng.bit_generator.state      # the same draws
     state = {}
     epochs = [(["G01", "G01", "E05"], ["1C", "2W", "1C"]), (["G01", "E05"], ["1C", "1C"]),
               (["E05", "G01", "R07", "G01"], ["1C", "1C", "1C", "2W"]), (["R07"], ["1C"])]
     for k, (sv, code) in enumerate(epochs):
         el = np.linspace(10.0, 80.0, len(sv))
         dt = 0.0 if k == 0 else 1.0
-        got = rcv._multipath(np.array(sv), np.array(code), el, dt)
+        got = rcv.code_multipath.values_m(np.array(sv), np.array(code), el, dt)
         # definition (engine module doc): x_k = phi x_{k-1} + sqrt(1 - phi^2) w_k, x_0 = w_0 per (sv, code),
         # phi = exp(-dt / tau), scaled by sigma(el) = mp_zenith + mp_low exp(-el / 15 deg)
         phi = np.exp(-dt / cfg.mp_tau_s) if dt > 0 else 0.0

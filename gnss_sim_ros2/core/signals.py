@@ -157,7 +157,7 @@ PROFILES: dict[str, dict[str, list[str]]] = {
 
 @dataclass(frozen=True)
 class ReceiverTraits:
-    """What a receiver profile says besides its signals (engine.ReceiverConfig takes these as defaults).
+    """What a receiver profile says besides its signals (receiver.config.ReceiverConfig takes these as defaults).
 
     ``excluded_svs``: satellites the receiver does not track (regular expression on the RINEX id)."""
 

@@ -25,7 +25,7 @@ class VisibilityState(enum.IntEnum):
 PROFILES = ("geodetic", "single_frequency", "ublox_m8t", "ublox_f9p")
 #: where orbits come from (parameter source)
 EPHEMERIS_SOURCES = ("synthetic", "broadcast", "sp3", "download")
-#: true ionosphere models (core/receiver/engine.py)
+#: true ionosphere models (core/receiver/ionosphere.py)
 IONOSPHERE_MODELS = ("auto", "nequick", "klobuchar", "none")
 TROPOSPHERE_MODELS = ("saastamoinen", "none")
 #: preset switch choices (core/presets.py)

@@ -11,7 +11,7 @@ from .. import constants as k
 from .. import propagation as prop
 from ..constants import OMEGA_BY_SYSTEM
 from ..frames import az_el_from_ecef, ecef_to_geodetic
-from ..receiver.engine import KLOBUCHAR_FALLBACK_ALPHA, KLOBUCHAR_FALLBACK_BETA
+from ..receiver.ionosphere import KLOBUCHAR_FALLBACK_ALPHA, KLOBUCHAR_FALLBACK_BETA
 from ..rinex.obs_table import ObsTable
 from ..signals import frequency_hz, group_delay_factor
 from ..solver import SolverConfig, pseudorange_sigma_m, solve_pvt

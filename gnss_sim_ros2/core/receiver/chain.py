@@ -31,7 +31,9 @@ from ..presets import preset as preset_switches
 from ..signals import traits
 from ..solver import PvtSolution, SolverConfig
 from ..time import GnssTime
-from .engine import EpochObservations, Receiver, ReceiverConfig
+from .config import ReceiverConfig
+from .engine import Receiver
+from .observations import EpochObservations
 from .outputs import epoch_arrays, header, obs_types_for, position_fix, position_fixes, rinex_name, spp_rows
 from .tracking import TrackingConfig
 

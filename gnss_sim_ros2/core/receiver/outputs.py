@@ -14,7 +14,7 @@ from ..multipath.antenna import RINEX_ANTENNA_TYPE
 from ..rinex.obs_write import EpochArrays, RinexObsHeader, ssi_from_cn0
 from ..solver import PvtSolution, SolverConfig, solve_pvt_many
 from ..time import GnssTime
-from .engine import EpochObservations
+from .observations import EpochObservations
 
 #: RINEX observation kinds written for every tracked signal: code, phase, Doppler, strength
 OBS_KINDS = ("C", "L", "D", "S")
