@@ -23,8 +23,8 @@ IS-GPS-200N 20.3.3.3.3, RTKLIB manual E.5):
   modelled;
 - I_j: ionosphere, scaled to f_j.  The *true* ionosphere is NeQuick-G
   (core/nequick.py) where the navigation header has Galileo's coefficients,
-  (core/receiver/ionosphere.py)
-  Klobuchar otherwise (``ionosphere``: auto | nequick | klobuchar | none),
+  Klobuchar otherwise (``ionosphere``: auto | nequick | klobuchar | none; the choice in
+  core/receiver/ionosphere.py),
   times a slowly varying factor 1 + ``iono_error_frac`` g(t) (the model's own
   error); a receiver correcting with Klobuchar (``iono_model_m``) thus keeps
   a residual with a real one's size and spatial structure;
