@@ -57,6 +57,8 @@ from pathlib import Path
 
 import numpy as np
 
+from gnss_sim_ros2.core.metrics import horizontal_errors_m, p95, rms
+
 PRESET_ORDER = ("fast", "balanced", "accurate")
 DEMO_START = "2025-06-01T10:00:00"
 OPEC_START = "2022-01-01T00:00:00"
@@ -102,9 +104,7 @@ class Recorder:
 
 
 def _rms(x) -> float | None:
-    x = np.asarray(x, dtype=float)
-    x = x[np.isfinite(x)]
-    return float(np.sqrt(np.mean(x * x))) if x.size else None
+    return rms(x, skip_nonfinite=True)
 
 
 def _jaccard(a: set, b: set) -> float:
@@ -114,8 +114,6 @@ def _jaccard(a: set, b: set) -> float:
 
 def compare_runs(run: Recorder, ref: Recorder) -> dict:
     """Pseudoranges, tracked sets and fixes of ``run`` against ``ref`` at their common epochs."""
-    from gnss_sim_ros2.core.simulation import horizontal_errors_m
-
     common = sorted(set(run.epochs) & set(ref.epochs))
     d, jac, fa, fb = [], [], [], []
     for key in common:
@@ -133,12 +131,10 @@ def compare_runs(run: Recorder, ref: Recorder) -> dict:
 
 
 def fix_error(run: Recorder) -> dict:
-    from gnss_sim_ros2.core.simulation import horizontal_errors_m
-
     est = [e["fix"] for e in run.epochs.values() if e["fix"] is not None]
     true = [e["true"] for e in run.epochs.values() if e["fix"] is not None]
     h = horizontal_errors_m(np.array(est), np.array(true)) if est else np.zeros(0)
-    return {"fix_horizontal_rms_m": _rms(h), "fix_horizontal_p95_m": float(np.percentile(h, 95)) if h.size else None,
+    return {"fix_horizontal_rms_m": _rms(h), "fix_horizontal_p95_m": p95(h),
             "fix_availability": len(est) / max(len(run.epochs), 1)}
 
 

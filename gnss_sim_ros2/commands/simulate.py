@@ -120,6 +120,7 @@ def setup_from_args(args):
 
 
 def run(args) -> int:
+    from gnss_sim_ros2.core.metrics import p95, rms
     from gnss_sim_ros2.core.output_folder import OutputBusy
     from gnss_sim_ros2.core.simulation import run_simulation
 
@@ -138,9 +139,8 @@ def run(args) -> int:
           f"satellites tracked per epoch {np.mean(res.tracked_per_epoch):.1f} "
           f"(min {min(res.tracked_per_epoch)}, max {max(res.tracked_per_epoch)})")
     if res.horizontal_error_m:
-        e = np.asarray(res.horizontal_error_m)
-        print(f"horizontal error against the true path: RMS {np.sqrt(np.mean(e**2)):.2f} m, "
-              f"95 % {np.percentile(e, 95):.2f} m")
+        e = res.horizontal_error_m
+        print(f"horizontal error against the true path: RMS {rms(e):.2f} m, 95 % {p95(e):.2f} m")
     print(f"{res.sim_s:.0f} s simulated in {res.wall_s:.1f} s: {res.realtime_factor:.0f}x real time")
     if res.obs_path is None:
         print("no observation file written: no epoch was simulated", file=sys.stderr)

@@ -38,6 +38,7 @@ from .ephemeris.precise_broadcast import PreciseWithBroadcastGroupDelay
 from .ephemeris.provider import open_ephemeris
 from .ephemeris.states import SatelliteStates
 from .frames import az_el_from_ecef, check_receiver_position, geodetic_to_ecef
+from .metrics import horizontal_errors_m
 from .presets import preset as preset_switches
 from .receiver.chain import ChainSettings, ReceiverChain
 from .receiver.engine import ATTENUATED, BLOCKED, VISIBLE
@@ -529,17 +530,3 @@ def _cropped_scene(scene, path, n_epochs, interval_s, mask_deg, fresnel):
     margin = np.degrees(span_m / 6.371e6) + 0.1 + (6.0 if fresnel > 0 else 0.0)
     cropped, _ = crop_world_mesh(scene.world, world, mask_deg, margin)
     return Scene(cropped, nthreads=scene.rays.nthreads)
-
-
-def horizontal_errors_m(est_ecef_m, true_ecef_m) -> np.ndarray:
-    """Horizontal distance [m] of estimates (K, 3) from true positions (K, 3), in the local ENU of the truth."""
-    from .frames import ecef_to_geodetic
-
-    est = np.asarray(est_ecef_m, dtype=np.float64).reshape(-1, 3)
-    true = np.asarray(true_ecef_m, dtype=np.float64).reshape(-1, 3)
-    lat, lon, _ = ecef_to_geodetic(true[:, 0], true[:, 1], true[:, 2])
-    la, lo = np.radians(lat), np.radians(lon)
-    d = est - true
-    e = -np.sin(lo) * d[:, 0] + np.cos(lo) * d[:, 1]
-    n = -np.sin(la) * np.cos(lo) * d[:, 0] - np.sin(la) * np.sin(lo) * d[:, 1] + np.cos(la) * d[:, 2]
-    return np.hypot(e, n)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from gnss_sim_ros2.commands.run.launcher import LAYOUT_MODES
+from gnss_sim_ros2.core.metrics import p95, rms, rounded
 
 #: figures of the worst robot: the lowest (min) or highest (max) value among the robots
 WORST_BY = {"fix_availability": min, "horizontal_error_rms_m": max, "latency_ms_median": max,
@@ -162,8 +163,8 @@ def figures(x: dict, n_epochs: int) -> dict:
         "satellites_tracked_min": int(min(tracked)) if tracked else 0,
         "satellites_tracked_max": int(max(tracked)) if tracked else 0,
         "fix_availability": round(len(x["fixes"]) / max(n_epochs, 1), 4),
-        "horizontal_error_rms_m": r(np.sqrt(np.mean(np.square(err)))) if err else None,
-        "horizontal_error_p95_m": r(np.percentile(err, 95)) if err else None,
+        "horizontal_error_rms_m": rounded(rms(err), 3),
+        "horizontal_error_p95_m": rounded(p95(err), 3),
         "latency_ms_median": r(np.median(lat_ms)) if lat_ms else None,
         "latency_ms_p95": r(np.percentile(lat_ms, 95)) if lat_ms else None,
         "latency_ms_p99": r(np.percentile(lat_ms, 99)) if lat_ms else None,

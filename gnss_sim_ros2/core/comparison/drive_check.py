@@ -32,10 +32,11 @@ import numpy as np
 from .. import constants as k
 from .. import propagation as prop
 from ..frames import az_el_from_ecef, ecef_to_geodetic, geodetic_to_ecef
+from ..metrics import horizontal_stats, rms
 from ..rinex.obs_table import GPS_EPOCH_NP, match_epochs
 from ..scene.visibility import Scene
 from ..signals import frequency_hz, group_delay_factor
-from ..simulation import horizontal_errors_m, run_simulation, setup_from_config
+from ..simulation import run_simulation, setup_from_config
 from ..time import GnssTime
 from ..trajectory import Trajectory
 from ..visibility import VisibilityOptions
@@ -87,13 +88,6 @@ def load_drive(truth_csv, scene, antenna_height_m: float = 1.8, offset_m=(0.0, 0
     ground = 1000.0 - scene.rays.hit_distance(top, np.tile([0.0, 0.0, -1.0], (len(top), 1)))
     world = np.column_stack([world[:, :2], ground + antenna_height_m])
     return Drive(t, truth, world, scene.spherical.world_to_ecef(world), ground)
-
-
-def horizontal_stats(est_ecef_m, true_ecef_m) -> dict:
-    ok = np.all(np.isfinite(est_ecef_m), axis=1)
-    e = horizontal_errors_m(est_ecef_m[ok], true_ecef_m[ok])
-    return {"rms_m": float(np.sqrt(np.mean(e**2))) if len(e) else np.nan,
-            "p95_m": float(np.percentile(e, 95)) if len(e) else np.nan, "epochs": int(ok.sum())}
 
 
 def _gnss_times(times_np) -> GnssTime:
@@ -343,7 +337,7 @@ def run_drive(drive: Drive, scene, provider, nav_files, real_obs, workdir, *, co
     out["h_real"] = real["h"]
     out["own_fixes"] = (res.fixes, res.epochs)
     err = np.asarray(res.horizontal_error_m, dtype=float)
-    out["own_h_rms_m"] = float(np.sqrt(np.mean(err**2))) if len(err) else np.nan
+    out["own_h_rms_m"] = rms(err) if len(err) else np.nan
     out["wall_s"] = res.wall_s
     out["real_part"] = real
     return out

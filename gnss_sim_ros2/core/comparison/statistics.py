@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..frames import ecef_to_enu, ecef_to_geodetic
+from ..metrics import p95, rms
 from ..rinex.obs_table import REFERENCE_ORDER
 from .pairing import SignalPair
 
@@ -118,5 +119,4 @@ def position_stats(enu: np.ndarray) -> dict:
         return {"n": 0}
     hz = np.hypot(e[:, 0], e[:, 1])
     return {"n": int(ok.sum()), "mean_e_m": float(e[:, 0].mean()), "mean_n_m": float(e[:, 1].mean()),
-            "mean_u_m": float(e[:, 2].mean()), "rms_h_m": float(np.sqrt(np.mean(hz**2))),
-            "rms_v_m": float(np.sqrt(np.mean(e[:, 2] ** 2))), "p95_h_m": float(np.percentile(hz, 95))}
+            "mean_u_m": float(e[:, 2].mean()), "rms_h_m": rms(hz), "rms_v_m": rms(e[:, 2]), "p95_h_m": p95(hz)}

@@ -19,22 +19,15 @@ import io
 import numpy as np
 
 from ..frames import ecef_to_enu, ecef_to_geodetic, geodetic_to_ecef
-
-
-def horizontal_error_m(lat_deg: float, lon_deg: float, h_m: float, truth_ecef_m) -> float:
-    """Horizontal distance [m] of a solution from the true position, in the true position's ENU."""
-    est = np.array(geodetic_to_ecef(lat_deg, lon_deg, h_m))
-    lat, lon, h = ecef_to_geodetic(*np.asarray(truth_ecef_m, dtype=float))
-    d = ecef_to_enu(est, lat, lon, h)
-    return float(np.hypot(d[0], d[1]))
+from ..metrics import horizontal_errors_m, p95, rms, rounded
 
 
 def _rms(x) -> float | None:
-    return round(float(np.sqrt(np.mean(np.square(x)))), 4) if len(x) else None
+    return rounded(rms(x), 4)
 
 
 def _p95(x) -> float | None:
-    return round(float(np.percentile(x, 95)), 4) if len(x) else None
+    return rounded(p95(x), 4)
 
 
 def rtk_figures(rows, n_epochs: int, period_s: float) -> tuple[dict, str]:
@@ -43,7 +36,8 @@ def rtk_figures(rows, n_epochs: int, period_s: float) -> tuple[dict, str]:
     n = max(int(n_epochs), 1)
     t = np.array([r[0] for r in rows], dtype=float)
     q = np.array([r[1] for r in rows], dtype=object)
-    err = np.array([horizontal_error_m(r[2], r[3], r[4], r[5]) for r in rows], dtype=float)
+    est = np.array([geodetic_to_ecef(r[2], r[3], r[4]) for r in rows], dtype=float).reshape(-1, 3)
+    err = horizontal_errors_m(est, np.array([r[5] for r in rows], dtype=float).reshape(-1, 3))
     fixed, flt = q == "fixed", q == "float"
     late = t >= n * period_s / 4.0
     out = {

@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..metrics import percentile, rms
 from .table import COLUMNS, PERCENTILES
 
 
@@ -163,9 +164,9 @@ def result_columns(res) -> dict:
             "setup_s": float(res.setup_s), "loop_s": float(res.wall_s), "loop_cpu_s": float(res.cpu_s),
             "realtime_factor": float(res.realtime_factor) if res.wall_s > 0 else None}
     for p in PERCENTILES:
-        cols[f"h_err_p{p}_m"] = float(np.percentile(e, p)) if e.size else None
+        cols[f"h_err_p{p}_m"] = percentile(e, p)
     cols["h_err_max_m"] = float(e.max()) if e.size else None
-    cols["h_err_rms_m"] = float(np.sqrt(np.mean(e * e))) if e.size else None
+    cols["h_err_rms_m"] = rms(e)
     cols["sats_tracked_mean"] = float(tracked.mean()) if tracked.size else None
     cols["sats_tracked_min"] = int(tracked.min()) if tracked.size else None
     cols["sats_tracked_max"] = int(tracked.max()) if tracked.size else None
