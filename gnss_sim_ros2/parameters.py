@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from gnss_sim_ros2.core.demo import DEMO_START
 from gnss_sim_ros2.core.vocabulary import (
     EPHEMERIS_SOURCES,
     IONOSPHERE_MODELS,
@@ -169,7 +170,7 @@ def check_position(value: list, kind: str, name: str, where: str) -> list:
 SHARED = [
     Param("systems", SYSTEMS, "GNSS systems simulated, RINEX letters: G GPS, R GLONASS, E Galileo, C BeiDou, "
           "J QZSS, I NavIC; a node's section may narrow it", check_value=check_systems, shared_only=False),
-    Param("start_time", "2025-06-01T10:00:00", "GNSS (GPS) time of the first epoch, ISO 8601; with "
+    Param("start_time", DEMO_START, "GNSS (GPS) time of the first epoch, ISO 8601; with "
           "time_mapping=offset the ROS time 0 maps to it", check_value=_check_iso_time),
     Param("rate_hz", 1.0, "epoch rate [Hz]", min=0.001, max=100.0),
     Param("elevation_mask_deg", 10.0, "elevation mask [deg]: satellites below are neither cast nor tracked",

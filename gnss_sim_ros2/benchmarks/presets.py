@@ -57,10 +57,10 @@ from pathlib import Path
 
 import numpy as np
 
+from gnss_sim_ros2.core.demo import DEMO_START
 from gnss_sim_ros2.core.metrics import horizontal_errors_m, p95, rms
 
 PRESET_ORDER = ("fast", "balanced", "accurate")
-DEMO_START = "2025-06-01T10:00:00"
 OPEC_START = "2022-01-01T00:00:00"
 OPEC_ECEF_M = (3149785.9652, 598260.8822, 5495348.4927)
 OPEC_REAL_OBS = "OPEC00NOR_S_20220010000_0340_30S_MO.rnx"

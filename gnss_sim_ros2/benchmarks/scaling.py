@@ -78,7 +78,7 @@ def measure_point(point: dict) -> dict:
     """One point, in this (fresh) process: build the scenario, run it, time and memory."""
     import open3d  # noqa: F401  (part of the baseline: imported by every run with a scene)
 
-    from gnss_sim_ros2.benchmarks.presets import DEMO_START
+    from gnss_sim_ros2.core.demo import DEMO_START
     from gnss_sim_ros2.core.scene.demo_world import demo_world_path
     from gnss_sim_ros2.core.scene.visibility import Scene
     from gnss_sim_ros2.core.simulation import run_simulation, setup_from_config

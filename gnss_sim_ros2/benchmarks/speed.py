@@ -26,9 +26,10 @@ import tempfile
 import time
 from pathlib import Path
 
+from gnss_sim_ros2.core.demo import DEMO_START
+
 DEMO_TARGET_RTF = 1000.0
 PEER_TARGET_RATIO = 20.0
-GPS_START = "2025-06-01T10:00:00"
 #: the OPEC marker (benchmarks/presets.py OPEC_ECEF_M): a static station
 GPS_STATION_ECEF_M = (3149785.9652, 598260.8822, 5495348.4927)
 PEER_SCRIPT = Path(__file__).resolve().parents[2] / "bench" / "peer_gnss_lib_py.py"
@@ -85,11 +86,11 @@ def run_speed(duration_s: float = 3600.0, repeats: int = 3, peer: str | None = N
     sim = [sys.executable, "-m", "gnss_sim_ros2.cli", "simulate", "--duration", f"{duration_s:g}", "--quiet"]
     demo_cmd = sim + ["--out", str(work / "demo")]
     xyz = ",".join(f"{v:.4f}" for v in GPS_STATION_ECEF_M)
-    gps_cmd = sim + ["--systems", "G", "--position-ecef", xyz, "--start", GPS_START, "--out", str(work / "gps")]
+    gps_cmd = sim + ["--systems", "G", "--position-ecef", xyz, "--start", DEMO_START, "--out", str(work / "gps")]
     py, why = peer_python(peer)
     peer_cmd = None
     if py is not None:
-        start = GnssTime.from_iso(GPS_START)
+        start = GnssTime.from_iso(DEMO_START)
         nav = write_synthetic_nav(work / "gps_nav.rnx", start - 7200.0, duration_s + 4 * 3600.0, systems="G")
         peer_cmd = [py, str(PEER_SCRIPT), str(nav), str(int(start.sec) * 1000), f"{duration_s:g}", "1", xyz]
     runs = {"demo": [], "gps": [], "peer": []}
