@@ -35,7 +35,7 @@ def main(argv=None) -> int:
         print(f"plot_rtk_timeline: error: {run} holds no RTK run (summary.json with rtk_timeline): {exc}",
               file=sys.stderr)
         return 2
-    from gnss_sim_ros2.core.figures import pyplot
+    from gnss_sim_ros2.core.figures import pyplot, save_figure
 
     plt = pyplot()
 
@@ -66,10 +66,7 @@ def main(argv=None) -> int:
     ax1.set_title(f"gnss-sim run --rtk, demo path: RTK solution on {summary['rtk_solution_ratio']:.0%} of "
                   f"{n} epochs, fixed {summary['rtk_fixed_ratio']:.0%}, float {summary['rtk_float_ratio']:.0%}",
                   fontsize=9)
-    fig.tight_layout()
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=110)
+    out = save_figure(fig, args.out)
     print(f"wrote {out}")
     return 0
 

@@ -38,7 +38,7 @@ def plot_skyplot(png_path, sv, az_deg, el_deg, state, horizon=None, foliage_hori
     """
     from matplotlib.lines import Line2D
 
-    from .figures import pyplot
+    from .figures import pyplot, save_figure
 
     plt = pyplot()
 
@@ -130,7 +130,5 @@ def plot_skyplot(png_path, sv, az_deg, el_deg, state, horizon=None, foliage_hori
     out["legend"] = [t.get_text() for t in leg.get_texts()]
     if title:
         ax.set_title(title, fontsize=10, pad=18)
-    fig.tight_layout()
-    fig.savefig(png_path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, png_path)
     return out

@@ -27,7 +27,7 @@ def write_figures(cmp: Comparison, out_dir) -> dict[str, Path]:
     import matplotlib.dates as mdates
     from matplotlib.colors import ListedColormap
 
-    from ..figures import pyplot
+    from ..figures import pyplot, save_figure
 
     plt = pyplot()
 
@@ -56,10 +56,7 @@ def write_figures(cmp: Comparison, out_dir) -> dict[str, Path]:
             axes[0, 0].set_title("pseudorange sim - real (receiver clock and ISB removed)")
             axes[-1, 0].xaxis.set_major_formatter(mdates.DateFormatter("%H:%M"))
             axes[-1, 0].set_xlabel("GPS time")
-            fig.tight_layout()
-            figs["code"] = out_dir / "code_difference.png"
-            fig.savefig(figs["code"], dpi=110)
-            plt.close(fig)
+            figs["code"] = save_figure(fig, out_dir / "code_difference.png")
 
     # C/N0 vs elevation
     if (cmp.sim_cn0 or cmp.real_cn0) and cmp.el_deg is not None:
@@ -82,10 +79,7 @@ def write_figures(cmp: Comparison, out_dir) -> dict[str, Path]:
             ax.set_title("C/N0 vs elevation, simulated and real")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
-        fig.tight_layout()
-        figs["cn0"] = out_dir / "cn0_elevation.png"
-        fig.savefig(figs["cn0"], dpi=110)
-        plt.close(fig)
+        figs["cn0"] = save_figure(fig, out_dir / "cn0_elevation.png")
 
     # visibility timeline: 0 none, 1 both, 2 only sim, 3 only real
     state = np.zeros(cmp.seen_sim.shape, dtype=int)
@@ -113,10 +107,7 @@ def write_figures(cmp: Comparison, out_dir) -> dict[str, Path]:
                   bbox_to_anchor=(1.0, 1.12), ncol=3)
         ax.set_xlabel("GPS time")
         ax.set_title("tracked satellites" + (f" above {cmp.mask_deg:g} deg" if cmp.mask_deg > 0 else ""), loc="left")
-        fig.tight_layout()
-        figs["visibility"] = out_dir / "visibility.png"
-        fig.savefig(figs["visibility"], dpi=110)
-        plt.close(fig)
+        figs["visibility"] = save_figure(fig, out_dir / "visibility.png")
 
     # horizontal positions
     if cmp.sol_sim is not None and cmp.sol_real is not None:
@@ -133,10 +124,7 @@ def write_figures(cmp: Comparison, out_dir) -> dict[str, Path]:
         ax.set_title(f"single point solutions ({cmp.sol_sim.solver})")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
-        fig.tight_layout()
-        figs["positions"] = out_dir / "positions.png"
-        fig.savefig(figs["positions"], dpi=110)
-        plt.close(fig)
+        figs["positions"] = save_figure(fig, out_dir / "positions.png")
     return figs
 
 
