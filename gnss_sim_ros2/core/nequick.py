@@ -28,6 +28,7 @@ import datetime as _dt
 import numpy as np
 
 from . import constants as k
+from .memo import BoundedCache
 
 #: thin-shell height [m] of the pierce point (IONEX 1.0 and IGS maps use 450 km)
 SHELL_HEIGHT_M = 450e3
@@ -88,7 +89,7 @@ class NeQuickG:
                              "run scripts/setup_env.sh or set the receiver's ionosphere to 'klobuchar'") from exc
         self.coefficients = tuple(c)
         self._model = NeQuick(*c)
-        self._cache: dict = {}
+        self._cache = BoundedCache(50000)
 
     def vtec_tecu(self, t_utc, lat_deg, lon_deg) -> np.ndarray:
         """Vertical TEC [TECU] at (lat, lon) arrays at ``t_utc`` (a datetime in UTC; the model depends on the
@@ -103,8 +104,6 @@ class NeQuickG:
         x, y = lat / CELL_DEG, lon / CELL_DEG
         i0, j0 = np.floor(x).astype(np.int64), np.floor(y).astype(np.int64)
         fi, fj = x - i0, y - j0
-        if len(self._cache) > 50000:
-            self._cache.clear()
         out = np.zeros(lat.shape)
         for dk, wt in ((0, 1.0 - ft), (1, ft)):
             if wt == 0.0:
@@ -124,7 +123,7 @@ class NeQuickG:
         if v is None:
             epoch = day + _dt.timedelta(seconds=kt * UPDATE_S)
             lon = (j * CELL_DEG + 180.0) % 360.0 - 180.0
-            v = self._cache[key] = float(self._model.compute_vtec(epoch, lon, float(np.clip(i * CELL_DEG, -90, 90))))
+            v = self._cache.put(key, float(self._model.compute_vtec(epoch, lon, float(np.clip(i * CELL_DEG, -90, 90)))))
         return v
 
     def l1_delay_s(self, t_utc, lat_deg, lon_deg, az_deg, el_deg) -> np.ndarray:

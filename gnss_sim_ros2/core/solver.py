@@ -43,6 +43,7 @@ import numpy as np
 
 from .constants import C_MPS
 from .frames import ecef_to_geodetic, enu_rotation
+from .memo import BoundedCache
 
 #: order in which systems become the reference clock (the first present)
 SYSTEM_ORDER = "GECRJIS"
@@ -236,7 +237,7 @@ def _clock_group(sv_list, groups: Mapping[str, str]) -> np.ndarray:
 
 
 _DEFAULT_CONFIG: list = []
-_SAT_TABLE_CACHE: dict = {}
+_SAT_TABLE_CACHE = BoundedCache(128)
 
 
 def _default_config() -> SolverConfig:
@@ -257,9 +258,7 @@ def _satellite_table(sv_arr: np.ndarray, cfg: SolverConfig):
         if bad_ids:
             raise ValueError(f"solve_pvt: sv has ids that are not RINEX satellite ids: {bad_ids[:5]}")
         hit = (_clock_group(sv_arr.tolist(), cfg.clock_groups), _system_factor(sv_arr, cfg))
-        if len(_SAT_TABLE_CACHE) > 128:
-            _SAT_TABLE_CACHE.clear()
-        _SAT_TABLE_CACHE[key] = hit
+        _SAT_TABLE_CACHE.put(key, hit)
     return hit
 
 

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..memo import BoundedCache
 from ..rinex.nav import KEPLER_SYSTEMS, SUPPORTED_SYSTEMS, NavData, read_nav_files
 from ..time import GnssTime
 from . import glonass as glo
@@ -100,7 +101,7 @@ class BroadcastEphemeris:
         else:
             self._glo = None
         self._sys_cache: dict[str, np.ndarray] = {}
-        self._sv_rows_cache: dict[bytes, tuple] = {}
+        self._sv_rows_cache = BoundedCache(256)
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -202,9 +203,7 @@ class BroadcastEphemeris:
             names = svs.tolist()
             hit = (np.array([s in self._sv_pos for s in names], dtype=bool),
                    np.array([self._sv_pos.get(s, 0) for s in names], dtype=np.int64))
-            if len(self._sv_rows_cache) > 256:
-                self._sv_rows_cache.clear()
-            self._sv_rows_cache[key] = hit
+            self._sv_rows_cache.put(key, hit)
         return hit
 
     def _evaluate(self, rec, sv_idx, t_out, t_sec, t_frac) -> SatelliteStates:

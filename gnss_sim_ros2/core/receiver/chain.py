@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..memo import BoundedCache
 from ..presets import preset as preset_switches
 from ..signals import traits
 from ..solver import PvtSolution, SolverConfig
@@ -422,7 +423,7 @@ class _SmoothingState:
 
     def __init__(self):
         self.index: dict = {}
-        self._cache: dict = {}
+        self._cache = BoundedCache(64)
         self.calls = 0
         self._grow(64)
 
@@ -446,9 +447,7 @@ class _SmoothingState:
                            dtype=np.int64)
             if len(self.index) > len(self.code):
                 self._grow(2 * len(self.index))
-            if len(self._cache) > 64:
-                self._cache.clear()
-            self._cache[key] = hit
+            self._cache.put(key, hit)
         return hit
 
 

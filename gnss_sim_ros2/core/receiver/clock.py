@@ -34,6 +34,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..memo import BoundedCache
+
 #: Allan-variance coefficients (h0 [s], h_-2 [1/s]) (Brown & Hwang, 4th ed., ch. 9)
 OSCILLATORS = {
     "tcxo": (2.0e-19, 2.0e-20),
@@ -81,7 +83,7 @@ class ReceiverClock:
         self.bias_s = float(self.config.initial_bias_s)
         self.drift_sps = float(self.config.initial_drift_sps)   # oscillator frequency offset
         self.steered_drift_sps = self.drift_sps
-        self._chol: dict = {}
+        self._chol = BoundedCache(16)
 
     def _noise(self, dt_s, n):
         c = self.config
@@ -92,9 +94,7 @@ class ReceiverClock:
         if lq is None:     # the factor of one interval, computed once (an epoch grid has one or a few)
             q = process_noise(dt_s, c.h0, c.h_m2)
             lq = np.linalg.cholesky(q + np.diag([1e-300, 1e-300])).T
-            if len(self._chol) > 16:
-                self._chol.clear()
-            self._chol[key] = lq
+            self._chol.put(key, lq)
         return self.rng.standard_normal((n, 2)) @ lq
 
     def step(self, dt_s: float):

@@ -55,6 +55,7 @@ from .. import propagation as prop
 from .. import signals as sig
 from ..ephemeris.states import SatelliteStates
 from ..frames import az_el_at, ecef_to_geodetic
+from ..memo import BoundedCache
 from ..nequick import NeQuickG
 from ..time import GnssTime
 from ..vocabulary import VisibilityState
@@ -94,8 +95,8 @@ class Receiver:
         self._t_prev: GnssTime | None = None
         self._geo_key = None
         self._geo = (0.0, 0.0, 0.0)
-        self._signal_cache: dict = {}
-        self._keep_cache: dict = {}
+        self._signal_cache = BoundedCache(64)
+        self._keep_cache = BoundedCache(64)
         self._iono_terms = None
         self._doy_key = None
         self._doy0 = 0.0
@@ -141,9 +142,7 @@ class Receiver:
         rows.sisre_terms = self.world_terms.stacked([("sat", str(sv)) for sv in svs]) if len(svs) else None
         # multipath states: one slot per (sv, code), kept for the receiver's lifetime
         rows.mp_idx = self.code_multipath.slots(rows.sv_j, codes)
-        if len(self._signal_cache) > 64:
-            self._signal_cache.clear()
-        self._signal_cache[key] = rows
+        self._signal_cache.put(key, rows)
         return rows
 
     def _keep_mask(self, sv_all: np.ndarray) -> np.ndarray:
@@ -155,9 +154,7 @@ class Receiver:
             ex = cfg._excluded
             hit = np.array([sv[0] in cfg.systems and sv[0] in cfg.profile and not (ex and ex.fullmatch(sv))
                             for sv in sv_all.tolist()], dtype=bool)
-            if len(self._keep_cache) > 64:
-                self._keep_cache.clear()
-            self._keep_cache[key] = hit
+            self._keep_cache.put(key, hit)
         return hit
 
     def _geodetic(self, rx: np.ndarray):

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import constants as k
+from ..memo import BoundedCache
 from ..multipath.antenna import RINEX_ANTENNA_TYPE
 from ..rinex.obs_write import EpochArrays, RinexObsHeader, ssi_from_cn0
 from ..solver import PvtSolution, SolverConfig, solve_pvt_many
@@ -42,8 +43,8 @@ def epoch_arrays(obs: EpochObservations, obs_types: dict[str, list[str]]) -> Epo
     return EpochArrays(sv=svs, codes=codes, value=value, lli=lli, ssi=ssi)
 
 
-_COLUMNS_CACHE: dict = {}
-_LAYOUT_CACHE: dict = {}
+_COLUMNS_CACHE = BoundedCache(16)
+_LAYOUT_CACHE = BoundedCache(256)
 
 
 def _layout(sv, code, obs_types):
@@ -76,9 +77,7 @@ def _layout(sv, code, obs_types):
         # shorter systems' code lists padded to the common width with names not in the header (never filled)
         codes = {s: list(v) + [f"X{i}Z" for i in range(width - len(v))] for s, v in obs_types.items()}
         hit = (svs, width, codes, places)
-        if len(_LAYOUT_CACHE) > 256:
-            _LAYOUT_CACHE.clear()
-        _LAYOUT_CACHE[key] = hit
+        _LAYOUT_CACHE.put(key, hit)
     return hit
 
 
@@ -92,9 +91,7 @@ def _columns_of(obs_types: dict[str, list[str]]) -> dict:
             col = {c: j for j, c in enumerate(codes)}
             for code in dict.fromkeys(c[1:] for c in codes):
                 hit[(s, code)] = tuple(col.get(kind + code, -1) for kind in OBS_KINDS)
-        if len(_COLUMNS_CACHE) > 16:
-            _COLUMNS_CACHE.clear()
-        _COLUMNS_CACHE[key] = hit
+        _COLUMNS_CACHE.put(key, hit)
     return hit
 
 
@@ -140,14 +137,12 @@ def spp_rows(obs: EpochObservations, profile: dict[str, list[str]]) -> np.ndarra
         for s, first in key[-1]:
             pick |= (systems == s) & (code == first)
         hit = np.flatnonzero(pick)
-        if len(_SPP_ROWS_CACHE) > 256:
-            _SPP_ROWS_CACHE.clear()
-        _SPP_ROWS_CACHE[key] = hit
+        _SPP_ROWS_CACHE.put(key, hit)
     return hit.copy()
 
 
 #: spp_rows per (signals, profile): the tracked set changes rarely from one epoch to the next
-_SPP_ROWS_CACHE: dict = {}
+_SPP_ROWS_CACHE = BoundedCache(256)
 
 
 def position_fix(obs: EpochObservations, profile: dict[str, list[str]], prior_ecef_m=None,

@@ -41,6 +41,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gnss_sim_ros2.core.memo import BoundedCache
 from gnss_sim_ros2.core.receiver.noise import slip_probability
 from gnss_sim_ros2.core.signals import BEIDOU_GEO_PATTERN
 from gnss_sim_ros2.core.time import GnssTime
@@ -134,7 +135,7 @@ class Tracker:
         self.config = config or TrackingConfig()
         self.rng = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
         self._index: dict[tuple[str, str], int] = {}
-        self._rows_cache: dict = {}
+        self._rows_cache = BoundedCache(64)
         self._idx_prev = None
         self._n_prev = -1
         self._cap = 0
@@ -182,9 +183,7 @@ class Tracker:
             idx[j] = i
         if len(np.unique(idx)) != len(idx):
             raise ValueError("Tracker.update: duplicate (sv, code) keys in one epoch")
-        if len(self._rows_cache) > 64:
-            self._rows_cache.clear()
-        self._rows_cache[ck] = idx
+        self._rows_cache.put(ck, idx)
         return idx
 
     def _seconds(self, t):

@@ -42,6 +42,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..memo import BoundedCache
 from ..time import GPS_EPOCH, GnssTime, gps_minus_utc_at_gps
 
 RINEX_VERSION = 3.04
@@ -256,7 +257,7 @@ class RinexObsWriter:
         self._code_index = {s: {c: i for i, c in enumerate(codes)} for s, codes in self.header.obs_types.items()}
         self._n_codes = {s: len(codes) for s, codes in self.header.obs_types.items()}
         self._array_maps: dict[tuple, list] = {}
-        self._flat_cache: dict = {}
+        self._flat_cache = BoundedCache(256)
         self._fd: int | None = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
         self._header_written = False
         self._last_obs_offset: int | None = None
@@ -454,9 +455,7 @@ class RinexObsWriter:
         hit = self._flat_cache.get(key)
         if hit is None:
             hit = self._flat_layout(ep, svs, per_sys, n, m)
-            if len(self._flat_cache) > 256:
-                self._flat_cache.clear()
-            self._flat_cache[key] = hit
+            self._flat_cache.put(key, hit)
         known, pos, total = hit
         unknown = ~known & ~np.isnan(value)
         if unknown.any():
