@@ -33,12 +33,12 @@ if str(REPO) not in sys.path:
 def _inputs(n_epochs: int, rate_hz: float, multipath: str):
     """(chain settings params, epochs [(t, ecef, states, vis_state, att, paths)], cast ms/epoch,
     states ms/epoch)."""
+    from gnss_sim_ros2.config_file import load_config
     from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris
     from gnss_sim_ros2.core.simulation import AntennaPath, setup_from_config
     from gnss_sim_ros2.core.time import GnssTime
     from gnss_sim_ros2.core.visibility import VisibilityOptions, load_scene
     from gnss_sim_ros2.core.vocabulary import VisibilityState
-    from gnss_sim_ros2.parameters import load_config
 
     cfg = load_config(overrides={"/**": {"rate_hz": rate_hz}})
     setup = setup_from_config(cfg, Path(tempfile.mkdtemp(prefix="gnss_sim_step_")))

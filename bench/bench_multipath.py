@@ -39,8 +39,8 @@ CITY = DATA / "hk-tst-city-model"
 
 def demo_figures() -> None:
     """The demo scenario through the whole offline chain with each multipath mode."""
+    from gnss_sim_ros2.config_file import load_config
     from gnss_sim_ros2.core.simulation import run_simulation, setup_from_config
-    from gnss_sim_ros2.parameters import load_config
 
     print("demo courtyard, whole offline chain (preset balanced, the demo path, default systems):")
     print(f"{'mode':>9} {'ms/epoch':>9} {'rays/epoch':>11} {'paths/epoch':>12} {'refl-only tracked':>18} "

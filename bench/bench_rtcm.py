@@ -17,13 +17,13 @@ from pathlib import Path
 
 import numpy as np
 
+from gnss_sim_ros2.config_file import load_config
 from gnss_sim_ros2.core.receiver.outputs import epoch_arrays, header, obs_types_for
 from gnss_sim_ros2.core.rinex.nav import read_nav_file, records_as_dicts
 from gnss_sim_ros2.core.rtcm.writer import RtcmWriter
 from gnss_sim_ros2.core.simulation import chain_settings, run_simulation, setup_from_config
 from gnss_sim_ros2.core.time import GnssTime
 from gnss_sim_ros2.core.trajectory import Trajectory
-from gnss_sim_ros2.parameters import load_config
 
 POS = np.array([3149785.9652, 598260.8822, 5495348.4927])
 

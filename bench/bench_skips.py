@@ -37,6 +37,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from gnss_sim_ros2.benchmarks.presets import shared_data_dir  # noqa: E402
+from gnss_sim_ros2.config_file import load_config  # noqa: E402
 from gnss_sim_ros2.core.demo import DEMO_START  # noqa: E402
 from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris  # noqa: E402
 from gnss_sim_ros2.core.frames import az_el_from_ecef  # noqa: E402
@@ -55,7 +56,6 @@ from gnss_sim_ros2.core.simulation import (  # noqa: E402
 from gnss_sim_ros2.core.time import GnssTime  # noqa: E402
 from gnss_sim_ros2.core.trajectory import demo_trajectory  # noqa: E402
 from gnss_sim_ros2.core.visibility import load_scene  # noqa: E402
-from gnss_sim_ros2.parameters import load_config  # noqa: E402
 
 START = GnssTime.from_iso(DEMO_START)
 

@@ -2,7 +2,7 @@
 
 The same node graph as `gnss-sim run` (gnss_sim_ros2/graph.py), with the
 parameters of one file (config:=, default the package's config/gnss_sim.yaml)
-merged with these launch arguments by gnss_sim_ros2.parameters.load_config.
+merged with these launch arguments by gnss_sim_ros2.config_file.load_config.
 
 Arguments:
   world:=FILE.sdf | mesh:=FILE.ply   scene (default: the demo courtyard)
@@ -49,8 +49,8 @@ from launch_ros.actions import ComposableNodeContainer, LifecycleNode, Node
 from launch_ros.descriptions import ComposableNode
 
 from gnss_sim_ros2 import graph
+from gnss_sim_ros2.config_file import load_config
 from gnss_sim_ros2.graph_params import check_robot_config, check_robots
-from gnss_sim_ros2.parameters import load_config
 
 #: launch argument -> (default, description): `ros2 launch gnss_sim sim.launch.py --show-args` prints them
 ARGS = {

@@ -187,7 +187,7 @@ def test_position_error_names_the_first_bad_row():
 def test_parameter_table_uses_the_same_checker():
     """The nodes' static positions (antenna_position, base_position) go through the same rule and name the
     parameter: a base station at 9500 m is a position (was refused above 9000 m), 10001 m is not."""
-    from gnss_sim_ros2.parameters import load_config
+    from gnss_sim_ros2.config_file import load_config
 
     ok = load_config(None, {"rtk": {"base_position": [48.0, 11.0, 9500.0], "base_position_type": "llh"}})
     assert ok.node("rtk")["base_position"] == [48.0, 11.0, 9500.0]

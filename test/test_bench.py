@@ -48,11 +48,11 @@ def test_bench_rejects_unknown_preset(capsys):
 
 def test_batched_chain_equals_epoch_by_epoch(tmp_path):
     """Blocks of 50 epochs (one ephemeris call, one raycast) give the observations of block size 1, noise on."""
+    from gnss_sim_ros2.config_file import load_config
     from gnss_sim_ros2.core.scene.demo_world import demo_world_path
     from gnss_sim_ros2.core.simulation import run_simulation, setup_from_config
     from gnss_sim_ros2.core.time import GnssTime
     from gnss_sim_ros2.core.trajectory import demo_trajectory
-    from gnss_sim_ros2.parameters import load_config
 
     got = {}
 

@@ -20,6 +20,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from gnss_sim_ros2.config_file import load_config
 from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris
 from gnss_sim_ros2.core.frames import az_el_from_ecef, ecef_to_enu, ecef_to_geodetic, enu_to_ecef, geodetic_to_ecef
 from gnss_sim_ros2.core.receiver.config import ReceiverConfig
@@ -28,7 +29,6 @@ from gnss_sim_ros2.core.receiver.outputs import position_fix
 from gnss_sim_ros2.core.simulation import run_simulation, setup_from_config
 from gnss_sim_ros2.core.time import GnssTime
 from gnss_sim_ros2.core.trajectory import Trajectory
-from gnss_sim_ros2.parameters import load_config
 
 START = GnssTime.from_iso("2025-06-01T10:00:00")
 FIX_TOL_M = 0.01

@@ -13,11 +13,11 @@ import numpy as np
 import pytest
 import yaml
 
+from gnss_sim_ros2.config_file import load_config
 from gnss_sim_ros2.core.frames import geodetic_to_ecef
 from gnss_sim_ros2.core.simulation import SimulationSetup, run_simulation, setup_from_config
 from gnss_sim_ros2.core.time import GnssTime
 from gnss_sim_ros2.core.trajectory import Trajectory
-from gnss_sim_ros2.parameters import load_config
 
 CLI = [sys.executable, "-m", "gnss_sim_ros2.cli"]
 OPEC_ECEF_M = (4027894.0, 307045.6, 4919474.9)   # a static open-sky antenna (Belgium)

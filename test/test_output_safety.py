@@ -131,10 +131,10 @@ def test_a_second_simulate_replaces_exactly_its_own_files(tmp_path):
 def test_a_failure_while_writing_leaves_the_previous_results(tmp_path):
     import dataclasses
 
+    from gnss_sim_ros2.config_file import load_config
     from gnss_sim_ros2.core.simulation import run_simulation, setup_from_config
     from gnss_sim_ros2.core.time import GnssTime
     from gnss_sim_ros2.core.trajectory import Trajectory
-    from gnss_sim_ros2.parameters import load_config
 
     out = tmp_path / "o"
     setup = setup_from_config(load_config(), out, Trajectory.static((50.0, 4.0, 100.0), "geodetic"),

@@ -9,11 +9,12 @@ from pathlib import Path
 import pytest
 
 from gnss_sim_ros2 import graph
+from gnss_sim_ros2.config_file import load_config
 from gnss_sim_ros2.core.receiver.chain import ChainSettings
 from gnss_sim_ros2.core.scene.demo_world import demo_world_path
 from gnss_sim_ros2.core.simulation import chain_settings, setup_from_config, visibility_options
 from gnss_sim_ros2.core.visibility import VisibilityOptions
-from gnss_sim_ros2.parameters import SHARED, SHARED_KEY, load_config, params_of
+from gnss_sim_ros2.parameters import SHARED, SHARED_KEY, params_of
 
 #: values the generic rule below would make invalid (a rule between parameters, a format)
 OTHER_VALUES = {"start_time": "2025-06-02T11:00:00", "systems": "GE", "cn0_lose_dbhz": 20.0,

@@ -6,7 +6,8 @@ from pathlib import Path
 import pytest
 import yaml
 
-from gnss_sim_ros2.parameters import NODE_NAMES, default_config_yaml, defaults, load_config
+from gnss_sim_ros2.config_file import load_config
+from gnss_sim_ros2.parameters import NODE_NAMES, default_config_yaml, defaults
 
 REPO = Path(__file__).resolve().parents[1]
 

@@ -57,7 +57,7 @@ def test_a_runs_params_file_reruns(tmp_path):
 
 
 def test_disagreeing_sections_are_refused_naming_both(tmp_path):
-    from gnss_sim_ros2.parameters import load_config
+    from gnss_sim_ros2.config_file import load_config
 
     bad = tmp_path / "bad.yaml"
     bad.write_text(yaml.safe_dump({"gnss_sim_ephemeris": {"ros__parameters": {"start_time": "2024-03-01T12:00:00"}},
@@ -78,7 +78,7 @@ def test_disagreeing_sections_are_refused_naming_both(tmp_path):
 def test_derived_sections_hold_what_the_configuration_derives(tmp_path):
     """A run with robots or RTK writes its derived nodes' sections: accepted as written, refused when edited."""
     from gnss_sim_ros2 import graph
-    from gnss_sim_ros2.parameters import load_config
+    from gnss_sim_ros2.config_file import load_config
 
     cfg = load_config(None, {"/**": {"output_dir": str(tmp_path / "run"), "seed": 4}})
     for name, extra in (("rtk", graph.rtk_parameter_sections(cfg)), ("robots", graph.robot_parameter_sections(cfg, 3))):

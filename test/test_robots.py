@@ -6,9 +6,10 @@ import pytest
 import yaml
 
 from gnss_sim_ros2 import graph
+from gnss_sim_ros2.config_file import load_config
 from gnss_sim_ros2.core.trajectory import robot_path
 from gnss_sim_ros2.graph_params import MAX_ROBOTS, check_robot_config, check_robots, robot_params
-from gnss_sim_ros2.parameters import NODE_NAMES, defaults, load_config
+from gnss_sim_ros2.parameters import NODE_NAMES, defaults
 
 
 def test_one_robot_is_the_graph_of_before():

@@ -23,13 +23,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from gnss_sim_ros2.config_file import load_config
 from gnss_sim_ros2.core.frames import ecef_to_geodetic, enu_to_ecef
 from gnss_sim_ros2.core.rinex.nav import read_nav_file, records_as_dicts
 from gnss_sim_ros2.core.rinex.obs_read import load_rinex
 from gnss_sim_ros2.core.simulation import run_simulation, setup_from_config
 from gnss_sim_ros2.core.time import GnssTime
 from gnss_sim_ros2.core.trajectory import Trajectory
-from gnss_sim_ros2.parameters import load_config
 
 pytestmark = pytest.mark.skipif(shutil.which("convbin") is None or shutil.which("rnx2rtkp") is None,
                                 reason="RTKLIB convbin/rnx2rtkp are not installed (scripts/setup_env.sh: rtklib)")

@@ -117,8 +117,8 @@ def test_run_rtk_moving_baseline_heading(tmp_path):
 
 def test_moving_baseline_parameters():
     from gnss_sim_ros2 import graph
+    from gnss_sim_ros2.config_file import load_config
     from gnss_sim_ros2.graph_params import instance_params
-    from gnss_sim_ros2.parameters import load_config
 
     assert [s.name for s in graph.rtk_nodes(load_config())] == ["gnss_sim_base_visibility", "gnss_sim_base_receiver",
                                                                 "gnss_sim_rtk"]
@@ -161,8 +161,8 @@ def test_run_rtk_without_rtkrcv_is_a_clear_error(tmp_path):
 
 
 def test_base_seed_equal_to_the_rover_seed_is_refused():
+    from gnss_sim_ros2.config_file import load_config
     from gnss_sim_ros2.graph_params import base_station_params
-    from gnss_sim_ros2.parameters import load_config
 
     cfg = load_config(None, {"rtk": {"base_seed": 1}})
     with pytest.raises(ValueError, match="parameter 'base_seed' \\(1\\) equals the receiver's seed"):
@@ -173,9 +173,9 @@ def test_base_station_shares_the_world_and_has_its_own_noise():
     """The base's receiver: the rover's models and world (world_seed is not a parameter: one world), its own
     seed, marker, folder; its visibility node: the rover's scene with a static antenna."""
     from gnss_sim_ros2 import graph
+    from gnss_sim_ros2.config_file import load_config
     from gnss_sim_ros2.core.receiver.chain import ChainSettings
     from gnss_sim_ros2.graph_params import base_station_params
-    from gnss_sim_ros2.parameters import load_config
 
     cfg = load_config(None, {"/**": {"output_dir": "/tmp/x"}})
     rx, base = cfg.node("receiver"), base_station_params(cfg, "receiver")

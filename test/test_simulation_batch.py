@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from multipath_scenes import canyon_scene
 
+from gnss_sim_ros2.config_file import load_config
 from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris
 from gnss_sim_ros2.core.scene.demo_world import demo_world_path
 from gnss_sim_ros2.core.scene.georeference import SphericalCoordinates
@@ -17,7 +18,6 @@ from gnss_sim_ros2.core.time import GnssTime
 from gnss_sim_ros2.core.trajectory import Trajectory
 from gnss_sim_ros2.core.visibility import load_scene
 from gnss_sim_ros2.core.vocabulary import VisibilityState
-from gnss_sim_ros2.parameters import load_config
 
 MM = 1e-3
 FIELDS_M = ("pseudorange_m", "true_range_m", "iono_model_m", "tropo_model_m")

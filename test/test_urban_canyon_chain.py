@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from multipath_scenes import canyon_scene
 
+from gnss_sim_ros2.config_file import load_config
 from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris
 from gnss_sim_ros2.core.scene.georeference import SphericalCoordinates
 from gnss_sim_ros2.core.scene.visibility import Scene
@@ -14,7 +15,6 @@ from gnss_sim_ros2.core.simulation import run_simulation, setup_from_config
 from gnss_sim_ros2.core.time import GnssTime
 from gnss_sim_ros2.core.trajectory import Trajectory
 from gnss_sim_ros2.core.vocabulary import VisibilityState
-from gnss_sim_ros2.parameters import load_config
 
 T0 = GnssTime.from_iso("2019-04-28T05:00:00")
 

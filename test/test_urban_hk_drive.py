@@ -8,9 +8,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from gnss_sim_ros2.config_file import load_config
 from gnss_sim_ros2.core.comparison import drive_check
 from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris
-from gnss_sim_ros2.parameters import load_config
 
 
 @pytest.fixture(scope="module")

@@ -182,10 +182,10 @@ def compare_real(run: Recorder, real: RealObs) -> dict:
 
 # ============================================================================ scenarios
 def _demo_setup(out: Path, duration_s: float, scene, ephemeris):
+    from gnss_sim_ros2.config_file import load_config
     from gnss_sim_ros2.core.simulation import setup_from_config
     from gnss_sim_ros2.core.time import GnssTime
     from gnss_sim_ros2.core.trajectory import demo_trajectory
-    from gnss_sim_ros2.parameters import load_config
 
     return setup_from_config(load_config(), out, demo_trajectory(loop=True), start=GnssTime.from_iso(DEMO_START),
                              duration_s=duration_s, interval_s=0.0, scene=scene, ephemeris=ephemeris).with_params(
@@ -193,10 +193,10 @@ def _demo_setup(out: Path, duration_s: float, scene, ephemeris):
 
 
 def _opec_setup(out: Path, duration_s: float, data: Path, ephemeris):
+    from gnss_sim_ros2.config_file import load_config
     from gnss_sim_ros2.core.simulation import setup_from_config
     from gnss_sim_ros2.core.time import GnssTime
     from gnss_sim_ros2.core.trajectory import Trajectory
-    from gnss_sim_ros2.parameters import load_config
 
     d = data / "opec-2022-001"
     return setup_from_config(load_config(), out, Trajectory.static(OPEC_ECEF_M, "ecef"),

@@ -78,6 +78,7 @@ def measure_point(point: dict) -> dict:
     """One point, in this (fresh) process: build the scenario, run it, time and memory."""
     import open3d  # noqa: F401  (part of the baseline: imported by every run with a scene)
 
+    from gnss_sim_ros2.config_file import load_config
     from gnss_sim_ros2.core.demo import DEMO_START
     from gnss_sim_ros2.core.scene.demo_world import demo_world_path
     from gnss_sim_ros2.core.scene.visibility import Scene
@@ -85,7 +86,6 @@ def measure_point(point: dict) -> dict:
     from gnss_sim_ros2.core.time import GnssTime
     from gnss_sim_ros2.core.trajectory import Trajectory, demo_trajectory
     from gnss_sim_ros2.core.visibility import load_scene
-    from gnss_sim_ros2.parameters import load_config
 
     base_kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     demo = load_scene(str(demo_world_path()))

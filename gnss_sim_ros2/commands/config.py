@@ -141,7 +141,8 @@ def config_reference_markdown() -> str:
 def run(args) -> int:
     import yaml
 
-    from gnss_sim_ros2.parameters import default_config_yaml, load_config
+    from gnss_sim_ros2.config_file import load_config
+    from gnss_sim_ros2.parameters import default_config_yaml
 
     if args.check:
         try:

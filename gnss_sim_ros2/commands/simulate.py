@@ -103,9 +103,9 @@ def parameter_overrides(args) -> tuple[dict, dict]:
 
 
 def setup_from_args(args):
+    from gnss_sim_ros2.config_file import load_config
     from gnss_sim_ros2.core.simulation import setup_from_config
     from gnss_sim_ros2.core.trajectory import Trajectory
-    from gnss_sim_ros2.parameters import load_config
 
     ov, names = parameter_overrides(args)
     cfg = load_config(args.config, ov, names)

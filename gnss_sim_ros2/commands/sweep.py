@@ -59,8 +59,9 @@ def add_arguments(p):
 
 def axis_values(args) -> dict:
     """{axis: values or None} from the options; ValueError naming the option."""
+    from gnss_sim_ros2.config_file import load_config
     from gnss_sim_ros2.core.sweep.axes import parse_dates, parse_names, parse_seeds
-    from gnss_sim_ros2.parameters import SHARED_KEY, load_config, param
+    from gnss_sim_ros2.parameters import SHARED_KEY, param
 
     for axis_opt, (single, attr) in AXIS_OPTIONS.items():
         if getattr(args, axis_opt[2:]) is not None and getattr(args, attr) is not None:

@@ -16,7 +16,7 @@ The results equal the epoch-by-epoch chain (test_simulation_batch.py).
 
 The run holds the nodes' parameters (``SimulationSetup.receiver_params``,
 ``visibility_params``, ``ephemeris_params``: every parameter of the table, as
-``parameters.load_config`` gives them to the nodes), and the chain and the
+``config_file.load_config`` gives them to the nodes), and the chain and the
 visibility options are built from them as the nodes build them
 (``ChainSettings.from_params``, ``VisibilityOptions.from_params``;
 test_parameter_path.py).  Model switches come from the preset (core/presets.py)
@@ -59,7 +59,7 @@ class SimulationSetup:
     interval_s: float
     out_dir: Path
     trajectory: Trajectory
-    #: the receiver node's parameters, every one (shared ones included: ``parameters.load_config(...).node
+    #: the receiver node's parameters, every one (shared ones included: ``config_file.load_config(...).node
     #: ("receiver")``): ChainSettings.from_params builds the chain from them as the node does, with output_dir
     #: the run's folder and the epoch interval above
     receiver_params: dict
@@ -139,7 +139,7 @@ class SimulationSetup:
 
 
 def setup_from_config(cfg, out_dir: Path, trajectory: Trajectory | None = None, **extra) -> SimulationSetup:
-    """The offline run of one configuration (``parameters.load_config``): the nodes' parameters as they get them.
+    """The offline run of one configuration (``config_file.load_config``): the nodes' parameters as they get them.
 
     ``trajectory``: the antenna's path (static position, CSV); None: the trajectory player's path
     (``trajectory_file``, ``waypoints`` or the demo path) with its ``antenna_offset_m``, in the world

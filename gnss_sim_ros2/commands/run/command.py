@@ -12,9 +12,9 @@ import yaml
 from gnss_sim_ros2 import graph
 from gnss_sim_ros2.commands.run.isolation import OutputBusy, OutputFolder, OutputNotOurs, choose_domain_id
 from gnss_sim_ros2.commands.run.runner import Runner
+from gnss_sim_ros2.config_file import load_config
 from gnss_sim_ros2.graph import LAYOUTS
 from gnss_sim_ros2.graph_params import check_robot_config, check_robots
-from gnss_sim_ros2.parameters import load_config
 
 
 def layout_of(args) -> str:

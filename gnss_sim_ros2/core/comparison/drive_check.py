@@ -310,7 +310,7 @@ def run_drive(drive: Drive, scene, provider, nav_files, real_obs, workdir, *, co
               receiver: dict | None = None, scattering: bool = False) -> dict:
     """The whole check (module docstring): simulate along the drive, RTKLIB on both files, the metrics.
 
-    ``config``: the parameter values the run starts from (``parameters.load_config()``), the drive's own
+    ``config``: the parameter values the run starts from (``config_file.load_config()``), the drive's own
     settings set on top; ``real``: the real file's part from a previous call (``out["real_part"]``), to skip
     recomputing it; ``range_m``: the visibility parameter multipath_range_m; ``receiver``: ReceiverConfig
     overrides."""
