@@ -98,7 +98,9 @@ def test_node_publishes_rtk_fixes_and_serves_start_stop_restart(ros, streams):  
     assert _state(node) == "active", node.last_error
     n = len(streams["rover"])
     _feed(ros, streams, node, n)
-    ros.spin_until(lambda: len(fixes) >= n, 10.0)
+    # the node publishes each solution's fix, then its velocity: wait for both (a loaded machine delivers the last
+    # velocity after the last fix)
+    ros.spin_until(lambda: len(fixes) >= n and len(vels) >= len(fixes), 10.0)
     gbas = [f for f in fixes if f.status.status == STATUS_GBAS_FIX]
     err = np.array([np.linalg.norm(np.array(geodetic_to_ecef(f.latitude, f.longitude, f.altitude))
                                    - streams["rover_ecef"]) for f in gbas])
