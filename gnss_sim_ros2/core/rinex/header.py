@@ -12,15 +12,19 @@ def read_obs_header(path: Path) -> dict:
     ``glo`` (GLONASS SLOT / FRQ #: slot -> channel), ``first_obs`` (TIME OF FIRST OBS to the minute)."""
     from georinex.rio import opener  # plain, .gz, .Z, .bz2, .zip and Hatanaka (CRINEX, with the hatanaka package)
 
-    out = {"approx": None, "glo": {}, "version": None, "first_obs": None}
     try:
         with opener(Path(path)) as f:
-            return _read_obs_header(f, path, out)
+            return parse_obs_header(f, path)
     except (OSError, EOFError, UnicodeDecodeError) as exc:
         raise ValueError(f"{path}: cannot open as a RINEX observation file ({exc})") from None
 
 
-def _read_obs_header(f, path, out: dict) -> dict:
+def parse_obs_header(f, path) -> dict:
+    """The fields of :func:`read_obs_header` from an open text stream ``f`` (``path`` names it in errors), and
+    ``receiver_type`` / ``antenna_type`` (REC # / TYPE / VERS, ANT # / TYPE), ``delta_hen_m`` (ANTENNA: DELTA H/E/N,
+    (3,) or None), ``interval_s`` (INTERVAL or None)."""
+    out = {"approx": None, "glo": {}, "version": None, "first_obs": None, "receiver_type": "",
+           "antenna_type": "", "delta_hen_m": None, "interval_s": None}
     first = f.readline()
     if not first.strip():
         raise ValueError(f"{path}: empty file (no RINEX VERSION / TYPE line)")
@@ -42,6 +46,20 @@ def _read_obs_header(f, path, out: dict) -> dict:
                 out["approx"] = np.array([float(line[i:i + 14]) for i in (0, 14, 28)])
             except ValueError:
                 raise ValueError(f"{path}, line {n}: unreadable APPROX POSITION XYZ {line[:42]!r}") from None
+        elif label == "REC # / TYPE / VERS":
+            out["receiver_type"] = line[20:40].strip()
+        elif label == "ANT # / TYPE":
+            out["antenna_type"] = line[20:40].rstrip()
+        elif label == "ANTENNA: DELTA H/E/N":
+            try:
+                out["delta_hen_m"] = np.array([float(line[i:i + 14]) for i in (0, 14, 28)])
+            except ValueError:
+                raise ValueError(f"{path}, line {n}: unreadable ANTENNA: DELTA H/E/N {line[:42]!r}") from None
+        elif label == "INTERVAL":
+            try:
+                out["interval_s"] = float(line[:10])
+            except ValueError:
+                raise ValueError(f"{path}, line {n}: unreadable INTERVAL {line[:10]!r}") from None
         elif label == "TIME OF FIRST OBS":
             try:
                 y, mo, d, h, mi = (int(x) for x in line[:30].split())

@@ -31,6 +31,9 @@ class ObsTable:
     approx_pos_ecef_m: np.ndarray | None = None   #: RINEX APPROX POSITION XYZ
     glo_channel: dict[str, int] = field(default_factory=dict)   #: GLONASS slot -> frequency channel
     freq_hz: dict[tuple[str, str], float] = field(default_factory=dict)  #: (sv, "1C") -> carrier (bags)
+    #: carrier-phase code "L1C" -> (E, S) int8 loss-of-lock indicator (RINEX 3.05 5.7: bit 0 lost lock, bit 1
+    #: half-cycle ambiguity; 0 where blank); RINEX 3/4 files only (empty: the source gives none)
+    lli: dict[str, np.ndarray] = field(default_factory=dict)
 
     @property
     def systems(self) -> str:
@@ -79,7 +82,8 @@ class ObsTable:
         cols = np.arange(len(self.sv)) if svs is None else np.array(
             [int(np.flatnonzero(self.sv == s)[0]) for s in svs], dtype=int)
         return ObsTable(self.time[e], self.sv[cols], {c: a[np.ix_(e, cols)] for c, a in self.values.items()},
-                        self.source, self.kind, self.approx_pos_ecef_m, dict(self.glo_channel), dict(self.freq_hz))
+                        self.source, self.kind, self.approx_pos_ecef_m, dict(self.glo_channel), dict(self.freq_hz),
+                        {c: a[np.ix_(e, cols)] for c, a in self.lli.items()})
 
 
 def match_epochs(t_sim: np.ndarray, t_real: np.ndarray, tol_ns: int = EPOCH_MATCH_NS):
