@@ -82,6 +82,10 @@ _ROWS = (
      "GLONASS ICD 5.1 3.3.1.6 (L2 >= -167 dBW)"),
     ("R", ("2P",), "G2", "G2 P", k.F_G2_HZ, k.DF_G2_HZ, 5.11e6, -167.0, 5.0,
      "GLONASS ICD 5.1 3.3.1.6 (L2 >= -167 dBW)"),
+    # GLONASS CDMA L3OC (data 3I + pilot 3Q), only on the satellites that transmit it (signal_plans/plans.yaml)
+    ("R", ("3I", "3Q", "3X"), "G3", "L3OC", k.F_G3_HZ, 0.0, 10.23e6, -158.0, 5.0,
+     "GLONASS ICD CDMA open service L3 band 1.0 (2016): 1202.025 MHz, 10.23 Mchip/s; minimum power "
+     "(data + pilot) -158 dBW written from memory, check against the document"),
     # --- Galileo ----------------------------------------------------------------------------
     ("E", ("1B", "1C", "1X", "1Z"), "E1", "E1 OS", k.F_L1_HZ, 0.0, 1.023e6, -157.0, 10.0,
      "Galileo OS SIS ICD 2.1 2.3.2 table 4 (E1-B + E1-C); chip rate table 3"),

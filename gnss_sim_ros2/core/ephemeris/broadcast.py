@@ -22,6 +22,7 @@ from ..memo import BoundedCache
 from ..rinex.nav import KEPLER_SYSTEMS, SUPPORTED_SYSTEMS, NavData, read_nav_files
 from ..time import GnssTime
 from . import glonass as glo
+from .health import record_usable
 from .kepler import KeplerParams
 from .sanity import drop_outliers
 from .select import EphemerisDiagnostics, build_timeline, validity_windows_s
@@ -87,7 +88,8 @@ class BroadcastEphemeris:
         self._ref_sec = int(np.median(self._toe_sec)) if n else 0
         tiebreak = np.concatenate([kep["tot_s"], gl["tk_s"]])
         ids = np.arange(n)
-        healthy = self._health == 0
+        # QZSS: usable while any of its signals is healthy (health.py, IS-QZSS-PNT-005 5.4.1); others: health 0
+        healthy = record_usable(systems, self._health)
         self._timeline = build_timeline(self._ref_sec, rec_sv_idx[healthy], self._toe_sec[healthy],
                                         self._toe_frac[healthy], self._before_s[healthy],
                                         self._after_s[healthy], ids[healthy], tiebreak[healthy])

@@ -53,10 +53,12 @@ import numpy as np
 from .. import constants as k
 from .. import propagation as prop
 from .. import signals as sig
+from ..ephemeris.health import signal_usable
 from ..ephemeris.states import SatelliteStates
 from ..frames import az_el_at, ecef_to_geodetic
 from ..memo import BoundedCache
 from ..nequick import NeQuickG
+from ..signal_plans import default_plans, gps_day
 from ..time import GnssTime
 from ..vocabulary import VisibilityState
 from . import cn0 as cn0_model
@@ -96,6 +98,8 @@ class Receiver:
         self._geo_key = None
         self._geo = (0.0, 0.0, 0.0)
         self._signal_cache = BoundedCache(64)
+        #: which signals each satellite transmits on a date (core/signal_plans/plans.yaml)
+        self._plans = default_plans()
         self._keep_cache = BoundedCache(64)
         self._iono_terms = None
         self._doy_key = None
@@ -114,15 +118,23 @@ class Receiver:
             self._nequick = NeQuickG(gal)
 
     # ------------------------------------------------------------------
-    def _rows_of(self, svs: np.ndarray, glo_channel: np.ndarray) -> SignalRows:
-        key = (array_key(svs), array_key(glo_channel))
+    def _rows_of(self, svs: np.ndarray, glo_channel: np.ndarray, day: int, health: np.ndarray) -> SignalRows:
+        """The signal rows of satellites ``svs`` on GPS day ``day``: the profile's signals each transmits that
+        day (signal_plans: by generation, PRN and date) and whose health allows (ephemeris/health.py: QZSS per
+        signal); cached per satellite set, day and health."""
+        key = (array_key(svs), array_key(glo_channel), day, array_key(health))
         hit = self._signal_cache.get(key)
         if hit is not None:
             return hit
         sat_i, codes, freq, chip, systems = [], [], [], [], []
-        for i, sv in enumerate(svs):
+        plans = self._plans
+        profile = {s: tuple(c) for s, c in self.cfg.profile.items()}
+        for i, sv in enumerate(svs.tolist()):
             s = sv[0]
-            for code in self.cfg.profile.get(s, []):
+            h = int(health[i])
+            for code in plans.codes(sv, profile.get(s, ()), day):
+                if h and s == "J" and not signal_usable(s, h, code):   # other systems: the provider's choice
+                    continue
                 sat_i.append(i)
                 codes.append(code)
                 systems.append(s)
@@ -254,9 +266,13 @@ class Receiver:
         b.seg = np.searchsorted(b.e_sat, np.arange(b.k_n + 1))
 
     def _signals(self, b: _Block) -> None:
-        """The signal rows of every epoch (cached per satellite set), stacked; epoch e's are sig_seg[e]:sig_seg[e+1]."""
+        """The signal rows of every epoch (cached per satellite set and day), stacked; epoch e's are
+        sig_seg[e]:sig_seg[e+1].  A (satellite, signal) row exists only where the satellite transmits the signal on
+        that date (signal_plans) and its broadcast health allows the signal (QZSS: per signal)."""
         k_n, seg, svs, glo = b.k_n, b.seg, b.svs, np.asarray(b.st.glo_channel)
-        parts = [self._rows_of(svs[seg[e]:seg[e + 1]], glo[seg[e]:seg[e + 1]]) for e in range(k_n)]
+        health = np.asarray(b.st.health)
+        parts = [self._rows_of(svs[seg[e]:seg[e + 1]], glo[seg[e]:seg[e + 1]], gps_day(b.ts[e].sec),
+                               health[seg[e]:seg[e + 1]]) for e in range(k_n)]
         b.rows = parts[0] if k_n == 1 else SignalRows.stack(parts, seg[:-1])
         b.sat_i, b.codes, b.freq, b.chip, _ = b.rows.signal_rows
         b.m_ep = np.array([len(p.signal_rows[0]) for p in parts], dtype=np.int64)
