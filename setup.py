@@ -23,7 +23,7 @@ setup(
         ("share/" + package_name + "/config", glob("config/*.yaml")),
         ("share/" + package_name + "/worlds", glob("worlds/*.sdf") + glob("worlds/*.md")),
     ],
-    package_data={"gnss_sim_ros2": ["data/*", "core/signal_plans/*.yaml"]},
+    package_data={"gnss_sim_ros2": ["data/*", "core/signal_plans/*.yaml", "profiles/*.yaml"]},
     install_requires=["setuptools"],
     zip_safe=True,
     maintainer="gnss_sim maintainers",

@@ -25,6 +25,7 @@ COMMANDS = {
     "roundtrip": ("roundtrip", "publish every gnss_sim_msgs type and receive it in another process"),
     "simulate": ("simulate", "simulate a receiver offline (no ROS): RINEX observation/navigation files + fix.csv"),
     "config": ("config", "print the default parameter file (config/gnss_sim.yaml) or check one"),
+    "profile": ("profile", "list the built-in receiver profiles or print one as YAML (a start for your own)"),
     "export-world": ("export_world", "export an SDF world's geometry and materials to a scene mesh (PLY + sidecar)"),
     "skyplot": ("skyplot", "line-of-sight state of every satellite from a point of a world (CSV, sky plot PNG)"),
     "bench": ("bench", "speed against accuracy of the fidelity presets: table, JSON, cost/accuracy plot"),

@@ -32,7 +32,6 @@ from gnss_sim_ros2.core.vocabulary import (
     IONOSPHERE_MODELS,
     MULTIPATH_MODES,
     PRESET_NAMES,
-    PROFILES,
     SYSTEMS,
     TROPOSPHERE_MODELS,
     check_systems,
@@ -124,6 +123,18 @@ class Param:
 
 #: the span of GNSS time this simulator supports: the GPS epoch to the end of the leap-second table's use
 SUPPORTED_SPAN = (_dt.datetime(1980, 1, 6), _dt.datetime(2100, 1, 1))
+
+
+def _check_profile(value: str, where: str) -> str:
+    """A receiver profile loaded and validated (core/receiver/profiles.py): a built-in name as it is, a file as
+    an absolute path (a run's params.yaml then works from any folder)."""
+    from gnss_sim_ros2.core.receiver.profiles import is_path, load_profile
+
+    try:
+        prof = load_profile(value)
+    except ValueError as exc:
+        raise ValueError(f"{where}: {exc}") from None
+    return prof.path if is_path(value) else value
 
 
 def _check_iso_time(value: str, where: str) -> str:
@@ -236,7 +247,10 @@ NODE_PARAMS: dict[str, list[Param]] = {
               choices=POSITION_TYPES),
     ],
     "receiver": [
-        Param("profile", "geodetic", "signals tracked", choices=PROFILES),
+        Param("profile", "geodetic", "receiver profile (signals, antenna, front end, loops, thresholds, noise): a "
+              "built-in name (`gnss-sim profile list`) or a profile YAML file (docs/PROFILES.md), relative to the "
+              "working directory; a file is kept as its absolute path",
+              check_value=_check_profile),
         Param("noise", True, "receiver errors on (noise, clock wander, SISRE, ionosphere error, hardware code biases); "
               "off: an ideal receiver with the deterministic models"),
         Param("ionosphere", "", "true ionosphere (empty: from preset; auto: NeQuick-G where Galileo coefficients "
@@ -382,9 +396,10 @@ def validate_node(key: str, values: dict, where: str, options: dict[str, str] | 
                              f"(about 7.6 kB of RINEX and 1.3 kB of memory each, MAX_EPOCHS in "
                              f"gnss_sim_ros2/parameters.py): give a shorter span or a lower rate, or split the run")
     if key == "receiver":
-        from gnss_sim_ros2.core.signals import traits
+        from gnss_sim_ros2.core.receiver.profiles import load_profile
+        from gnss_sim_ros2.core.receiver.tracking import TrackingConfig
 
-        tr = traits(out["profile"])           # -1: the profile's threshold
+        tr = TrackingConfig(**load_profile(out["profile"]).value("tracking", {}))   # -1: the profile's threshold
         acq = out["cn0_acquire_dbhz"] if out["cn0_acquire_dbhz"] >= 0 else tr.acquisition_cn0_dbhz
         lose = out["cn0_lose_dbhz"] if out["cn0_lose_dbhz"] >= 0 else tr.tracking_cn0_dbhz
         if lose > acq:

@@ -22,6 +22,8 @@ Arguments:
   autostart:=true|false              configure and activate the nodes (lifecycle manager) [true]
   rtk:=true|false                    RTK: the base station (gnss_sim_base_visibility, gnss_sim_base_receiver at
                                      base_position) and the rtk node (RTKLIB rtkrcv): /gnss/rtk/fix [false]
+  profile:=NAME|FILE                 receiver profile: a built-in name (`gnss-sim profile list`) or a profile
+                                     YAML file, relative to the launch's working directory [from config]
   strict_world:=true|false          stop when the world loses geometry it names (a model:// not found) or load
                                      the rest with a warning [from config: true]
   robots:=N                          N robots (1..16): each its trajectory player, visibility and receiver node in
@@ -50,6 +52,7 @@ from launch_ros.descriptions import ComposableNode
 
 from gnss_sim_ros2 import graph
 from gnss_sim_ros2.config_file import load_config
+from gnss_sim_ros2.core.receiver.profile_file import builtin_names
 from gnss_sim_ros2.graph_params import check_robot_config, check_robots
 
 #: launch argument -> (default, description): `ros2 launch gnss_sim sim.launch.py --show-args` prints them
@@ -67,6 +70,8 @@ ARGS = {
     "autostart": ("true", "configure and activate the nodes (lifecycle manager)"),
     "rtk": ("false", "RTK: a base station and the rtk node (RTKLIB rtkrcv) publishing /gnss/rtk/fix"),
     "robots": ("1", "number of robots (1..16), each in namespace robot<k>"),
+    "profile": ("", f"receiver profile: a built-in name ({', '.join(builtin_names())}) or a profile YAML file "
+                    f"(docs/PROFILES.md), relative to the working directory; empty: the config's profile"),
     "strict_world": ("", "true: stop when the world loses geometry it names (a model:// not found, an unreadable "
                          "mesh); false: load the rest with a warning; empty: the config's strict_world"),
 }
@@ -152,6 +157,8 @@ def _setup(context):
         overrides["visibility"] = {"mesh_file": os.path.abspath(a["mesh"]), "world_file": ""}
     if a["strict_world"]:     # checked by the parameter table (load_config) like the file's value
         overrides.setdefault("visibility", {})["strict_world"] = yaml.safe_load(a["strict_world"])
+    if a["profile"]:          # loaded and checked by the table; a file kept as its absolute path
+        overrides.setdefault("receiver", {})["profile"] = a["profile"]
     layout = layout_of(a["composed"])
     rtk = _true(a["rtk"])
     robots = check_robots(a["robots"], "launch argument robots")
@@ -159,8 +166,8 @@ def _setup(context):
         raise ValueError(f"launch arguments rtk:=true and robots:={robots} do not go together: an RTK run has one "
                          f"rover (and its base station); use robots:=1 with rtk:=true")
     if rtk:
-        overrides["receiver"] = {"rtcm": True}      # the rover's RTCM3 for the rtk node
-    cfg = load_config(a["config"] or None, overrides, {"strict_world": "strict_world:="})
+        overrides.setdefault("receiver", {})["rtcm"] = True      # the rover's RTCM3 for the rtk node
+    cfg = load_config(a["config"] or None, overrides, {"strict_world": "strict_world:=", "profile": "profile:="})
     check_robot_config(cfg, robots, "launch argument robots")
     sim_time = _true(a["use_sim_time"])
     params = {**cfg.ros_parameter_file_dict(), **(graph.rtk_parameter_sections(cfg) if rtk else {}),

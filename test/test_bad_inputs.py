@@ -110,8 +110,11 @@ def test_bad_input_is_refused_naming_the_option(case, tmp_path, capsys):
 
 @pytest.mark.parametrize("profile", ["ublox_f9p", "ublox_m8t"])
 def test_simulate_takes_every_profile_of_the_table(profile, tmp_path, capsys):
-    """The profiles `gnss-sim config` documents run through `simulate --profile` (10 s) as through --config."""
-    assert profile in param("receiver", "profile").choices
+    """The built-in profiles (gnss_sim_ros2/profiles/*.yaml) run through `simulate --profile` (10 s) as through
+    --config."""
+    from gnss_sim_ros2.core.receiver.profiles import builtin_names
+
+    assert profile in builtin_names()
     rc, text = _cli(["simulate", "--profile", profile, "--duration", "10", "--position", "48,11,500",
                      "--out", tmp_path / "out", "--quiet"], capsys)
     assert rc == 0, text
@@ -121,12 +124,15 @@ def test_simulate_takes_every_profile_of_the_table(profile, tmp_path, capsys):
 
 
 def test_cli_choices_are_the_tables(capsys):
-    """--profile and --preset offer exactly the table's choices (one list, parameters.py)."""
+    """--preset offers exactly the table's choices (one list, parameters.py); --profile takes a name or a file
+    (checked by the table's check, test_profiles.py) and its help names every built-in profile."""
     from gnss_sim_ros2.cli import build_parser
+    from gnss_sim_ros2.core.receiver.profiles import builtin_names
 
     sub = next(a for a in build_parser()._actions if a.dest == "command").choices["simulate"]
     opts = {a.dest: a for a in sub._actions}
-    assert tuple(opts["profile"].choices) == tuple(param("receiver", "profile").choices)
+    assert opts["profile"].choices is None and opts["profile"].metavar == "NAME|FILE"
+    assert all(name in opts["profile"].help for name in builtin_names())
     assert tuple(opts["preset"].choices) == tuple(param("/**", "preset").choices)
 
 

@@ -18,7 +18,7 @@ from gnss_sim_ros2.parameters import SHARED, SHARED_KEY, params_of
 
 #: values the generic rule below would make invalid (a rule between parameters, a format)
 OTHER_VALUES = {"start_time": "2025-06-02T11:00:00", "systems": "GE", "cn0_lose_dbhz": 20.0,
-                "antenna_position": [1.0, 2.0, 3.0]}
+                "antenna_position": [1.0, 2.0, 3.0], "profile": "ublox_f9p"}
 
 
 def other_value(p):
@@ -83,3 +83,23 @@ def test_a_parameter_set_on_a_setup_reaches_the_chain(tmp_path):
     assert dataclasses.replace(setup).ephemeris_params["elevation_mask_deg"] == 15.0
     with pytest.raises(ValueError, match="'multipath_rays'.*no node"):
         setup.with_params(multipath_rays=3)
+
+
+def test_a_profile_file_reaches_the_offline_chain_as_the_node_gets_it(tmp_path, monkeypatch):
+    """A profile given as a file (relative to the working directory): the receiver node and the offline run get
+    the same absolute path and build the same chain from it (the file's values in the receiver configuration)."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "rx.yaml").write_text("gnss_sim_profile: 1\nsignals: {G: [1C, 2L], E: [1C]}\nantenna: choke_ring\n"
+                                      "dll_bn_hz: 0.125\n"
+                                      "tracking: {acquisition_cn0_dbhz: 31.0, tracking_cn0_dbhz: 26.0}\n")
+    cfg = load_config(None, {"receiver": {"profile": "rx.yaml"}, "visibility": {"world_file": str(demo_world_path())}})
+    rcv = node_params(cfg, "receiver")
+    assert rcv["profile"] == str(tmp_path / "rx.yaml")
+    setup = setup_from_config(cfg, tmp_path / "out")
+    assert setup.receiver_params == rcv
+    node_chain = ChainSettings.from_params({**rcv, "output_dir": str(Path(setup.out_dir))}, have_ephemeris=True)
+    offline = chain_settings(setup)
+    assert repr(offline) == repr(node_chain)
+    r = offline.receiver
+    assert r.profile == {"G": ["1C", "2L"], "E": ["1C"]} and (r.antenna, r.dll_bn_hz) == ("choke_ring", 0.125)
+    assert (r.tracking.acquisition_cn0_dbhz, r.tracking.tracking_cn0_dbhz) == (31.0, 26.0)

@@ -187,14 +187,14 @@ def test_glonass_slots_over_the_run_not_the_first_epoch():
 
 @pytest.mark.parametrize("profile", ["geodetic", "single_frequency", "ublox_f9p"])
 def test_antenna_type_comes_from_the_profile(tmp_path, profile):
-    """ANT # / TYPE names the profile's antenna (RECEIVER_TRAITS: geodetic has a choke ring, was written as the
-    patch); the header also reaches RTCM 1033 through the same RinexObsHeader."""
+    """ANT # / TYPE names the profile's antenna (gnss_sim_ros2/profiles/*.yaml: geodetic has a choke ring, was
+    written as the patch); the header also reaches RTCM 1033 through the same RinexObsHeader."""
     from gnss_sim_ros2.core.multipath.antenna import RINEX_ANTENNA_TYPE
-    from gnss_sim_ros2.core.signals import RECEIVER_TRAITS
+    from gnss_sim_ros2.core.receiver.profiles import load_profile
 
     obs = _simulate(tmp_path / profile, "--synthetic", "--duration", "2", "--profile", profile, "--systems", "G")
     (ant,) = _header_records(obs, "ANT # / TYPE")
-    antenna = RECEIVER_TRAITS[profile].antenna
+    antenna = load_profile(profile).fields["antenna"]
     assert ant[20:40] == f"{RINEX_ANTENNA_TYPE[antenna]:<20s}"
     if profile == "geodetic":
         assert antenna != "patch" and "PATCH" not in ant[20:40], ant

@@ -43,8 +43,11 @@ def add_arguments(p):
     p.add_argument("--preset", choices=param("/**", "preset").choices, default=None)
     p.add_argument("--noise-free", action="store_true",
                    help="an ideal receiver: no random errors and no hardware code biases (deterministic models kept)")
-    p.add_argument("--profile", choices=param("receiver", "profile").choices, default=None,
-                   help="receiver profile: the signals tracked and the receiver's traits")
+    from gnss_sim_ros2.core.receiver.profile_file import builtin_names
+    p.add_argument("--profile", metavar="NAME|FILE", default=None,
+                   help=f"receiver profile (signals, antenna, front end, loops, thresholds, noise): a built-in name "
+                        f"({', '.join(builtin_names())}) or a profile YAML file, relative to the working directory "
+                        f"(docs/PROFILES.md; `gnss-sim profile show NAME` prints one to start from)")
     p.add_argument("--marker", default=None, help="RINEX marker name")
     p.add_argument("--rtcm", nargs="?", const="", default=None, metavar="FILE",
                    help="also write the observations as RTCM3 (1006, 1033, MSM, broadcast ephemerides); "

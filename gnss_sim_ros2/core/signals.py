@@ -134,76 +134,8 @@ for _sys, _codes, _band, _name, _f0, _df, _chip, _pmin, _el, _src in _ROWS:
     for _code in _codes:
         SIGNALS[(_sys, _code)] = Signal(_sys, _code, _band, _name, _f0, _df, _chip, _pmin, _el, _src)
 
-#: receiver profiles: system -> RINEX codes tracked, in output order
-PROFILES: dict[str, dict[str, list[str]]] = {
-    # a mass-market single-frequency receiver (u-blox M8-class: L1/E1/B1I/G1)
-    "single_frequency": {
-        "G": ["1C"], "R": ["1C"], "E": ["1C"], "C": ["2I"], "J": ["1C"], "I": ["5A"],
-    },
-    # u-blox NEO-M8T / LEA-M8T (timing, single frequency): GPS L1C/A, GLONASS L1OF, Galileo E1B/C, BeiDou B1I,
-    # QZSS L1C/A (u-blox NEO/LEA-M8T data sheet, GNSS features; written from the document without re-reading it here)
-    "ublox_m8t": {"G": ["1C"], "R": ["1C"], "E": ["1C"], "C": ["2I"], "J": ["1C"]},
-    # u-blox ZED-F9P(-02): L1/L2: GPS L1C/A L2C, GLONASS L1OF L2OF, Galileo E1B/C E5b, BeiDou B1I B2I,
-    # QZSS L1C/A L2C (ZED-F9P integration manual, "GNSS signals"; not re-read here); the L2C of GPS/QZSS is
-    # the CL pilot (RINEX 2L, RTKLIB's convert of UBX-RXM-RAWX), Galileo E5b the pilot 7Q
-    "ublox_f9p": {"G": ["1C", "2L"], "R": ["1C", "2C"], "E": ["1C", "7Q"], "C": ["2I", "7I"], "J": ["1C", "2L"]},
-    # a multi-frequency geodetic receiver
-    "geodetic": {
-        "G": ["1C", "2W", "2L", "5Q"],
-        "R": ["1C", "2C"],
-        "E": ["1C", "5Q", "7Q", "8Q", "6C"],
-        "C": ["2I", "7I", "6I", "1P", "5P"],
-        "J": ["1C", "2L", "5Q"],
-        "I": ["5A"],
-    },
-}
-
-
-@dataclass(frozen=True)
-class ReceiverTraits:
-    """What a receiver profile says besides its signals (receiver.config.ReceiverConfig takes these as defaults).
-
-    ``excluded_svs``: satellites the receiver does not track (regular expression on the RINEX id)."""
-
-    antenna: str                    #: multipath/antenna.py pattern
-    dll_spacing_chips: float        #: early-minus-late spacing [chips]
-    dll_bn_hz: float                #: DLL noise bandwidth [Hz]
-    frontend_bandwidth_hz: float    #: double-sided front-end (pre-correlation) bandwidth [Hz]
-    acquisition_cn0_dbhz: float
-    tracking_cn0_dbhz: float
-    excluded_svs: str = ""
-    source: str = ""
-
-
 #: BeiDou geostationary satellites: C01-C05 (BDS-2) and C59-C63 (BDS-3), BDS-OS-PS 3.0 (2021) table 3-1
 BEIDOU_GEO_PATTERN = r"C0[1-5]|C59|C6[0-3]"
-
-RECEIVER_TRAITS: dict[str, ReceiverTraits] = {
-    # the geodetic / single_frequency defaults of this simulator before the real-receiver profiles (kept)
-    "geodetic": ReceiverTraits("choke_ring", 0.2, 0.5, 16e6, 33.0, 28.0, "",
-                               "simulator defaults: 0.2 chip, 0.5 Hz DLL; a 16 MHz front end (geodetic receivers "
-                               "track P(Y) / L5 at 10.23 Mchip/s, e.g. Trimble NetR9 data sheet)"),
-    "single_frequency": ReceiverTraits("patch", 0.2, 0.5, 4e6, 33.0, 28.0, "",
-                                       "simulator defaults; a 4 MHz front end assumed"),
-    # u-blox publishes neither its correlator spacing nor its front-end bandwidth: both are assumptions here.
-    # M8T: a ~2 MHz front end around L1 and a 0.5 chip early-late spacing (a narrow correlator gains
-    # nothing behind a 2 MHz front end, multipath/dll.py).  Thresholds: the data sheet's -167 dBm tracking /
-    # -160 dBm reacquisition sensitivities (NEO/LEA-M8T data sheet) are far below what RINEX users see; chosen so that
-    # NLOS signals of 17-36 dB-Hz, which real M8 receivers in Hong Kong report (physics-anchors.md, Hsu 2018),
-    # can be tracked: acquire 22, lose 16 dB-Hz (assumed).
-    "ublox_m8t": ReceiverTraits("patch", 0.5, 1.0, 2.0e6, 22.0, 16.0, "",
-                                "u-blox NEO/LEA-M8T data sheet (signals); spacing, bandwidth, thresholds assumed"),
-    # F9P: a wider front end per band (4 MHz, assumed) and a 0.2 chip spacing (assumed); no BeiDou GEO
-    # (issue 16: real F9P recordings show none); thresholds as the M8T.
-    "ublox_f9p": ReceiverTraits("patch", 0.2, 1.0, 4.0e6, 22.0, 16.0, BEIDOU_GEO_PATTERN,
-                                "u-blox ZED-F9P integration manual (signals); spacing, bandwidth, thresholds assumed"),
-}
-
-
-def traits(name: str) -> ReceiverTraits:
-    """The :class:`ReceiverTraits` of profile ``name`` (a mapping profile gets the single_frequency traits)."""
-    return RECEIVER_TRAITS.get(name, RECEIVER_TRAITS["single_frequency"])
-
 
 def signal(system: str, code: str) -> Signal:
     """The :class:`Signal` of ``(system, code)``; ``code`` may be "1C" or an obs type "C1C"/"L1C"."""
@@ -245,13 +177,6 @@ def frequency_hz(system: str, code: str, glo_channel=0):
 def wavelength_m(system: str, code: str, glo_channel=0):
     """Carrier wavelength [m] = c / f (broadcasts over ``glo_channel`` like :func:`frequency_hz`)."""
     return k.C_MPS / frequency_hz(system, code, glo_channel)
-
-
-def profile(name: str) -> dict[str, list[str]]:
-    """The receiver profile ``name`` (a copy), validated against the signal table."""
-    if name not in PROFILES:
-        raise ValueError(f"signals.profile: parameter 'name' = {name!r} is not one of {sorted(PROFILES)}")
-    return {s: list(codes) for s, codes in PROFILES[name].items()}
 
 
 def validate_profile(prof: dict[str, list[str]]) -> None:

@@ -21,8 +21,6 @@ class VisibilityState(enum.IntEnum):
     REFLECTED_ONLY = 3   # no direct path, only a reflection reaches the antenna
 
 
-#: receiver profiles (core/signals.py PROFILES)
-PROFILES = ("geodetic", "single_frequency", "ublox_m8t", "ublox_f9p")
 #: where orbits come from (parameter source)
 EPHEMERIS_SOURCES = ("synthetic", "broadcast", "sp3", "download")
 #: true ionosphere models (core/receiver/ionosphere.py)

@@ -5,8 +5,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..receiver.profiles import load_profile
 from ..rinex.obs_table import ObsTable
-from ..signals import PROFILES
 
 
 @dataclass(frozen=True)
@@ -34,7 +34,7 @@ def _attributes(tab: ObsTable, system: str) -> list[str]:
         if np.isfinite(a[:, cols]).any() and code[1:] not in out:
             out.append(code[1:])
     if tab.kind == "bag":   # a bag has no header order: the simulator's geodetic profile order (first = primary)
-        order = PROFILES["geodetic"].get(system, [])
+        order = list(load_profile("geodetic").signals.get(system, ()))
         out.sort(key=lambda c: order.index(c) if c in order else len(order))
     return out
 

@@ -29,13 +29,13 @@ import numpy as np
 
 from ..memo import BoundedCache
 from ..presets import preset as preset_switches
-from ..signals import traits
 from ..solver import PvtSolution, SolverConfig
 from ..time import GnssTime
 from .config import ReceiverConfig
 from .engine import Receiver
 from .observations import EpochObservations
 from .outputs import epoch_arrays, header, obs_types_for, position_fix, position_fixes, rinex_name, spp_rows
+from .profiles import load_profile
 from .tracking import TrackingConfig
 
 
@@ -81,10 +81,10 @@ class ChainSettings:
         if "profile" in p:
             kw["profile"] = p["profile"]
         acq, lose = p.get("cn0_acquire_dbhz", -1.0), p.get("cn0_lose_dbhz", -1.0)
-        if acq >= 0 or lose >= 0:        # negative: the profile's thresholds (signals.RECEIVER_TRAITS)
-            tr = traits(p.get("profile", "geodetic"))
-            kw["tracking"] = TrackingConfig(acquisition_cn0_dbhz=acq if acq >= 0 else tr.acquisition_cn0_dbhz,
-                                            tracking_cn0_dbhz=lose if lose >= 0 else tr.tracking_cn0_dbhz)
+        if acq >= 0 or lose >= 0:        # negative: the profile's thresholds (its other tracking fields kept)
+            tracking = load_profile(p.get("profile", "geodetic")).value("tracking", {})
+            tracking.update({k: v for k, v in (("acquisition_cn0_dbhz", acq), ("tracking_cn0_dbhz", lose)) if v >= 0})
+            kw["tracking"] = TrackingConfig(**tracking)
         kw.update({k: v for k, v in (receiver_overrides or {}).items() if v is not None and v != ""})
         out_dir = p.get("output_dir", "")
         return cls(receiver=ReceiverConfig(**kw), solver=SolverConfig(elevation_mask_deg=p["elevation_mask_deg"]),
@@ -328,7 +328,8 @@ class ReceiverChain:
         cfg = s.receiver
         return header(self.obs_types, s.marker_name, ecef, s.interval_s, slots,
                       comments=[f"{self.comment}, preset {s.preset}",
-                                f"seed {cfg.seed}; noise {'on' if cfg.noise else 'off'}"], antenna=cfg.antenna)
+                                f"seed {cfg.seed}; noise {'on' if cfg.noise else 'off'}"], antenna=cfg.antenna,
+                      rinex=cfg.rinex)
 
     def _open_rtcm(self):
         from ..rtcm.writer import RtcmWriter

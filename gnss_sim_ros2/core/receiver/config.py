@@ -1,17 +1,17 @@
 """The receiver's configuration: its profile (signals, antenna, front end, thresholds), error models and
-seeds (``ReceiverConfig``; defaults from signals.PROFILES and signals.RECEIVER_TRAITS)."""
+seeds (``ReceiverConfig``; defaults from the receiver profile's YAML file, core/receiver/profiles.py)."""
 from __future__ import annotations
 
+import copy
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
-from .. import signals as sig
 from ..multipath.antenna import PATTERNS
 from ..vocabulary import IONOSPHERE_MODELS, TRANSMIT_TIME_MODES, TROPOSPHERE_MODELS
 from . import cn0 as cn0_model
-from . import hardware_bias
+from . import hardware_bias, outputs, profile_file
 from .clock import ClockConfig
 from .tracking import TrackingConfig
 
@@ -25,8 +25,46 @@ from .tracking import TrackingConfig
 SISRE_DEFAULT_M = {"G": 0.7, "R": 1.9, "E": 0.7, "C": 1.5, "J": 0.6, "I": 1.5}
 
 
+def _owned(builtin, check=None):
+    """A field a receiver profile owns: None (the default) takes the profile's value, else ``builtin``;
+    ``check`` (value -> value, ValueError) runs on the profile's and the argument's value alike."""
+    return field(default=None, metadata={"builtin": builtin, "check": check})
+
+
+def _positive(v):
+    if not v > 0:
+        raise ValueError(f"{v!r} must be > 0")
+    return v
+
+
+def _spacing(v):
+    if not 0 < v <= 1:
+        raise ValueError(f"{v!r} must be in (0, 1] chips")
+    return v
+
+
+def _antenna(v):
+    if v not in PATTERNS:
+        raise ValueError(f"{v!r} is not an antenna pattern (one of {', '.join(PATTERNS)})")
+    return v
+
+
+def _regex(v):
+    try:
+        re.compile(v)
+    except re.error as exc:
+        raise ValueError(f"{v!r} is not a regular expression: {exc}") from None
+    return v
+
+
+#: dataclass-typed fields a profile gives as a mapping of their fields
+_NESTED = {"tracking": TrackingConfig, "link_budget": cn0_model.LinkBudget}
+
+
 @dataclass
 class ReceiverConfig:
+    #: receiver profile (core/receiver/profiles.py): a built-in name, a .yaml file, a profile mapping or a bare
+    #: {system: [codes]} mapping; after construction: the signals tracked, {system: [codes]}
     profile: str | dict = "geodetic"
     systems: str = "GRECJI"
     elevation_mask_deg: float = 10.0
@@ -41,20 +79,23 @@ class ReceiverConfig:
     transmit_time: str = "recompute"
     light_time_iterations: int = 2
     seed: int = 1
-    #: DLL: noise bandwidth [Hz], early-late spacing [chips] (None: the profile's, signals.RECEIVER_TRAITS)
-    dll_bn_hz: float | None = None
-    dll_spacing_chips: float | None = None
+    #: Fields a profile owns (every field but profile_file.RUN_FIELDS) default to None: the profile's value, else
+    #: the field's ``builtin`` (a profile that leaves it out, a bare signal mapping); an argument overrides both.
+    #: DLL: noise bandwidth [Hz], early-late spacing [chips]
+    dll_bn_hz: float | None = _owned(0.5)
+    dll_spacing_chips: float | None = _owned(0.2, check=_spacing)
     #: antenna pattern for reflections (multipath/antenna.py), double-sided front-end bandwidth [Hz],
-    #: satellites not tracked (regular expression on the RINEX id); None: the profile's
-    antenna: str | None = None
-    frontend_bandwidth_hz: float | None = None
-    excluded_svs: str | None = None
-    #: code multipath/residual model (code_multipath.py) [m], correlation time [s]; checked on OPEC 2022-001:
-    #: the scatter of each satellite's code residual about its own mean is 0.47-0.69 m RMS per system for the
-    #: real NETR9 and 0.65 m for these values with the DLL noise below (test_receiver_acceptance), so kept
-    mp_zenith_m: float = 0.15
-    mp_low_m: float = 1.2
-    mp_tau_s: float = 60.0
+    #: satellites not tracked (regular expression on the RINEX id)
+    antenna: str | None = _owned("patch", check=_antenna)
+    frontend_bandwidth_hz: float | None = _owned(4e6, check=_positive)
+    excluded_svs: str | None = _owned("", check=_regex)
+    #: RINEX header text: {receiver_type, antenna_type} (REC # / TYPE, ANT # / TYPE; outputs.header's defaults
+    #: where left out: GNSS_SIM and the antenna pattern's name)
+    rinex: dict | None = _owned({}, check=outputs.check_rinex_names)
+    #: code multipath/residual model (code_multipath.py) [m], correlation time [s]
+    mp_zenith_m: float | None = _owned(0.15)
+    mp_low_m: float | None = _owned(1.2)
+    mp_tau_s: float | None = _owned(60.0)
     #: true ionosphere = model x (1 + iono_error_frac * g(t)), g smooth, unit variance (world_errors.py), per model.
     #: Klobuchar 0.5: it removes about 50 % of the RMS ionospheric delay (Navipedia, physics-anchors.md).
     #: NeQuick-G 0.3: designed to correct at least 70 % of the delay (Galileo Ionospheric Correction
@@ -64,13 +105,15 @@ class ReceiverConfig:
     sisre_m: dict = field(default_factory=lambda: dict(SISRE_DEFAULT_M))
     #: seed of the world's random errors (ionosphere residual, SISRE): the same for all receivers of one world
     world_seed: int = 0
-    #: hardware code biases [m] (core/receiver/hardware_bias.py); None: the table of a named profile
-    code_bias_m: dict | None = None
-    cn0_noise_db: float = 0.3
-    #: acquisition / loss-of-lock thresholds; None: the profile's (signals.RECEIVER_TRAITS)
+    #: hardware code biases [m] (core/receiver/hardware_bias.py)
+    code_bias_m: dict | None = _owned({}, check=hardware_bias.validate)
+    #: C/N0 scatter [dB] (1 sigma, epoch to epoch)
+    cn0_noise_db: float | None = _owned(0.3)
+    #: acquisition / loss-of-lock thresholds, ...; None: the profile's mapping of TrackingConfig fields
     tracking: TrackingConfig | None = None
     clock: ClockConfig = field(default_factory=ClockConfig)
-    link_budget: cn0_model.LinkBudget = field(default_factory=cn0_model.LinkBudget)
+    #: None: the profile's mapping of LinkBudget fields
+    link_budget: cn0_model.LinkBudget | None = None
 
     def __post_init__(self):
         if self.ionosphere not in IONOSPHERE_MODELS:
@@ -84,26 +127,26 @@ class ReceiverConfig:
         bad = {s: v for s, v in dict(self.sisre_m).items() if not (np.isfinite(v) and v >= 0)}
         if bad:
             raise ValueError(f"receiver: parameter 'sisre_m' has values that are not finite and >= 0: {bad}")
-        if self.code_bias_m is None:
-            named = self.profile if isinstance(self.profile, str) else None
-            self.code_bias_m = hardware_bias.PROFILE_CODE_BIAS_M.get(named, {})
-        self.code_bias_m = hardware_bias.validate(self.code_bias_m)
-        tr = sig.traits(self.profile if isinstance(self.profile, str) else "")
-        for name in ("dll_bn_hz", "dll_spacing_chips", "antenna", "frontend_bandwidth_hz", "excluded_svs"):
-            if getattr(self, name) is None:
-                setattr(self, name, getattr(tr, name))
-        if self.tracking is None:
-            self.tracking = TrackingConfig(acquisition_cn0_dbhz=tr.acquisition_cn0_dbhz,
-                                           tracking_cn0_dbhz=tr.tracking_cn0_dbhz)
-        if self.antenna not in PATTERNS:
-            raise ValueError(f"receiver: parameter 'antenna' = {self.antenna!r} (one of {PATTERNS})")
-        if not (self.frontend_bandwidth_hz > 0 and 0 < self.dll_spacing_chips <= 1):
-            raise ValueError("receiver: 'frontend_bandwidth_hz' must be > 0 and 'dll_spacing_chips' in (0, 1]")
+        prof = profile_file.read(self.profile, type(self))
+        for f in fields(self):           # the profile's value, else the builtin, where no argument gave one
+            if f.name in profile_file.RUN_FIELDS or not f.init or getattr(self, f.name) is not None:
+                continue
+            if f.name in _NESTED:
+                setattr(self, f.name, _NESTED[f.name](**prof.value(f.name, {})))
+            elif "builtin" in f.metadata:
+                setattr(self, f.name, prof.value(f.name, copy.deepcopy(f.metadata["builtin"])))
+            else:
+                setattr(self, f.name, prof.value(f.name))
+        for f in fields(self):           # an argument's value checked as a profile's is (profile_file.py)
+            check = f.metadata.get("check")
+            if check is not None and getattr(self, f.name) is not None:
+                try:
+                    setattr(self, f.name, check(getattr(self, f.name)))
+                except ValueError as exc:
+                    said = f"'{f.name}'" in str(exc)
+                    raise (exc if said else ValueError(f"receiver: parameter '{f.name}': {exc}")) from None
         self._excluded = re.compile(self.excluded_svs) if self.excluded_svs else None
-        if isinstance(self.profile, str):
-            self.profile = sig.profile(self.profile)
-        else:
-            sig.validate_profile(self.profile)
+        self.profile = prof.signal_map()
         if not self.noise:
             self.code_bias_m = {}
             self.clock = ClockConfig(**{**self.clock.__dict__, "noise": False})

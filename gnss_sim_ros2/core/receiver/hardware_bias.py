@@ -16,13 +16,14 @@ defines its clock (here GPS L1 C/A).  Only differences matter to a user:
   (RTKLIB 2.4.3, most receivers' own solutions) cannot absorb it: it becomes
   a position error in the direction of the BeiDou-2 satellites;
 - between the frequencies of one system (receiver differential code biases):
-  the table format allows them, the default tables leave them out (below).
+  the table format allows them, the shipped profiles leave them out.
 
 Phase biases are not modelled (a float or integer ambiguity absorbs them
 between receivers of one type); GLONASS inter-frequency biases are not
 modelled (no GLONASS data to calibrate them).
 
-Tables: group -> {code or band -> bias [m]}.  A group is a system letter, or
+Tables (a receiver profile's ``code_bias_m``, gnss_sim_ros2/profiles/*.yaml, with their sources): group ->
+{code or band -> bias [m]}.  A group is a system letter, or
 "C2"/"C3" for BeiDou-2 (PRN 1-18) and BeiDou-3 (PRN >= 19); a key is a RINEX
 code ("2W"), a band digit ("2", every code of that band) or "*" (every
 other code of the group).  A signal without an entry has no bias.
@@ -33,28 +34,6 @@ import numpy as np
 
 #: last BeiDou-2 PRN (BDS-2: C01-C18; BDS-3: C19 and above, CSNO BDS-OS-PS 3.0 (2021) table 3-1)
 BDS2_LAST_PRN = 18
-
-#: geodetic profile: a multi-frequency reference receiver.  Values measured on OPEC 2022-001 (Trimble
-#: NETR9, TRM55971.00; ../shared/data/opec-2022-001) by bench/measure_code_bias.py: real minus noise-free
-#: simulated B1I/E1 pseudorange (default models), one receiver clock per epoch from GPS C1C (median over
-#: satellites), median over satellites of each satellite's mean over 440 epochs, rounded to 0.1 m.
-#: BeiDou-3 minus BeiDou-2: 1.4 m (4.7 ns) on B1I, inside the published range.  One value per group
-#: ("*"): differences between the frequencies of one system (receiver DCBs) are not modelled, because
-#: without a global ionosphere map they cannot be told apart from the day's ionosphere model error.
-GEODETIC_CODE_BIAS_M: dict[str, dict[str, float]] = {
-    "E": {"*": -2.9},
-    "C2": {"*": 7.5},
-    "C3": {"*": 8.9},
-}
-
-#: single-frequency profile: only the BeiDou-2/BeiDou-3 split (the figure above); a mass-market
-#: receiver's inter-system biases are of its own make and absorbed by its own solution anyway.
-SINGLE_FREQUENCY_CODE_BIAS_M: dict[str, dict[str, float]] = {
-    "C2": {"*": -1.4},
-}
-
-#: receiver profile name (core/signals.PROFILES) -> its table
-PROFILE_CODE_BIAS_M = {"geodetic": GEODETIC_CODE_BIAS_M, "single_frequency": SINGLE_FREQUENCY_CODE_BIAS_M}
 
 
 def group_of(sv: str) -> str:

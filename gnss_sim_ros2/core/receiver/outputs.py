@@ -95,14 +95,33 @@ def _columns_of(obs_types: dict[str, list[str]]) -> dict:
     return hit
 
 
+#: the profile's ``rinex`` keys: RINEX header text, each at most 20 characters (RINEX 3.05 table A2: A20)
+RINEX_NAME_KEYS = ("receiver_type", "antenna_type")
+
+
+def check_rinex_names(names: dict) -> dict:
+    """A profile's ``rinex`` mapping {receiver_type, antenna_type} (text of at most 20 characters each)."""
+    if not isinstance(names, dict):
+        raise ValueError(f"must map {' / '.join(RINEX_NAME_KEYS)} to text, got {names!r}")
+    for key, v in names.items():
+        if key not in RINEX_NAME_KEYS:
+            raise ValueError(f"unknown key {key!r}; one of {', '.join(RINEX_NAME_KEYS)}")
+        if not isinstance(v, str) or len(v) > 20:
+            raise ValueError(f"{key} = {v!r} must be text of at most 20 characters (RINEX A20)")
+    return dict(names)
+
+
 def header(obs_types, marker_name: str, approx_pos_ecef_m, interval_s: float, glonass_slots: dict,
-           comments=(), antenna: str = "patch") -> RinexObsHeader:
+           comments=(), antenna: str = "patch", rinex: dict | None = None) -> RinexObsHeader:
     """The RINEX observation header of a simulated receiver; ``antenna``: its pattern (multipath/antenna.py
-    PATTERNS, the profile's ReceiverConfig.antenna), named in ANT # / TYPE."""
+    PATTERNS, the profile's ReceiverConfig.antenna), named in ANT # / TYPE unless ``rinex`` (the profile's
+    {receiver_type, antenna_type}) names it; REC # / TYPE: GNSS_SIM unless ``rinex`` names it."""
+    rinex = rinex or {}
     return RinexObsHeader(
         obs_types=obs_types, marker_name=marker_name, marker_type="NON_GEODETIC",
-        observer="gnss_sim", agency="gnss_sim", receiver_number="1", receiver_type="GNSS_SIM",
-        receiver_version="0.1", antenna_number="1", antenna_type=RINEX_ANTENNA_TYPE[antenna],
+        observer="gnss_sim", agency="gnss_sim", receiver_number="1",
+        receiver_type=rinex.get("receiver_type", "GNSS_SIM"), receiver_version="0.1", antenna_number="1",
+        antenna_type=rinex.get("antenna_type", RINEX_ANTENNA_TYPE[antenna]),
         approx_pos_ecef_m=tuple(float(v) for v in approx_pos_ecef_m), interval_s=interval_s,
         glonass_slots=glonass_slots, glonass_cod_phs_bis_m={"C1C": 0.0, "C1P": 0.0, "C2C": 0.0, "C2P": 0.0},
         comments=list(comments),
