@@ -1,0 +1,297 @@
+"""A receiver profile (the YAML schema of the receiver profiles, version 1) fitted from per-signal statistics.
+
+What is fitted and how:
+
+- ``signals``: the signals of the file with pseudoranges, per system (RINEX codes the signal table knows);
+- ``link_budget.cn0_table_dbhz``: per signal the mean C/N0 of each elevation bin with at least
+  ``MIN_BIN_SAMPLES`` samples, made non-decreasing with elevation (weighted pool-adjacent-violators: the
+  receiver's C/N0 rises with elevation; what breaks it is noise of few samples or one satellite), bins the signal
+  does not reach are filled with the shape of the best-covered signal of the same system, else of GPS on the
+  same code, else of the best-covered signal (offset matched at the nearest fitted bin), 0 deg extrapolated
+  from the two lowest bins (slope 0 to ``MAX_LOW_SLOPE_DB_PER_DEG``), 90 deg held from the highest;
+- ``code_multipath_m``: per signal and elevation bin the multipath-combination sigma minus the DLL thermal noise
+  in quadrature (receiver/noise.code_sigma_m at the bin's mean C/N0 with the profile's DLL bandwidth and
+  correlator spacing), floored at 0, made non-increasing with elevation (pool-adjacent-violators); bins beyond
+  the signal's range filled like the C/N0 (the reference's shape scaled);
+- ``tracking``: acquisition / tracking thresholds = median over signals of each signal's median C/N0 at the
+  first epoch of rising arcs / last epoch of setting arcs (so that the simulated arcs start and end where the
+  real ones do in the median; their spread comes from the satellites' power, not from the threshold);
+  ``start`` warm when under ``COLD_LLI_SHARE`` of the phases carry LLI bit 0 at the first epoch;
+  ``half_cycle_flags`` whether the file ever sets LLI bit 1;
+- ``cn0_noise_db``: median over signals of the epoch-to-epoch C/N0 scatter;
+- ``antenna``: choke_ring when the RINEX antenna type is a known choke-ring model, else patch;
+- the DLL bandwidth, correlator spacing and front-end bandwidth cannot be separated from multipath with a
+  recording: the DLL bandwidth is that of the built-in profile, lowered where its thermal noise would exceed
+  the measured code noise (fit_dll_bn_hz); spacing and front end are those of the built-in profile of the receiver
+  class (gnss_sim_ros2/profiles/: u-blox M8 / F9, else geodetic for several bands, single_frequency for one),
+  named in ``description``.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..receiver.noise import code_sigma_m
+from ..receiver.profiles import filled_in
+from ..signals import SIGNALS
+from .signal_stats import RecordingStats, SignalStats
+
+#: an elevation bin needs this many samples to enter a table
+MIN_BIN_SAMPLES = 30
+#: largest slope used to extrapolate C/N0 from the lowest bin down to 0 deg [dB/deg]
+MAX_LOW_SLOPE_DB_PER_DEG = 1.5
+#: the DLL thermal noise may exceed the measured code noise in this share of the elevation bins (fit_dll_bn_hz)
+DLL_EXCEED_SHARE = 0.05
+#: at or above this share of phases with LLI bit 0 at the first epoch the recording starts cold
+COLD_LLI_SHARE = 0.5
+#: RINEX antenna types (IGS antenna names, first characters) of choke-ring antennas
+CHOKE_RING_TYPES = ("ASH700936", "ASH701945", "ASH701946", "JAV_RINGANT", "JAVRINGANT", "LEIAR25", "LEIAT504",
+                    "TRM29659", "TRM59800", "TRM159800", "SEPCHOKE", "AOAD/M_T", "NOV750", "JPSREGANT_DD")
+
+
+def pava(y: np.ndarray, w: np.ndarray, increasing: bool = True) -> np.ndarray:
+    """Weighted least-squares monotone fit of ``y`` (pool adjacent violators; Barlow et al. 1972)."""
+    y = np.asarray(y, float) if increasing else -np.asarray(y, float)
+    vals, wts, cnt = [], [], []
+    for yi, wi in zip(y.tolist(), np.asarray(w, float).tolist()):
+        vals.append(yi)
+        wts.append(wi)
+        cnt.append(1)
+        while len(vals) > 1 and vals[-2] > vals[-1]:
+            wsum = wts[-2] + wts[-1]
+            v = (vals[-2] * wts[-2] + vals[-1] * wts[-1]) / wsum
+            n = cnt[-2] + cnt[-1]
+            del vals[-1], wts[-1], cnt[-1]
+            vals[-1], wts[-1], cnt[-1] = v, wsum, n
+    out = np.repeat(vals, cnt)
+    return out if increasing else -out
+
+
+def _antenna(antenna_type: str) -> str:
+    t = antenna_type.strip().upper()
+    return "choke_ring" if any(t.startswith(c) for c in CHOKE_RING_TYPES) else "patch"
+
+
+def _traits_name(receiver_type: str, n_bands: int) -> str:
+    r = receiver_type.upper().replace("-", "")
+    if "M8" in r:
+        return "ublox_m8t"
+    if "F9" in r:
+        return "ublox_f9p"
+    return "geodetic" if n_bands > 1 else "single_frequency"
+
+
+def _round(a, digits):
+    return [round(float(v), digits) for v in a]
+
+
+def _cn0_bins(st: SignalStats) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    ok = (st.cn0_n >= MIN_BIN_SAMPLES) & np.isfinite(st.cn0_mean_dbhz)
+    return st.el_centres_deg[ok], st.cn0_mean_dbhz[ok], st.cn0_n[ok]
+
+
+def _fill(own: dict, refs: list[dict], centres, ratio: bool) -> dict:
+    """``own`` (elevation -> value) completed beyond its covered range from the first of ``refs`` that has the bin:
+    the reference's value shifted (``ratio`` False) or scaled (True) to agree at ``own``'s nearest end bin."""
+    out = dict(own)
+    lo, hi = min(own), max(own)
+    for c in centres:
+        if c in out or lo <= c <= hi:
+            continue                    # a hole inside the covered range: the consumer interpolates across it
+        anchor = hi if c > hi else lo
+        for ref in refs:
+            if c in ref and anchor in ref:
+                if ratio:
+                    out[c] = ref[c] * (own[anchor] / ref[anchor]) if ref[anchor] > 0 else own[anchor]
+                else:
+                    out[c] = ref[c] + (own[anchor] - ref[anchor])
+                break
+    return out
+
+
+def cn0_bins_monotone(st: SignalStats) -> dict:
+    """elevation -> C/N0 of the usable bins, non-decreasing (weighted PAVA)."""
+    el, y, n = _cn0_bins(st)
+    return dict(zip(el.tolist(), pava(y, n, increasing=True).tolist())) if len(el) >= 2 else {}
+
+
+def fit_cn0_table(st: SignalStats, references: list[SignalStats] = ()) -> dict | None:
+    """{"el_deg": [...], "cn0_dbhz": [...]} of one signal (None: fewer than two usable bins); bins beyond its
+    range from the first of ``references`` covering them (their shape, offset to agree at the end bin)."""
+    table = cn0_bins_monotone(st)
+    if len(table) < 2:
+        return None
+    table = _fill(table, [cn0_bins_monotone(r) for r in references if r is not st], st.el_centres_deg.tolist(),
+                  ratio=False)
+    els = np.array(sorted(table))
+    vals = pava(np.array([table[e] for e in els]), np.ones(len(els)), increasing=True)
+    slope = (vals[1] - vals[0]) / (els[1] - els[0])
+    slope = min(max(slope, 0.0), MAX_LOW_SLOPE_DB_PER_DEG)
+    if els[0] > 0:
+        els, vals = np.r_[0.0, els], np.r_[vals[0] - slope * els[0], vals]
+    if els[-1] < 90:
+        els, vals = np.r_[els, 90.0], np.r_[vals, vals[-1]]
+    return {"el_deg": _round(els, 1), "cn0_dbhz": _round(vals, 2)}
+
+
+def _mp_bins(st: SignalStats) -> np.ndarray:
+    if st.mp_sigma_m is None:
+        return np.zeros(len(st.el_centres_deg), dtype=bool)
+    return (st.mp_n >= MIN_BIN_SAMPLES) & np.isfinite(st.mp_sigma_m) & np.isfinite(st.mp_cn0_dbhz)
+
+
+def fit_dll_bn_hz(stats: list[SignalStats], bn_hz: float, spacing_chips: float) -> float:
+    """The DLL bandwidth: ``bn_hz`` or less, so that the DLL thermal noise (receiver/noise.code_sigma_m, which
+    grows as sqrt(B_n)) stays within the measured code noise in all but DLL_EXCEED_SHARE of the usable bins."""
+    r2 = []
+    for st in stats:
+        ok = _mp_bins(st)
+        if ok.any():
+            dll = code_sigma_m(st.system, st.code, st.mp_cn0_dbhz[ok], bn_hz, spacing_chips)
+            r2.append((st.mp_sigma_m[ok] / dll) ** 2)
+    if not r2:
+        return bn_hz
+    q = float(np.quantile(np.concatenate(r2), DLL_EXCEED_SHARE))
+    return bn_hz if q >= 1.0 else float(f"{bn_hz * q:.2g}")
+
+
+def fit_code_multipath(st: SignalStats, bn_hz: float, spacing_chips: float,
+                       references: list[SignalStats] = ()) -> dict | None:
+    """{"el_deg": [...], "sigma_m": [...]}: multipath-combination sigma minus DLL thermal noise in quadrature,
+    non-increasing with elevation (None: no bins); bins beyond its range from the first of ``references``
+    covering them (their shape, scaled to agree at the end bin)."""
+    def bins(s: SignalStats) -> dict:
+        ok = _mp_bins(s)
+        if not ok.any():
+            return {}
+        el, sig, cn0, n = s.el_centres_deg[ok], s.mp_sigma_m[ok], s.mp_cn0_dbhz[ok], s.mp_n[ok]
+        dll = code_sigma_m(s.system, s.code, cn0, bn_hz, spacing_chips)
+        mp = np.maximum(pava(np.sqrt(np.maximum(sig**2 - dll**2, 0.0)), n, increasing=False), 0.0)
+        return dict(zip(el.tolist(), mp.tolist()))
+
+    own = bins(st)
+    if not own:
+        return None
+    table = _fill(own, [bins(r) for r in references if r is not st], st.el_centres_deg.tolist(), ratio=True)
+    el = np.array(sorted(table))
+    mp = np.maximum(pava(np.array([table[e] for e in el]), np.ones(len(el)), increasing=False), 0.0)
+    if el[0] > 0:
+        el, mp = np.r_[0.0, el], np.r_[mp[0], mp]
+    if el[-1] < 90:
+        el, mp = np.r_[el, 90.0], np.r_[mp, mp[-1]]
+    return {"el_deg": _round(el, 1), "sigma_m": _round(mp, 3)}
+
+
+def _references(stats: RecordingStats, key: str, score) -> list[SignalStats]:
+    """Signals whose shape fills the bins ``key`` does not reach: the best-covered of its system, GPS on the same
+    code, the best-covered of all (``score(st)`` orders them)."""
+    sigs = stats.signals
+    same_sys = [s for k_, s in sigs.items() if k_[0] == key[0]]
+    out = [max(same_sys, key=score)] if same_sys else []
+    if "G" + key[1:] in sigs:
+        out.append(sigs["G" + key[1:]])
+    if sigs:
+        out.append(max(sigs.values(), key=score))
+    return out
+
+
+def _median(values) -> float:
+    v = np.array([x for x in values if x is not None and np.isfinite(x)], dtype=float)
+    return float(np.median(v)) if v.size else math.nan
+
+
+def fit_profile(stats: RecordingStats, header: dict, source_file: str, name: str | None = None) -> tuple[dict, list]:
+    """(profile dict in the YAML schema, notes): what could not be fitted and why, for the report."""
+    notes: list[str] = []
+    signals: dict[str, list[str]] = {}
+    for key, st in stats.signals.items():
+        if st.tracked is not None and st.tracked.any() and (key[0], key[1:]) in SIGNALS:
+            signals.setdefault(key[0], []).append(key[1:])
+    if not signals:
+        raise ValueError(f"{source_file}: no signal with pseudoranges above {stats.mask_deg:g} deg: nothing to fit")
+    n_bands = len({c[0] for codes in signals.values() for c in codes})
+    traits_name = _traits_name(header.get("receiver_type", ""), n_bands)
+    base = filled_in(traits_name)
+    bn_hz, spacing = float(base["dll_bn_hz"]), float(base["dll_spacing_chips"])
+    has_cn0 = any((st.cn0_n > 0).any() for st in stats.signals.values())
+
+    cn0_table = {}
+    if has_cn0:
+        for key, st in stats.signals.items():
+            if key[1:] not in signals.get(key[0], []):
+                continue
+            t = fit_cn0_table(st, _references(stats, key, lambda s: (len(cn0_bins_monotone(s)), int(s.cn0_n.sum()))))
+            if t is None:
+                notes.append(f"{key}: fewer than two elevation bins with {MIN_BIN_SAMPLES} C/N0 samples: no C/N0 table")
+            else:
+                cn0_table[key] = t
+    else:
+        notes.append("the file has no C/N0 (S) observations: C/N0 cannot be fitted (no link_budget.cn0_table_dbhz, "
+                     "no tracking thresholds, no cn0_noise_db); still fitted: signals, code multipath (with the DLL "
+                     "noise at 45 dB-Hz), LLI behaviour, rinex, antenna")
+    for st in stats.signals.values():
+        if not has_cn0 and st.mp_sigma_m is not None:
+            st.mp_cn0_dbhz = np.where(np.isfinite(st.mp_sigma_m), 45.0, np.nan)
+    fitted = [st for k_, st in stats.signals.items() if k_[1:] in signals.get(k_[0], [])]
+    bn_fit = fit_dll_bn_hz(fitted, bn_hz, spacing)
+    if bn_fit < bn_hz:
+        notes.append(f"dll_bn_hz {bn_fit:g} Hz instead of the {traits_name} profile's {bn_hz:g} Hz: with it the DLL "
+                     f"thermal noise would exceed the measured code noise in more than {100 * DLL_EXCEED_SHARE:g} % "
+                     "of the elevation bins")
+        bn_hz = bn_fit
+    code_mp = {}
+    for st in fitted:
+        key = st.key
+        t = fit_code_multipath(st, bn_hz, spacing, _references(stats, key, lambda s: int(_mp_bins(s).sum())))
+        if t is None:
+            why = "no second carrier phase for the multipath combination" if not st.mp_partner else \
+                f"fewer than {MIN_BIN_SAMPLES} multipath-combination samples in every bin"
+            notes.append(f"{key}: {why}: no code_multipath_m")
+        else:
+            code_mp[key] = t
+
+    rise = [np.median(st.rise_cn0_dbhz[np.isfinite(st.rise_cn0_dbhz)])
+            for st in stats.signals.values() if np.isfinite(st.rise_cn0_dbhz).sum() >= 3]
+    sets = [np.median(st.set_cn0_dbhz[np.isfinite(st.set_cn0_dbhz)])
+            for st in stats.signals.values() if np.isfinite(st.set_cn0_dbhz).sum() >= 3]
+    tracking: dict = {}
+    acq, trk = _median(rise), _median(sets)
+    if np.isfinite(acq) and np.isfinite(trk):
+        tracking["acquisition_cn0_dbhz"] = round(acq, 1)
+        tracking["tracking_cn0_dbhz"] = round(min(trk, acq - 1.0), 1)
+    elif has_cn0:
+        notes.append("fewer than 3 rising / setting arcs per signal in the span: no tracking thresholds")
+    first = stats.lli_share("lli_first")
+    if first["n"]:
+        tracking["start"] = "cold" if first["bit0"] / first["n"] >= COLD_LLI_SHARE else "warm"
+    else:
+        notes.append("no LLI flags in the file (RINEX 2 or no carrier phase): tracking.start not fitted")
+    if stats.lli_all.get("n"):
+        tracking["half_cycle_flags"] = bool(stats.lli_all["bit1"] > 0)
+
+    t0, t1 = str(stats.time[0])[:19], str(stats.time[-1])[:19]
+    prof: dict = {
+        "gnss_sim_profile": 1,
+        "name": name or "calibrated",
+        "description": (f"{header.get('receiver_type') or 'receiver'} with "
+                        f"{header.get('antenna_type', '').strip() or 'antenna'}, fitted from a recording; correlator "
+                        f"spacing and front end of the built-in profile {traits_name}, DLL bandwidth at most its"),
+        "source": f"fitted by gnss-sim calibrate on {source_file}, span {t0} .. {t1} GPS",
+        "signals": signals,
+        "antenna": _antenna(header.get("antenna_type", "")),
+        "rinex": {"receiver_type": header.get("receiver_type", ""), "antenna_type": header.get("antenna_type", "")},
+        "frontend_bandwidth_hz": float(base["frontend_bandwidth_hz"]),
+        "dll_bn_hz": bn_hz,
+        "dll_spacing_chips": spacing,
+    }
+    scatter = _median(st.cn0_scatter_db for st in stats.signals.values())
+    if np.isfinite(scatter):
+        prof["cn0_noise_db"] = round(scatter, 2)
+    if code_mp:
+        prof["code_multipath_m"] = code_mp
+    if tracking:
+        prof["tracking"] = tracking
+    if cn0_table:
+        prof["link_budget"] = {"cn0_table_dbhz": cn0_table}
+    return prof, notes
