@@ -47,5 +47,8 @@ def test_colcon_builds_both_packages(tmp_path):
     inst = tmp_path / "install"
     assert (inst / "gnss_sim" / "lib" / "gnss_sim" / "gnss-sim").exists()
     assert (inst / "gnss_sim" / "share" / "ament_index" / "resource_index" / "packages" / "gnss_sim").exists()
+    # the receiver profiles ship as package data beside the code that loads them (core/receiver/profile_file.py)
+    profiles = {p.name for p in (inst / "gnss_sim").rglob("gnss_sim_ros2/profiles/*.yaml")}
+    assert {"geodetic.yaml", "single_frequency.yaml", "ublox_m8t.yaml", "ublox_f9p.yaml"} <= profiles, profiles
     msgs = list((inst / "gnss_sim_msgs").rglob("gnss_sim_msgs/msg/_satellite_states.py"))
     assert msgs, "generated Python messages are missing"
