@@ -33,6 +33,7 @@ from gnss_sim_ros2.core.vocabulary import (
     MULTIPATH_MODES,
     PRESET_NAMES,
     SYSTEMS,
+    TRACKING_STARTS,
     TROPOSPHERE_MODELS,
     check_systems,
 )
@@ -271,6 +272,10 @@ NODE_PARAMS: dict[str, list[Param]] = {
               "(geodetic 33, ublox 22)", min=-1.0, max=70.0),
         Param("cn0_lose_dbhz", -1.0, "C/N0 below which a signal is lost [dB-Hz]; -1: the profile's "
               "(geodetic 28, ublox 16)", min=-1.0, max=70.0),
+        Param("tracking_start", "", "how the recording starts: warm (the receiver has long been running: tracks "
+              "above the loss threshold at the first epoch are locked, no loss-of-lock or half-cycle flag) or cold "
+              "(switched on at the first epoch: every track acquired then, flagged); empty: the profile's "
+              "(tracking.start, default warm)", choices=("", *TRACKING_STARTS)),
     ],
     "trajectory": [
         Param("trajectory_file", "", "CSV t_s,e_m,n_m,u_m[,yaw_deg] in the world frame; empty: waypoints"),

@@ -187,7 +187,8 @@ def test_clock_continuous_steering_and_validation():
 
 # ---------------------------------------------------------------------------- tracking
 def test_track_appears_blocked_returns():
-    tr = Tracker(TrackingConfig(random_slips=False, half_cycle_time_s=6.0), rng=3)
+    # a receiver switched on at the first epoch (start cold): its tracks are acquired then, flagged
+    tr = Tracker(TrackingConfig(random_slips=False, half_cycle_time_s=6.0, start="cold"), rng=3)
     t0 = GnssTime.from_iso("2022-01-01T00:00:00")
     outs = []
     for i in range(30):
@@ -209,7 +210,7 @@ def test_track_appears_blocked_returns():
 
 
 def test_hysteresis_absence_and_forced_slip():
-    tr = Tracker(TrackingConfig(random_slips=False), rng=4)
+    tr = Tracker(TrackingConfig(random_slips=False, start="cold"), rng=4)   # acquired, not found locked
     seq = [30.0, 34.0, 30.0, 29.0, 27.0, 30.0, 32.9, 33.0]
     tracked = [bool(tr.update(float(i), ["C20"], ["2I"], [c]).tracked[0]) for i, c in enumerate(seq)]
     #          below acq, acquire, hold (>=28), hold, lost (<28), not re-acquired (<33), no, re-acquired
@@ -234,7 +235,7 @@ def test_hysteresis_absence_and_forced_slip():
 
 
 def test_acquisition_time_and_random_slips_rare_at_strong_signal():
-    tr = Tracker(TrackingConfig(acquisition_time_s=2.0), rng=5)
+    tr = Tracker(TrackingConfig(acquisition_time_s=2.0, start="cold"), rng=5)
     tracked = [bool(tr.update(float(i), ["G07"], ["1C"], [45.0]).tracked[0]) for i in range(5)]
     assert tracked == [False, False, True, True, True]
     # at 45 dB-Hz the mean time to slip is astronomically long: no slip in an hour of 1 s epochs
@@ -250,7 +251,7 @@ def test_half_cycle_flag_lasts_until_the_frame_sync_word():
 
     assert half_cycle_sync("G05", "1C") == (6.0, 0.6) and half_cycle_sync("R07", "1C") == (2.0, 0.3)
     assert half_cycle_sync("C03", "2I") == (0.6, 0.06) and half_cycle_sync("C23", "2I") == (6.0, 0.6)
-    tr = Tracker(TrackingConfig(random_slips=False), rng=11)
+    tr = Tracker(TrackingConfig(random_slips=False, start="cold"), rng=11)   # every track acquired
     svs, codes = ["G05", "R07", "C03", "E11"], ["1C", "1C", "2I", "1C"]
     ends = {sv: [] for sv in svs}
     dt = 0.1

@@ -48,6 +48,10 @@ def add_arguments(p):
                    help=f"receiver profile (signals, antenna, front end, loops, thresholds, noise): a built-in name "
                         f"({', '.join(builtin_names())}) or a profile YAML file, relative to the working directory "
                         f"(docs/PROFILES.md; `gnss-sim profile show NAME` prints one to start from)")
+    p.add_argument("--tracking-start", choices=("warm", "cold"), default=None,
+                   help="warm: the recording starts with the receiver long running (tracks locked, no flags at the "
+                        "first epoch); cold: the receiver is switched on at the first epoch (parameter tracking_start; "
+                        "default: the profile's)")
     p.add_argument("--marker", default=None, help="RINEX marker name")
     p.add_argument("--rtcm", nargs="?", const="", default=None, metavar="FILE",
                    help="also write the observations as RTCM3 (1006, 1033, MSM, broadcast ephemerides); "
@@ -66,7 +70,7 @@ OPTION_PARAMS = {
     "--nav": ("ephemeris", "nav_files"), "--sp3": ("ephemeris", "sp3_files"), "--clk": ("ephemeris", "clk_files"),
     "--world": ("visibility", "world_file"), "--mesh": ("visibility", "mesh_file"),
     "--profile": ("receiver", "profile"), "--noise-free": ("receiver", "noise"),
-    "--allow-partial": ("visibility", "strict_world"),
+    "--allow-partial": ("visibility", "strict_world"), "--tracking-start": ("receiver", "tracking_start"),
 }
 
 
@@ -79,6 +83,7 @@ def parameter_overrides(args) -> tuple[dict, dict]:
              "--marker": args.marker, "--duration": args.duration, "--nav": args.nav, "--sp3": args.sp3,
              "--clk": args.clk, "--world": args.world, "--mesh": args.mesh, "--profile": args.profile,
              "--noise-free": False if args.noise_free else None,
+             "--tracking-start": getattr(args, "tracking_start", None),
              "--allow-partial": False if getattr(args, "allow_partial", False) else None}
     ov: dict = {}
     names: dict = {}

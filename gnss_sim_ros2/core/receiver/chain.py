@@ -81,9 +81,12 @@ class ChainSettings:
         if "profile" in p:
             kw["profile"] = p["profile"]
         acq, lose = p.get("cn0_acquire_dbhz", -1.0), p.get("cn0_lose_dbhz", -1.0)
-        if acq >= 0 or lose >= 0:        # negative: the profile's thresholds (its other tracking fields kept)
+        start = p.get("tracking_start", "")
+        if acq >= 0 or lose >= 0 or start:   # negative / empty: the profile's (its other tracking fields kept)
             tracking = load_profile(p.get("profile", "geodetic")).value("tracking", {})
             tracking.update({k: v for k, v in (("acquisition_cn0_dbhz", acq), ("tracking_cn0_dbhz", lose)) if v >= 0})
+            if start:
+                tracking["start"] = start
             kw["tracking"] = TrackingConfig(**tracking)
         kw.update({k: v for k, v in (receiver_overrides or {}).items() if v is not None and v != ""})
         out_dir = p.get("output_dir", "")

@@ -33,6 +33,20 @@ Rules (per key ``(sv, code)``, e.g. ``("G05", "1C")``):
   ``half_cycle_time_s`` when one is set.  Signals tracked on a dataless
   pilot (L1C-P, L2C-L, L5-Q, E1-C, E5a/b-Q, B1C/B2a-P, ...) never get bit 1.
 - ``lock_time_s``: time since acquisition or the last slip (0 when not tracked).
+
+Start of a run (``start``): "warm" (default) -- a recording that starts while the receiver has long been
+running, as a station's daily file or a logger switched on mid-pass: at the first epoch every key that is
+visible and at or above the tracking threshold is tracked as locked long ago (no LLI bit, lock time
+:data:`WARM_LOCK_TIME_S`, half-cycle resolved); "cold" -- a receiver switched on at the first epoch:
+every track is acquired then (thresholds and ``acquisition_time_s`` above) with the flags of a new track.
+Measured on the real files: ESBC 2020-177 (Septentrio PolaRx5, a daily file) has no LLI on any track at
+its first epoch, OPEC 2022-001 (Trimble NetR9) bit 0 on every track at its first epoch (its logging
+session starts there) and bit 0 on 1 of 16 arcs of rising satellites later.
+
+``half_cycle_flags`` (default True): whether this receiver class reports LLI bit 1 at all.  Geodetic
+receivers resolve the half cycle before they output a phase: no bit 1 in 24 h of ESBC (PolaRx5, every
+signal) nor in 3.7 h of OPEC (NetR9); a u-blox M8T (Hong Kong drive 2019-118, RINEX by RTKLIB convbin)
+sets it at the start of every arc, for 6 epochs (GPS L1, 1 Hz) to 10 (BeiDou B1I) on average.
 """
 from __future__ import annotations
 
@@ -45,9 +59,14 @@ from gnss_sim_ros2.core.memo import BoundedCache
 from gnss_sim_ros2.core.receiver.noise import slip_probability
 from gnss_sim_ros2.core.signals import BEIDOU_GEO_PATTERN
 from gnss_sim_ros2.core.time import GnssTime
+from gnss_sim_ros2.core.vocabulary import TRACKING_STARTS
 
 LLI_LOSS_OF_LOCK = 1
 LLI_HALF_CYCLE = 2
+#: lock time [s] of a track a warm start finds locked: beyond the largest lock time RTCM MSM4 distinguishes
+#: (DF402 indicator 15: >= 524.288 s, RTCM 10403.3 table 3.5-74, rtcm/msm.py), so a consumer takes the track
+#: as long established; the true time since the satellite rose is not known
+WARM_LOCK_TIME_S = 1000.0
 
 #: (system, code) tracked on a dataless pilot component: no half-cycle ambiguity
 PILOT_CODES = frozenset(
@@ -105,8 +124,16 @@ class TrackingConfig:
     random_slips: bool = True
     pll_bn_hz: float = 15.0
     pll_t_int_s: float = 0.001
+    #: "warm": tracks above the tracking threshold at the first epoch locked long ago; "cold": acquired then
+    start: str = "warm"
+    #: whether the receiver reports LLI bit 1 (half-cycle ambiguity); geodetic receivers do not (module doc)
+    half_cycle_flags: bool = True
 
     def __post_init__(self):
+        if self.start not in TRACKING_STARTS:
+            raise ValueError(f"TrackingConfig: 'start' = {self.start!r} (one of {TRACKING_STARTS})")
+        if not isinstance(self.half_cycle_flags, (bool, np.bool_)):
+            raise ValueError(f"TrackingConfig: 'half_cycle_flags' = {self.half_cycle_flags!r} must be true or false")
         if self.tracking_cn0_dbhz > self.acquisition_cn0_dbhz:
             raise ValueError(
                 f"TrackingConfig: 'tracking_cn0_dbhz' = {self.tracking_cn0_dbhz} exceeds "
@@ -210,6 +237,7 @@ class Tracker:
             raise ValueError("Tracker.update: 'cn0_dbhz' has non-finite values for visible rows")
         if not isinstance(t, GnssTime):
             t = float(t)
+        first = self._t_prev is None
         ts = self._seconds(t)
         if self._t_prev is not None and ts <= self._t_prev:
             raise ValueError(f"Tracker.update: epoch {t!r} is not after the previous one")
@@ -235,6 +263,9 @@ class Tracker:
         cand = self._cand_since[idx]
         cand = np.where(~was & ok_acq, np.where(np.isnan(cand), ts, cand), np.nan)
         new = ~was & ok_acq & (ts - cand >= c.acquisition_time_s - 1e-9)
+        # a warm start: at the run's first epoch every key above the tracking threshold was locked long ago
+        warm = ~was & ok_track if (first and c.start == "warm") else np.zeros(n, bool)
+        new |= warm
         self._cand_since[idx] = np.where(new, np.nan, cand)
 
         amb = self._amb[idx]
@@ -256,22 +287,26 @@ class Tracker:
             amb[slipped] += self.rng.choice(np.array([-1, 1]), size=n_slip)
         self._amb[idx] = amb
 
-        track_start = np.where(new, ts, self._track_start[idx])
-        lock_start = np.where(new | slipped, ts, self._lock_start[idx])
+        t_new = np.where(warm, ts - WARM_LOCK_TIME_S, ts)
+        track_start = np.where(new, t_new, self._track_start[idx])
+        lock_start = np.where(new | slipped, np.where(slipped, ts, t_new), self._lock_start[idx])
         self._track_start[idx] = track_start
         self._lock_start[idx] = lock_start
         tracked = keep | new
         self._tracked[idx] = tracked
 
         lli = np.zeros(n, np.int8)
-        lli[tracked & (new | slipped)] |= LLI_LOSS_OF_LOCK
+        lli[tracked & ((new & ~warm) | slipped)] |= LLI_LOSS_OF_LOCK
         lli[self._half_cycle_open(idx, tracked, ts, track_start)] |= LLI_HALF_CYCLE
         lock_time = np.where(tracked, ts - lock_start, 0.0)
         return TrackingOutput(tracked.copy(), lli, lock_time, amb.copy(), new.copy(), slipped.copy())
 
     def _half_cycle_open(self, idx, tracked, t_s, track_start):
         """Rows (keys ``idx``) whose half-cycle ambiguity is not resolved yet at ``t_s``: tracked data signals
-        within their half-cycle time of the start of their track (module doc)."""
+        within their half-cycle time of the start of their track (module doc); none when the receiver does not
+        report half cycles (``half_cycle_flags``)."""
+        if not self.config.half_cycle_flags:
+            return np.zeros(np.shape(tracked), bool)
         return tracked & ~self._pilot[idx] & (t_s - track_start < self._half_end[idx] - 1e-9)
 
     def update_many(self, ts, sv, code, cn0_dbhz, visible, seg):
