@@ -292,3 +292,22 @@ def test_threshold_parameters_keep_the_profiles_other_tracking_fields(tmp_path):
     assert (tr.acquisition_cn0_dbhz, tr.tracking_cn0_dbhz, tr.acquisition_time_s) == (35.0, 24.0, 4.0)
     with pytest.raises(ValueError, match="cn0_lose_dbhz.*exceeds"):      # 31 > the file's acquisition 30
         load_config(None, {"receiver": {"profile": str(f), "cn0_lose_dbhz": 31.0}})
+
+
+def test_run_takes_the_profile_option_as_simulate_does(tmp_path, monkeypatch):
+    """`gnss-sim run --profile NAME|FILE` sets the receiver node's parameter through the same table check; an error
+    names the option (the ROS graph itself is not started here)."""
+    import argparse
+
+    from gnss_sim_ros2.commands.run.command import PARAM_OPTIONS, _overrides, add_arguments
+    from gnss_sim_ros2.config_file import load_config
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "my.yaml").write_text(MY)
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    args = parser.parse_args(["--profile", "my.yaml", "--rtk"])
+    cfg = load_config(None, _overrides(args), PARAM_OPTIONS)
+    assert cfg.node("receiver")["profile"] == str(tmp_path / "my.yaml") and cfg.node("receiver")["rtcm"] is True
+    with pytest.raises(ValueError, match="option --profile: parameter 'profile': receiver profile 'f9p'"):
+        load_config(None, _overrides(parser.parse_args(["--profile", "f9p"])), PARAM_OPTIONS)

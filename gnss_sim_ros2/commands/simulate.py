@@ -43,11 +43,8 @@ def add_arguments(p):
     p.add_argument("--preset", choices=param("/**", "preset").choices, default=None)
     p.add_argument("--noise-free", action="store_true",
                    help="an ideal receiver: no random errors and no hardware code biases (deterministic models kept)")
-    from gnss_sim_ros2.core.receiver.profile_file import builtin_names
-    p.add_argument("--profile", metavar="NAME|FILE", default=None,
-                   help=f"receiver profile (signals, antenna, front end, loops, thresholds, noise): a built-in name "
-                        f"({', '.join(builtin_names())}) or a profile YAML file, relative to the working directory "
-                        f"(docs/PROFILES.md; `gnss-sim profile show NAME` prints one to start from)")
+    from gnss_sim_ros2.core.receiver.profile_file import option_help
+    p.add_argument("--profile", metavar="NAME|FILE", default=None, help=option_help())
     p.add_argument("--tracking-start", choices=("warm", "cold"), default=None,
                    help="warm: the recording starts with the receiver long running (tracks locked, no flags at the "
                         "first epoch); cold: the receiver is switched on at the first epoch (parameter tracking_start; "

@@ -38,6 +38,8 @@ def add_arguments(p):
     p.add_argument("--duration", type=float, default=None, metavar="S", help="simulated seconds [from config]")
     p.add_argument("--rate", type=float, default=None, metavar="HZ", help="epoch rate [from config]")
     p.add_argument("--systems", default=None, help="GNSS systems, letters of GRECJI")
+    from gnss_sim_ros2.core.receiver.profile_file import option_help
+    p.add_argument("--profile", metavar="NAME|FILE", default=None, help=option_help())
     p.add_argument("--layout", choices=LAYOUTS, default=None,
                    help="processes: composed (every node in this one), robot (one process per robot: its player, "
                         "visibility and receiver; the ephemeris node and the recorder in this one), node (one "
@@ -66,7 +68,7 @@ def add_arguments(p):
 #: parameter -> command-line option (load_config's ``options``: errors name the option the user typed)
 PARAM_OPTIONS = {"systems": "--systems", "rate_hz": "--rate", "antenna_frame": "--antenna-frame",
                  "duration_s": "--duration", "world_file": "--world", "mesh_file": "--mesh",
-                 "strict_world": "--allow-partial"}
+                 "strict_world": "--allow-partial", "profile": "--profile"}
 
 
 def _overrides(args) -> dict:
@@ -86,8 +88,10 @@ def _overrides(args) -> dict:
         out.setdefault("visibility", {})["strict_world"] = False
     if args.duration is not None:
         out["ephemeris"] = {"duration_s": args.duration}
+    if getattr(args, "profile", None) is not None:    # checked (and a file made absolute) by the table
+        out.setdefault("receiver", {})["profile"] = args.profile
     if getattr(args, "rtk", False):
-        out["receiver"] = {"rtcm": True}      # the rover's RTCM3 for the rtk node
+        out.setdefault("receiver", {})["rtcm"] = True      # the rover's RTCM3 for the rtk node
     return out
 
 

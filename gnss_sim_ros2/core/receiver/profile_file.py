@@ -71,6 +71,13 @@ def builtin_names() -> tuple[str, ...]:
     return tuple(sorted(p.stem for p in BUILTIN_DIR.glob("*.yaml")))
 
 
+def option_help() -> str:
+    """The help of a command's --profile option (simulate, run)."""
+    return (f"receiver profile (signals, antenna, front end, loops, thresholds, noise): a built-in name "
+            f"({', '.join(builtin_names())}) or a profile YAML file, relative to the working directory "
+            f"(docs/PROFILES.md; `gnss-sim profile show NAME` prints one to start from) [from config]")
+
+
 def is_path(value: str) -> bool:
     """A profile given as a file (a .yaml/.yml name or a path with a folder) rather than a built-in name."""
     return str(value).lower().endswith(PROFILE_SUFFIXES) or "/" in str(value) or "\\" in str(value)
