@@ -57,6 +57,22 @@ class Signal:
         """Carrier wavelength at channel 0 [m]."""
         return k.C_MPS / self.f0_hz
 
+    @property
+    def power_margin_db(self) -> float:
+        """Published exceedance of ``min_power_dbw`` by the satellites [dB] (POWER_MARGIN_DB)."""
+        return POWER_MARGIN_DB.get((self.system, self.band), 0.0)
+
+    @property
+    def component_db(self) -> float:
+        """Share of the signal's power [dB] in the component this RINEX code tracks (COMPONENT_DB): data or
+        pilot alone of a data + pilot signal; 0 for the whole signal."""
+        return COMPONENT_DB.get((self.system, self.code), 0.0)
+
+    @property
+    def dll_noise_factor(self) -> float:
+        """Code-noise factor of the modulation against a BPSK code of the same chip rate (DLL_NOISE_FACTOR)."""
+        return DLL_NOISE_FACTOR.get((self.system, self.name), 1.0)
+
 
 # (system, codes, band, name, f0, df, chip rate, min power dBW, elevation deg, source)
 _ROWS = (
@@ -127,6 +143,51 @@ _ROWS = (
     ("I", ("9A",), "S", "S SPS", k.F_S_HZ, 0.0, 1.023e6, -162.3, 5.0,
      "IRNSS SIS ICD for SPS 1.1 2.4 (S SPS >= -162.3 dBW)"),
 )
+
+# ---- power and modulation beyond the ICD minimum (receiver/cn0.py, receiver/noise.py) --------------------------
+#: Received power above the ICD minimum [dB] at the edge of coverage, per (system, band): satellites deliver
+#: more than the specification.  Steigenberger, Thoelert, Montenbruck, "GNSS satellite transmit power and its
+#: impact on orbit determination", J Geod 92:609 (2018) (transmit power per block from high-gain antenna
+#: measurements) and Thoelert et al.'s DLR signal-quality measurements put GPS and Galileo 1-4 dB above the
+#: ICD minimum and BeiDou's B1I/B2I/B3I well above their conservative -163 dBW; GLONASS-M transmits L2 as
+#: strongly as L1 (GLONASS ICD 5.1 raises the GLONASS-M L2 minimum to -161 dBW, the row holds the older
+#: -167 dBW).  The figures below are per system and band, written from memory of those papers (check against
+#: the documents); per satellite generation: TODO once signal_plans gives the block of each satellite.
+POWER_MARGIN_DB: dict[tuple[str, str], float] = {
+    ("G", "L1"): 3.0, ("G", "L2"): 2.5, ("G", "L5"): 2.0,
+    ("R", "G1"): 3.0, ("R", "G2"): 9.0, ("R", "G3"): 2.0,        # G2: 6 dB GLONASS-M raise + 3 dB as G1
+    ("E", "E1"): 2.0, ("E", "E5a"): 2.0, ("E", "E5b"): 2.0, ("E", "E5"): 2.0, ("E", "E6"): 2.0,
+    ("C", "B1I"): 6.0, ("C", "B2I"): 6.0, ("C", "B3I"): 6.0, ("C", "B1C"): 2.0, ("C", "B2a"): 2.0, ("C", "B2b"): 2.0,
+    ("J", "L1"): 3.0, ("J", "L2"): 2.0, ("J", "L5"): 2.0, ("J", "L6"): 2.0,
+    ("I", "L5"): 2.0, ("I", "S"): 2.0,
+}
+_HALF_DB = -3.01   # 10 log10(1/2): data and pilot share the power equally
+#: Power of the tracked component against the row's total [dB], per RINEX code (RINEX 3.05 tables 4-10:
+#: attribute I/D/S/B = data, Q/P/L/C = pilot, X = both).  Splits: GPS/QZSS L1C 25 % data / 75 % pilot
+#: (IS-GPS-800J 3.2.1.6); L2C CM and CL chip by chip (IS-GPS-200N 3.3.2.3, half each); L5 I5/Q5 equal
+#: (IS-GPS-705J); Galileo E1-B/C, E5a-I/Q, E5b-I/Q, E5 pilot, E6-B/C equal (OS SIS ICD 2.1 2.3.2); BeiDou B1C
+#: 25/75 and B2a 50/50 (BDS-SIS-ICD-B1C/B2a 1.0); GLONASS L3OC I/Q equal.  B1I/B2I/B3I rows hold the
+#: I component already (0).
+COMPONENT_DB: dict[tuple[str, str], float] = {
+    ("G", "1S"): -6.02, ("G", "1L"): -1.25, ("G", "2S"): _HALF_DB, ("G", "2L"): _HALF_DB,
+    ("G", "5I"): _HALF_DB, ("G", "5Q"): _HALF_DB,
+    ("J", "1S"): -6.02, ("J", "1L"): -1.25, ("J", "2S"): _HALF_DB, ("J", "2L"): _HALF_DB,
+    ("J", "5I"): _HALF_DB, ("J", "5Q"): _HALF_DB,
+    ("R", "3I"): _HALF_DB, ("R", "3Q"): _HALF_DB,
+    ("E", "1B"): _HALF_DB, ("E", "1C"): _HALF_DB, ("E", "5I"): _HALF_DB, ("E", "5Q"): _HALF_DB,
+    ("E", "7I"): _HALF_DB, ("E", "7Q"): _HALF_DB, ("E", "8I"): _HALF_DB, ("E", "8Q"): _HALF_DB,
+    ("E", "6B"): _HALF_DB, ("E", "6C"): _HALF_DB,
+    ("C", "1D"): -6.02, ("C", "1P"): -1.25, ("C", "5D"): _HALF_DB, ("C", "5P"): _HALF_DB,
+}
+#: DLL thermal-noise factor of BOC-family codes against BPSK of the same chip rate, for a narrow early-late
+#: spacing: the correlation peak of a sine BOC with k half-periods of subcarrier per chip is (2k - 1) times
+#: steeper, the discriminator noise variance scales as 1 / slope: BOC(1,1) / CBOC / TMBOC / QMBOC: 1/sqrt(3),
+#: AltBOC(15,10): 1/sqrt(5) (Betz, "Binary offset carrier modulations for radionavigation", Navigation 48(4),
+#: 2001; Kaplan & Hegarty 2017 ch. 8; from memory, check).  Keyed by (system, signal name); others (BPSK): 1.
+DLL_NOISE_FACTOR: dict[tuple[str, str], float] = {
+    ("G", "L1C"): 3 ** -0.5, ("J", "L1C"): 3 ** -0.5, ("E", "E1 OS"): 3 ** -0.5, ("E", "E5 AltBOC"): 5 ** -0.5,
+    ("C", "B1C"): 3 ** -0.5,
+}
 
 #: (system, code) -> Signal
 SIGNALS: dict[tuple[str, str], Signal] = {}

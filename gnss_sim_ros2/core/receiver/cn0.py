@@ -1,46 +1,53 @@
 """Carrier-to-noise density C/N0 [dB-Hz] from a link budget.
 
-    C/N0 = P_rx + G_ant(el) - 10 log10(k T_sys) - L_impl - A_obstruction
+    C/N0 = P_rx + G_ant(el, band) - 10 log10(k T_sys) - L_impl - A_obstruction
 
-- P_rx, received power at a 0 dBic antenna: each satellite is given the EIRP
-  that delivers exactly the ICD minimum received power (core/signals.py,
-  ``min_power_dbw``) at the edge of coverage (the ICD's elevation,
-  5 or 10 deg), plus ``power_margin_db``; its satellite antenna pattern is
-  taken as flat over the Earth disc, so only free-space loss changes:
-  P_rx = P_min + margin + 20 log10(rho_edge / rho).  rho_edge follows from the
-  satellite's own orbit radius (derived from range and elevation on a
-  spherical Earth, R = 6371 km), so MEO, IGSO and GEO need no table.
-- G_ant(el): a generic right-hand circularly polarised patch (the table
-  PATCH_GAIN_DBIC of core/multipath/antenna.py), +4 dBic at
-  zenith, -4 dBic at 10 deg, -5.5 dBic at 5 deg, -8 dBic at the horizon
-  (an 8 dB roll-off from zenith to 10 deg; NovAtel documents >= +5 dBic at
-  zenith for its elements; AML reports ~15 dB from 90 to 5 deg for high-end
-  geodetic antennas, cheaper patches roll off less steeply at the top).
+- P_rx, received power of the tracked component at a 0 dBic antenna: each satellite is given the EIRP
+  that delivers the ICD minimum received power (core/signals.py ``min_power_dbw``) plus the published
+  margin by which satellites exceed it (signals.POWER_MARGIN_DB, Steigenberger et al., J Geod 92:609,
+  2018) at the edge of coverage (the ICD's elevation, 5 or 10 deg), times the share of the component
+  the RINEX code tracks (signals.COMPONENT_DB: data or pilot alone of a data + pilot signal, -3 dB for
+  an equal split), plus ``LinkBudget.power_margin_db`` (a receiver-side offset, 0 by default).  The
+  satellites' transmit antennas are shaped to compensate most of the longer path to the edge of the
+  Earth: IS-GPS-200 (figure 3.3-1, user received minimum signal level against elevation) shows the
+  received level only about 1 dB higher at zenith than at 5 deg where the free-space loss differs by
+  2.1 dB (from memory, check), so the free-space term enters with the share SAT_PATTERN_PATH_SHARE:
+  P_rx = P_min + margin + component + share * 20 log10(rho_edge / rho).  rho_edge follows from the
+  satellite's own orbit radius (derived from range and elevation on a spherical Earth, R = 6371 km),
+  so MEO, IGSO and GEO need no table.
+- G_ant(el, band): the RHCP gain table of the receiver's antenna class (``LinkBudget.antenna``: patch,
+  helical, choke_ring; core/multipath/antenna.py, the same tables the reflections use), the lower-L-band
+  table for carriers below 1.4 GHz; a custom pattern (``antenna_el_deg``/``antenna_gain_dbic``)
+  replaces it in every band.
 - Noise density: k T_sys with T_sys = 290 K (-204.0 dBW/Hz), antenna sky
   temperature ~100 K plus a ~2 dB noise-figure LNA.
 - L_impl = 1.5 dB: quantisation (2 bit: ~0.6 dB) and correlation losses
   (Kaplan & Hegarty 2nd ed. ch. 5 typical 1-2 dB).
-- A_obstruction: foliage/diffraction attenuation from the visibility step.
+- ``LinkBudget.cn0_table_dbhz`` (a profile's per-signal mean open-sky C/N0 against elevation, as that
+  receiver reports it, e.g. fitted by ``gnss-sim calibrate``) replaces all of the above but A for the
+  signals it holds (range and gain are in the table, not added again).
+- A_obstruction: foliage/diffraction attenuation from the visibility step, subtracted in every case.
   Reference: a single tree fades L-band by 10-20 dB, median ~12 dB
   (Vogel & Goldhirsh, IEEE Trans. AP 34(12), 1986) -> FOLIAGE_MEDIAN_DB.
 
-Resulting GPS L1 C/A figures (test_receiver_models): 49.9 dB-Hz at zenith,
-40.2 at 10 deg, 38.5 at 5 deg, inside the 48-51 (zenith) and 38-42 (10 deg)
-ranges of Kaplan's typical values and RTKLIB's simulator table (40-51).
-Signals whose ICD minimum is low (BeiDou B1I/B3I -163 dBW: 45.3 dB-Hz at
-zenith) come out below what receivers report, because satellites exceed the
-minimum by a few dB; raise ``LinkBudget.power_margin_db`` to model that.
+Resulting GPS L1 C/A figures with the choke ring (test_link_budget): about 52 dB-Hz at zenith, 39 at
+10 deg, 36 at 5 deg (a geodetic receiver with a choke ring reports 50-52 at zenith); with the patch
+50 at zenith, 41 at 10 deg, inside Kaplan's typical values and RTKLIB's simulator table (40-51).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from gnss_sim_ros2.core import constants as k
 from gnss_sim_ros2.core import signals as _signals
-from gnss_sim_ros2.core.multipath.antenna import PATCH_EL_DEG, PATCH_GAIN_DBIC
+from gnss_sim_ros2.core.multipath import antenna as _antenna
 
+from . import signal_tables
+
+#: share of the free-space loss change over the Earth disc left after the satellites' shaped beams (module doc)
+SAT_PATTERN_PATH_SHARE = 0.4
 #: median attenuation of a single tree at L-band/UHF [dB] (Vogel & Goldhirsh 1986, 869 MHz)
 FOLIAGE_MEDIAN_DB = 12.0
 
@@ -51,26 +58,44 @@ class LinkBudget:
 
     noise_temperature_k: float = k.T0_NOISE_K
     implementation_loss_db: float = 1.5
-    power_margin_db: float = 0.0        #: satellites' power above the ICD minimum
-    antenna_el_deg: np.ndarray = field(default_factory=lambda: PATCH_EL_DEG.copy())
-    antenna_gain_dbic: np.ndarray = field(default_factory=lambda: PATCH_GAIN_DBIC.copy())
+    power_margin_db: float = 0.0        #: receiver-side offset on top of the signal table's published margins
+    #: antenna class (multipath/antenna.py PATTERNS); None: the receiver's ``antenna`` (ReceiverConfig), else patch
+    antenna: str | None = None
+    #: a custom RHCP pattern: elevation [deg], gain [dBic] (both or neither; replaces the class's tables)
+    antenna_el_deg: np.ndarray | None = None
+    antenna_gain_dbic: np.ndarray | None = None
+    #: per signal ("G1C"): {el_deg: [...], cn0_dbhz: [...]}, the receiver's mean open-sky C/N0 (module doc)
+    cn0_table_dbhz: dict | None = None
 
     def __post_init__(self):
-        if self.noise_temperature_k <= 0:
+        if not self.noise_temperature_k > 0:
             raise ValueError(f"LinkBudget: parameter 'noise_temperature_k' = {self.noise_temperature_k} must be > 0")
-        el = np.asarray(self.antenna_el_deg, dtype=np.float64)
-        g = np.asarray(self.antenna_gain_dbic, dtype=np.float64)
-        if el.shape != g.shape or el.ndim != 1 or np.any(np.diff(el) <= 0):
-            raise ValueError("LinkBudget: 'antenna_el_deg' must increase strictly and match 'antenna_gain_dbic'")
+        if self.antenna is not None and self.antenna not in _antenna.PATTERNS:
+            raise ValueError(f"LinkBudget: parameter 'antenna' = {self.antenna!r} (one of {_antenna.PATTERNS})")
+        if (self.antenna_el_deg is None) != (self.antenna_gain_dbic is None):
+            raise ValueError("LinkBudget: 'antenna_el_deg' and 'antenna_gain_dbic' go together")
+        if self.antenna_el_deg is not None:
+            el = np.asarray(self.antenna_el_deg, dtype=np.float64)
+            g = np.asarray(self.antenna_gain_dbic, dtype=np.float64)
+            if el.shape != g.shape or el.ndim != 1 or el.size == 0 or np.any(np.diff(el) <= 0):
+                raise ValueError("LinkBudget: 'antenna_el_deg' must increase strictly and match 'antenna_gain_dbic'")
+            self.antenna_el_deg, self.antenna_gain_dbic = el, g
+        self._cn0_table = signal_tables.validate(self.cn0_table_dbhz, "link_budget.cn0_table_dbhz", "cn0_dbhz")
 
     @property
     def noise_density_dbwhz(self) -> float:
         """10 log10(k T_sys) [dBW/Hz]."""
         return 10.0 * np.log10(k.K_BOLTZMANN_JPK * self.noise_temperature_k)
 
-    def antenna_gain(self, el_deg):
-        """Antenna gain [dBic] at elevation ``el_deg`` (linear interpolation of the pattern)."""
-        return np.interp(np.asarray(el_deg, dtype=np.float64), self.antenna_el_deg, self.antenna_gain_dbic)
+    def antenna_gain(self, el_deg, frequency_hz=None):
+        """Antenna RHCP gain [dBic] at elevation ``el_deg`` (and carrier ``frequency_hz``, None: L1)."""
+        if self.antenna_el_deg is not None:
+            return np.interp(np.asarray(el_deg, dtype=np.float64), self.antenna_el_deg, self.antenna_gain_dbic)
+        return _antenna.rhcp_gain_dbic(self.antenna or "patch", el_deg, frequency_hz)
+
+    def table_cn0_dbhz(self, keys, el_deg) -> np.ndarray:
+        """``cn0_table_dbhz`` at ``el_deg`` for signal keys ``keys`` ("G1C"); NaN where it has no row."""
+        return signal_tables.lookup(self._cn0_table, keys, el_deg)
 
 
 DEFAULT_BUDGET = LinkBudget()
@@ -98,13 +123,15 @@ def _lookup(system, code, attr):
 
 
 def power_params(system, code):
-    """(min_power_dbw, min_power_el_deg) of signals ``(system, code)`` from core/signals.py (arrays broadcast),
-    for :func:`cn0_dbhz_from_params` when the same signals come back every epoch."""
-    return _lookup(system, code, "min_power_dbw"), _lookup(system, code, "min_power_el_deg")
+    """(edge power [dBW], edge elevation [deg]) of signals ``(system, code)`` (arrays broadcast): the power of the
+    tracked component at a 0 dBic antenna at the edge of coverage, ICD minimum + published margin + component
+    share (module doc), for :func:`cn0_dbhz_from_params` when the same signals come back every epoch."""
+    p_min, margin, comp = (_lookup(system, code, a) for a in ("min_power_dbw", "power_margin_db", "component_db"))
+    return p_min + margin + comp, _lookup(system, code, "min_power_el_deg")
 
 
 def received_power_dbw(system, code, range_m, el_deg, sat_radius_m=None, power_margin_db=0.0):
-    """Received power at a 0 dBic antenna [dBW] (see module docstring)."""
+    """Received power of the tracked component at a 0 dBic antenna [dBW] (see module docstring)."""
     p_min, el_min = power_params(system, code)
     return _received_power_dbw(p_min, el_min, range_m, el_deg, sat_radius_m, power_margin_db)
 
@@ -115,7 +142,7 @@ def _received_power_dbw(p_min, el_min, range_m, el_deg, sat_radius_m, power_marg
         raise ValueError("receiver.cn0: parameter 'range_m' must be > 0")
     r_sat = sat_radius_from_range_m(rho, el_deg) if sat_radius_m is None else np.asarray(sat_radius_m)
     rho_edge = slant_range_m(r_sat, el_min)
-    return p_min + power_margin_db + 20.0 * np.log10(rho_edge / rho)
+    return p_min + power_margin_db + SAT_PATTERN_PATH_SHARE * 20.0 * np.log10(rho_edge / rho)
 
 
 def cn0_dbhz(system, code, range_m, el_deg, attenuation_db=0.0, sat_radius_m=None, budget: LinkBudget = None):
@@ -125,14 +152,20 @@ def cn0_dbhz(system, code, range_m, el_deg, attenuation_db=0.0, sat_radius_m=Non
     gain); ``attenuation_db``: obstruction loss (foliage, diffraction) from the
     visibility step; ``sat_radius_m``: orbit radius if known (else derived).
     """
-    p_min, el_min = power_params(system, code)
-    return cn0_dbhz_from_params(p_min, el_min, range_m, el_deg, attenuation_db, sat_radius_m, budget)
+    p_edge, el_min = power_params(system, code)
+    freq = _lookup(system, code, "f0_hz")
+    keys = signal_tables.signal_keys(*np.broadcast_arrays(np.asarray(system), np.asarray(code)))
+    return cn0_dbhz_from_params(p_edge, el_min, range_m, el_deg, attenuation_db, sat_radius_m, budget, freq, keys)
 
 
-def cn0_dbhz_from_params(min_power_dbw, min_power_el_deg, range_m, el_deg, attenuation_db=0.0, sat_radius_m=None,
-                         budget: LinkBudget = None):
-    """:func:`cn0_dbhz` with the signals' table values given (from :func:`power_params`)."""
+def cn0_dbhz_from_params(edge_power_dbw, min_power_el_deg, range_m, el_deg, attenuation_db=0.0, sat_radius_m=None,
+                         budget: LinkBudget = None, frequency_hz=None, signal_keys=None):
+    """:func:`cn0_dbhz` with the signals' table values given (from :func:`power_params`); ``frequency_hz``: carrier
+    per row (antenna band; None: L1), ``signal_keys``: "G1C" per row (for ``cn0_table_dbhz``; None: no table)."""
     b = DEFAULT_BUDGET if budget is None else budget
-    p = _received_power_dbw(min_power_dbw, min_power_el_deg, range_m, el_deg, sat_radius_m, b.power_margin_db)
-    return (p + b.antenna_gain(el_deg) - b.noise_density_dbwhz - b.implementation_loss_db
-            - np.asarray(attenuation_db, dtype=np.float64))
+    p = _received_power_dbw(edge_power_dbw, min_power_el_deg, range_m, el_deg, sat_radius_m, b.power_margin_db)
+    c = p + b.antenna_gain(el_deg, frequency_hz) - b.noise_density_dbwhz - b.implementation_loss_db
+    if b._cn0_table and signal_keys is not None:
+        tab = b.table_cn0_dbhz(signal_keys, el_deg)
+        c = np.where(np.isnan(tab), c, tab)
+    return c - np.asarray(attenuation_db, dtype=np.float64)

@@ -3,6 +3,7 @@ seeds (``ReceiverConfig``; defaults from the receiver profile's YAML file, core/
 from __future__ import annotations
 
 import copy
+import dataclasses
 import re
 from dataclasses import dataclass, field, fields
 
@@ -11,7 +12,7 @@ import numpy as np
 from ..multipath.antenna import PATTERNS
 from ..vocabulary import IONOSPHERE_MODELS, TRANSMIT_TIME_MODES, TROPOSPHERE_MODELS
 from . import cn0 as cn0_model
-from . import hardware_bias, outputs, profile_file
+from . import code_multipath, hardware_bias, outputs, profile_file
 from .clock import ClockConfig
 from .tracking import TrackingConfig
 
@@ -84,6 +85,11 @@ class ReceiverConfig:
     #: DLL: noise bandwidth [Hz], early-late spacing [chips]
     dll_bn_hz: float | None = _owned(0.5)
     dll_spacing_chips: float | None = _owned(0.2, check=_spacing)
+    #: DLL coherent integration [s]; PLL noise bandwidth [Hz] and coherent integration [s] (receiver/noise.py:
+    #: the thermal noise of code and carrier phase, the cycle-slip rate)
+    dll_t_int_s: float | None = _owned(0.02, check=_positive)
+    pll_bn_hz: float | None = _owned(15.0, check=_positive)
+    pll_t_int_s: float | None = _owned(0.001, check=_positive)
     #: antenna pattern for reflections (multipath/antenna.py), double-sided front-end bandwidth [Hz],
     #: satellites not tracked (regular expression on the RINEX id)
     antenna: str | None = _owned("patch", check=_antenna)
@@ -92,10 +98,13 @@ class ReceiverConfig:
     #: RINEX header text: {receiver_type, antenna_type} (REC # / TYPE, ANT # / TYPE; outputs.header's defaults
     #: where left out: GNSS_SIM and the antenna pattern's name)
     rinex: dict | None = _owned({}, check=outputs.check_rinex_names)
-    #: code multipath/residual model (code_multipath.py) [m], correlation time [s]
-    mp_zenith_m: float | None = _owned(0.15)
-    mp_low_m: float | None = _owned(1.2)
+    #: code multipath/residual model (code_multipath.py): sigma = mp_zenith_m + mp_low_m exp(-el / 15 deg) [m]
+    #: (builtin None: the antenna class's open-sky values, code_multipath.OPEN_SKY_MP_M), correlation time [s];
+    #: code_multipath_m: per signal ("G1C") {el_deg: [...], sigma_m: [...]} replacing that formula for it
+    mp_zenith_m: float | None = _owned(None)
+    mp_low_m: float | None = _owned(None)
     mp_tau_s: float | None = _owned(60.0)
+    code_multipath_m: dict | None = _owned({}, check=code_multipath.check_table)
     #: true ionosphere = model x (1 + iono_error_frac * g(t)), g smooth, unit variance (world_errors.py), per model.
     #: Klobuchar 0.5: it removes about 50 % of the RMS ionospheric delay (Navipedia, physics-anchors.md).
     #: NeQuick-G 0.3: designed to correct at least 70 % of the delay (Galileo Ionospheric Correction
@@ -146,6 +155,11 @@ class ReceiverConfig:
                     said = f"'{f.name}'" in str(exc)
                     raise (exc if said else ValueError(f"receiver: parameter '{f.name}': {exc}")) from None
         self._excluded = re.compile(self.excluded_svs) if self.excluded_svs else None
+        if self.link_budget.antenna is None:      # the link budget's gain pattern: the receiver's antenna class
+            self.link_budget = dataclasses.replace(self.link_budget, antenna=self.antenna)
+        zen, low = code_multipath.OPEN_SKY_MP_M[self.antenna]    # open-sky multipath of the antenna class
+        self.mp_zenith_m = zen if self.mp_zenith_m is None else self.mp_zenith_m
+        self.mp_low_m = low if self.mp_low_m is None else self.mp_low_m
         self.profile = prof.signal_map()
         if not self.noise:
             self.code_bias_m = {}

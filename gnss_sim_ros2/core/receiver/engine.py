@@ -41,9 +41,12 @@ IS-GPS-200N 20.3.3.3.3, RTKLIB manual E.5):
 - B_j: the receiver's hardware code delay of signal j (inter-system,
   BeiDou-2/-3 and inter-frequency biases, core/receiver/hardware_bias.py);
 - m_j: code multipath/residual as a first-order Gauss-Markov process per
-  signal, sigma = mp_zenith_m + mp_low_m exp(-el/15 deg) (a stated approximation,
-  core/receiver/code_multipath.py);
-- e: thermal noise from C/N0 (DLL, PLL, FLL jitter, core/receiver/noise.py);
+  signal, sigma from the profile's code_multipath_m table of the signal, else
+  mp_zenith_m + mp_low_m exp(-el/15 deg) with the antenna class's open-sky values
+  (a stated approximation, core/receiver/code_multipath.py);
+- e: thermal noise from C/N0 (DLL, PLL, FLL jitter, core/receiver/noise.py) with the
+  profile's loop parameters; C/N0 per signal from the link budget (core/receiver/cn0.py:
+  transmit power per signal, antenna class gain per band, or the profile's cn0_table_dbhz);
 - N_j: an integer ambiguity per continuous track (core/receiver/tracking.py).
 """
 from __future__ import annotations
@@ -62,7 +65,7 @@ from ..signal_plans import default_plans, gps_day
 from ..time import GnssTime
 from ..vocabulary import VisibilityState
 from . import cn0 as cn0_model
-from . import hardware_bias
+from . import hardware_bias, signal_tables
 from . import noise as noise_model
 from .clock import ReceiverClock
 from .code_multipath import CodeMultipath
@@ -147,6 +150,8 @@ class Receiver:
         rows.lam = k.C_MPS / freq
         rows.gd_factor = sig.group_delay_factor(systems, codes, freq)
         rows.p_min, rows.el_min = cn0_model.power_params(systems, codes) if len(codes) else (np.zeros(0), np.zeros(0))
+        rows.sig_key = signal_tables.signal_keys(systems, codes)
+        rows.dll_factor = np.array([sig.signal(s, c).dll_noise_factor for s, c in zip(systems, codes)], dtype=float)
         rows.omega = np.array([k.OMEGA_BY_SYSTEM.get(s[0], k.OMEGA_E_GPS_RADPS) for s in svs], dtype=float)
         rows.sv_j = np.asarray(svs)[sat_i]
         rows.code_bias_m = hardware_bias.code_bias_m(self.cfg.code_bias_m, rows.sv_j, codes)
@@ -345,7 +350,8 @@ class Receiver:
         """C/N0 of every signal row (link budget, obstruction loss) and whether its line of sight is open."""
         att_j = b.att[b.sat_i]
         b.cn0 = cn0_model.cn0_dbhz_from_params(b.rows.p_min, b.rows.el_min, b.rho, b.el_j, att_j,
-                                               budget=self.cfg.link_budget)
+                                               budget=self.cfg.link_budget, frequency_hz=b.freq,
+                                               signal_keys=b.rows.sig_key)
         b.vis_j = b.vis[b.sat_i]
         b.att_j = att_j
         b.line_ok = (b.vis_j == _VISIBLE_I) | (b.vis_j == _ATTENUATED_I)
@@ -414,11 +420,13 @@ class Receiver:
         cn0 = b.cn0
         b.cn0_meas = cn0 + cfg.cn0_noise_db * z_cn0 if draw_cn0 else cn0
         if cfg.noise:
-            code_sig = noise_model.dll_sigma_m(cn0, b.chip, cfg.dll_bn_hz, cfg.dll_spacing_chips)
-            ph_sig = noise_model.pll_sigma_m(cn0, b.rows.lam)
+            # the profile's loops (noise.py); the front end in chip rates b = B_fe T_c per signal
+            code_sig = noise_model.dll_sigma_m(cn0, b.chip, cfg.dll_bn_hz, cfg.dll_spacing_chips, cfg.dll_t_int_s,
+                                               cfg.frontend_bandwidth_hz * b.chip / k.C_MPS) * b.rows.dll_factor
+            ph_sig = noise_model.pll_sigma_m(cn0, b.rows.lam, cfg.pll_bn_hz, cfg.pll_t_int_s)
             dop_sig = noise_model.doppler_sigma_hz(cn0)
             b.e_p, b.e_l, b.e_d = code_sig * r[0], ph_sig * r[1], dop_sig * r[2]
-            b.mp = self.code_multipath.sigma_m(b.el_j) * mp_x
+            b.mp = self.code_multipath.sigma_m(b.el_j, b.rows.sig_key) * mp_x
         else:
             b.e_p = b.e_l = b.e_d = b.mp = np.zeros(m)
 

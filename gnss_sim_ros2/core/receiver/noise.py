@@ -6,6 +6,14 @@ Formulas (C/N0 as a ratio c = 10^(cn0_dbhz/10) Hz; all functions broadcast):
   front end (Kaplan & Hegarty, Understanding GPS, 2nd ed., 5.6.2, eq. 5.23 in
   the project notes' numbering):
   sigma = sqrt( B_n D / (2 c) * (1 + 2 / (T c (2 - D))) ) chips.
+  With a finite double-sided front-end bandwidth B_fe (b = B_fe T_c, in chip rates) a correlator spacing
+  below pi / b gains less than D suggests (Kaplan & Hegarty, 3rd ed. 2017, ch. 8, the noncoherent EMLP
+  variance for band-limited BPSK after Betz & Kolodziejski 2009; from memory, check):
+  D >= pi / b: the wide-band form above; 1 / b < D < pi / b: D -> 1/b + b / (pi - 1) (D - 1/b)^2;
+  D <= 1 / b: D -> 1 / b and the squaring-loss term 1 + 1 / (T c).
+- BOC signals (Galileo E1, E5 AltBOC, GPS/QZSS L1C, BeiDou B1C): the BPSK formula of the same chip rate
+  times signals.Signal.dll_noise_factor (1/sqrt(3) for BOC(1,1)-family, 1/sqrt(5) for AltBOC(15,10): the
+  steeper correlation peak, Betz 2001); the front-end term is the BPSK one (a stated approximation).
 - PLL thermal jitter, Costas loop (Kaplan eq. 5.6):
   sigma = sqrt( B_n / c * (1 + 1 / (2 T c)) ) rad.
 - FLL thermal frequency jitter (Kaplan eq. 5.12):
@@ -20,8 +28,10 @@ Formulas (C/N0 as a ratio c = 10^(cn0_dbhz/10) Hz; all functions broadcast):
   squaring loss S_L = 1 / (1 + 1/(2 T c)) (Holmes, Coherent Spread Spectrum
   Systems, 1982).  Used by tracking.py for random cycle slips.
 
-Defaults: DLL B_n = 1 Hz, D = 0.5 chip, T = 20 ms; PLL B_n = 15 Hz, T = 1 ms
-(the figures of /work/shared/notes/physics-anchors.md); FLL B_n = 2 Hz, T = 20 ms.
+Defaults: DLL B_n = 1 Hz, D = 0.5 chip, T = 20 ms, infinite front end; PLL B_n = 15 Hz, T = 1 ms
+(the figures of /work/shared/notes/physics-anchors.md); FLL B_n = 2 Hz, T = 20 ms.  The receiver takes
+its profile's loop parameters (ReceiverConfig dll_bn_hz, dll_spacing_chips, dll_t_int_s,
+frontend_bandwidth_hz, pll_bn_hz, pll_t_int_s).
 """
 from __future__ import annotations
 
@@ -43,21 +53,30 @@ def _positive(name, v):
         raise ValueError(f"receiver.noise: parameter {name!r} = {v!r} must be > 0")
 
 
-def dll_sigma_chips(cn0_dbhz, bn_hz=1.0, spacing_chips=0.5, t_int_s=0.02):
-    """DLL thermal code noise [chips], noncoherent early-minus-late power (Kaplan eq. 5.23)."""
+def dll_sigma_chips(cn0_dbhz, bn_hz=1.0, spacing_chips=0.5, t_int_s=0.02, frontend_bw_chips=None):
+    """DLL thermal code noise [chips], noncoherent early-minus-late power (Kaplan eq. 5.23; module doc);
+    ``frontend_bw_chips``: double-sided front-end bandwidth in chip rates b = B_fe T_c (None: infinite)."""
     _positive("bn_hz", bn_hz)
     _positive("t_int_s", t_int_s)
     d = np.asarray(spacing_chips, dtype=np.float64)
     if np.any((d <= 0) | (d > 1)):
         raise ValueError(f"receiver.noise: parameter 'spacing_chips' = {spacing_chips!r} must be in (0, 1]")
     c = _ratio(cn0_dbhz)
-    return np.sqrt(bn_hz * d / (2.0 * c) * (1.0 + 2.0 / (t_int_s * c * (2.0 - d))))
+    squaring = 1.0 + 2.0 / (t_int_s * c * (2.0 - d))
+    if frontend_bw_chips is None:
+        return np.sqrt(bn_hz * d / (2.0 * c) * squaring)
+    _positive("frontend_bw_chips", frontend_bw_chips)
+    b = np.asarray(frontend_bw_chips, dtype=np.float64)
+    d_eff = np.where(d >= np.pi / b, d, np.where(d > 1.0 / b, 1.0 / b + b / (np.pi - 1.0) * (d - 1.0 / b) ** 2,
+                                                 1.0 / b))
+    squaring = np.where(d > 1.0 / b, squaring, 1.0 + 1.0 / (t_int_s * c))
+    return np.sqrt(bn_hz * d_eff / (2.0 * c) * squaring)
 
 
-def dll_sigma_m(cn0_dbhz, chip_length_m, bn_hz=1.0, spacing_chips=0.5, t_int_s=0.02):
+def dll_sigma_m(cn0_dbhz, chip_length_m, bn_hz=1.0, spacing_chips=0.5, t_int_s=0.02, frontend_bw_chips=None):
     """DLL thermal code noise [m] for a code of chip length ``chip_length_m`` (293.05 m for C/A)."""
     _positive("chip_length_m", chip_length_m)
-    return dll_sigma_chips(cn0_dbhz, bn_hz, spacing_chips, t_int_s) * np.asarray(chip_length_m)
+    return dll_sigma_chips(cn0_dbhz, bn_hz, spacing_chips, t_int_s, frontend_bw_chips) * np.asarray(chip_length_m)
 
 
 def pll_sigma_rad(cn0_dbhz, bn_hz=15.0, t_int_s=0.001):
@@ -137,9 +156,12 @@ def slip_probability(cn0_dbhz, dt_s, bn_hz=15.0, t_int_s=0.001):
 
 
 # ---- helpers from the signal table -----------------------------------------------------
-def code_sigma_m(system: str, code: str, cn0_dbhz, bn_hz=1.0, spacing_chips=0.5, t_int_s=0.02):
-    """DLL code noise [m] of signal ``(system, code)`` (chip length from core/signals.py)."""
-    return dll_sigma_m(cn0_dbhz, _signals.signal(system, code).chip_length_m, bn_hz, spacing_chips, t_int_s)
+def code_sigma_m(system: str, code: str, cn0_dbhz, bn_hz=1.0, spacing_chips=0.5, t_int_s=0.02, frontend_bw_hz=None):
+    """DLL code noise [m] of signal ``(system, code)`` (chip length and BOC factor from core/signals.py);
+    ``frontend_bw_hz``: double-sided front-end bandwidth [Hz] (None: infinite)."""
+    s = _signals.signal(system, code)
+    b = None if frontend_bw_hz is None else frontend_bw_hz / s.chip_rate_cps
+    return dll_sigma_m(cn0_dbhz, s.chip_length_m, bn_hz, spacing_chips, t_int_s, b) * s.dll_noise_factor
 
 
 def phase_sigma_m(system: str, code: str, cn0_dbhz, glo_channel=0, bn_hz=15.0, t_int_s=0.001):

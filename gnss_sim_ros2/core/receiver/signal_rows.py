@@ -19,6 +19,8 @@ class SignalRows:
     sisre_sigma: np.ndarray
     sisre_terms: tuple | None
     mp_idx: np.ndarray
+    sig_key: np.ndarray         # "G1C" per row (the profile's per-signal tables)
+    dll_factor: np.ndarray      # code-noise factor of the modulation (signals.Signal.dll_noise_factor)
 
     @staticmethod
     def stack(parts: list, sat_offset) -> SignalRows:
@@ -29,7 +31,7 @@ class SignalRows:
         out.signal_rows = (np.concatenate([c + o for c, o in zip(cols[0], sat_offset)]),
                            *(np.concatenate(c) for c in cols[1:]))
         for name in ("lam", "gd_factor", "p_min", "el_min", "omega", "sv_j", "code_bias_m", "sisre_sigma",
-                     "mp_idx"):
+                     "mp_idx", "sig_key", "dll_factor"):
             setattr(out, name, np.concatenate([getattr(p, name) for p in parts]))
         terms = [p.sisre_terms for p in parts if p.sisre_terms is not None]
         out.sisre_terms = (np.concatenate([x[0] for x in terms]), np.concatenate([x[1] for x in terms])) \
