@@ -160,7 +160,9 @@ def esbc_nav(shared_data, tmp_path_factory):
 def _tracked_pairs(nav, iso="2020-06-25T00:00:00", n_epochs=20):
     t0 = GnssTime.from_iso(iso, scale="GPS")
     prov = BroadcastEphemeris.from_files([nav], start=t0 - 3600.0, end=t0 + 3600.0)
-    rcv = Receiver(ReceiverConfig(systems="GRECJ", profile="geodetic", noise=False, elevation_mask_deg=0.0), prov,
+    # an explicit signal list (the shipped profiles may change): L2C, L5, B2I, B1C where the plans allow them
+    profile = {"G": ["1C", "2L", "5Q"], "R": ["1C"], "E": ["1C"], "C": ["2I", "7I", "1P"], "J": ["1C", "2L", "5Q"]}
+    rcv = Receiver(ReceiverConfig(systems="GRECJ", profile=profile, noise=False, elevation_mask_deg=0.0), prov,
                    prov.iono)
     pairs = set()
     for i in range(n_epochs):
