@@ -102,6 +102,7 @@ tracking:
   acquisition_cn0_dbhz: 30.0
   tracking_cn0_dbhz: 24.0
 """
+MY_DOC = yaml.safe_load(MY.replace("20.0e6", "20.0e+6"))      # the same profile as a mapping
 
 
 def test_a_users_file_sets_the_defaults_and_arguments_override(tmp_path):
@@ -223,11 +224,6 @@ def test_simulate_with_a_profile_file(tmp_path, capsys, monkeypatch):
     types = {h[0]: h[7:60].split() for h in header if h[60:].strip() == "SYS / # / OBS TYPES"}
     assert types == {"G": ["C1C", "L1C", "D1C", "S1C", "C5Q", "L5Q", "D5Q", "S5Q"],
                      "E": ["C1C", "L1C", "D1C", "S1C"]}
-    # the run's params.yaml keeps the file as an absolute path: it reruns from another folder
-    params = yaml.safe_load((tmp_path / "out" / "params.yaml").read_text()) \
-        if (tmp_path / "out" / "params.yaml").exists() else None
-    if params is not None:
-        assert params["gnss_sim_receiver"]["ros__parameters"]["profile"] == str(tmp_path / "my.yaml")
 
 
 @pytest.mark.parametrize("arg, words", [
@@ -267,6 +263,14 @@ def test_parameter_table_checks_the_profile(tmp_path, monkeypatch):
     cfg = load_config(None, {"receiver": {"profile": "my.yaml"}})
     assert cfg.node("receiver")["profile"] == str(tmp_path / "my.yaml")
     assert load_config(None, {"receiver": {"profile": "ublox_m8t"}}).node("receiver")["profile"] == "ublox_m8t"
+    # a run's params.yaml (gnss-sim run writes cfg.ros_parameter_file_dict()) reruns from another folder
+    (tmp_path / "run").mkdir()
+    (tmp_path / "run" / "params.yaml").write_text(yaml.safe_dump(cfg.ros_parameter_file_dict()))
+    monkeypatch.chdir(tmp_path / "run")
+    again = load_config(tmp_path / "run" / "params.yaml")
+    assert again.node("receiver")["profile"] == str(tmp_path / "my.yaml")
+    assert repr(ReceiverConfig(profile=again.node("receiver")["profile"])) == repr(ReceiverConfig(profile=MY_DOC))
+    monkeypatch.chdir(tmp_path)
     conf = tmp_path / "params.yaml"
     conf.write_text(textwrap.dedent("""\
         gnss_sim_receiver:
