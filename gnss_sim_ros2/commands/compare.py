@@ -7,7 +7,9 @@ Inputs: RINEX 3 observation files or rosbag2 bags holding gnss_sim_msgs/Observat
 (``gnss-sim run``'s ``bag/``).  Writes ``DIR/report.md`` (per system and per satellite
 pseudorange, time-differenced carrier phase, Doppler and C/N0 differences after removing
 the receiver clock; satellites seen by one side only; position solutions of both files
-against each other and the truth) and PNG figures beside it (only compare's own files in DIR are replaced;
+against each other and the truth; per-signal statistics sim against real: tracked
+(satellite, signal) pairs, C/N0 per elevation bin, code noise, LLI at the first epoch, also in
+``signals.json``) and PNG figures beside it (only compare's own files in DIR are replaced;
 a DIR holding other files is refused: core/output_folder.py).  Method: core/comparison/.
 The real file is read over the simulated span only.  Without ``--nav`` there are no
 positions and no elevations.  Truth: ``--truth`` (ECEF m), ``--truth-csv`` (time and
@@ -77,6 +79,10 @@ def run(args) -> int:
             print(f"{name}: unavailable ({kr.reason})")
     vis = cmp.visibility()
     print("tracked sets, Jaccard: " + ", ".join(f"{k} {v:.3f}" for k, v in vis["jaccard"].items()))
+    if cmp.signals is not None and cmp.signals["jaccard_all"] is not None:
+        ratios = [f"{k} {r['code_ratio']:.2f}" for k, r in cmp.signals["signals"].items() if r.get("code_ratio")]
+        print(f"(epoch, satellite, signal) triples, Jaccard: {cmp.signals['jaccard_all']:.3f}; code noise sim/real: "
+              + (", ".join(ratios) or "-"))
     pos = cmp.positions()
     for lab, st in pos.items():
         if st.get("n"):

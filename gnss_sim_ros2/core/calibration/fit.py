@@ -14,8 +14,9 @@ What is fitted and how:
   correlator spacing), floored at 0, made non-increasing with elevation (pool-adjacent-violators); bins beyond
   the signal's range filled like the C/N0 (the reference's shape scaled);
 - ``tracking``: acquisition / tracking thresholds = median over signals of each signal's median C/N0 at the
-  first epoch of rising arcs / last epoch of setting arcs (so that the simulated arcs start and end where the
-  real ones do in the median; their spread comes from the satellites' power, not from the threshold);
+  first epoch of rising arcs / last epoch of setting arcs below ``MAX_RISE_SET_EL_DEG`` (so that the simulated
+  arcs start and end where the real ones do in the median; their spread comes from the satellites' power, not
+  from the threshold);
   ``start`` warm when under ``COLD_LLI_SHARE`` of the phases carry LLI bit 0 at the first epoch;
   ``half_cycle_flags`` whether the file ever sets LLI bit 1;
 - ``cn0_noise_db``: median over signals of the epoch-to-epoch C/N0 scatter;
@@ -43,6 +44,10 @@ MIN_BIN_SAMPLES = 30
 MAX_LOW_SLOPE_DB_PER_DEG = 1.5
 #: the DLL thermal noise may exceed the measured code noise in this share of the elevation bins (fit_dll_bn_hz)
 DLL_EXCEED_SHARE = 0.05
+#: arcs starting / ending above this elevation are re-acquisitions, not rises / sets [deg]
+MAX_RISE_SET_EL_DEG = 30.0
+#: the thresholds need this many rising and setting arcs (all signals together)
+MIN_ARCS = 3
 #: at or above this share of phases with LLI bit 0 at the first epoch the recording starts cold
 COLD_LLI_SHARE = 0.5
 #: RINEX antenna types (IGS antenna names, first characters) of choke-ring antennas
@@ -251,17 +256,21 @@ def fit_profile(stats: RecordingStats, header: dict, source_file: str, name: str
         else:
             code_mp[key] = t
 
-    rise = [np.median(st.rise_cn0_dbhz[np.isfinite(st.rise_cn0_dbhz)])
-            for st in stats.signals.values() if np.isfinite(st.rise_cn0_dbhz).sum() >= 3]
-    sets = [np.median(st.set_cn0_dbhz[np.isfinite(st.set_cn0_dbhz)])
-            for st in stats.signals.values() if np.isfinite(st.set_cn0_dbhz).sum() >= 3]
+    def arc_cn0(cn0, el):
+        ok = np.isfinite(cn0) & (el < MAX_RISE_SET_EL_DEG)
+        return cn0[ok]
+
+    rise = [arc_cn0(st.rise_cn0_dbhz, st.rise_el_deg) for st in stats.signals.values()]
+    sets = [arc_cn0(st.set_cn0_dbhz, st.set_el_deg) for st in stats.signals.values()]
     tracking: dict = {}
-    acq, trk = _median(rise), _median(sets)
-    if np.isfinite(acq) and np.isfinite(trk):
+    if sum(r.size for r in rise) >= MIN_ARCS and sum(r.size for r in sets) >= MIN_ARCS:
+        acq = _median(np.median(r) for r in rise if r.size)
+        trk = _median(np.median(r) for r in sets if r.size)
         tracking["acquisition_cn0_dbhz"] = round(acq, 1)
         tracking["tracking_cn0_dbhz"] = round(min(trk, acq - 1.0), 1)
     elif has_cn0:
-        notes.append("fewer than 3 rising / setting arcs per signal in the span: no tracking thresholds")
+        notes.append(f"fewer than {MIN_ARCS} rising or setting arcs (below {MAX_RISE_SET_EL_DEG:g} deg) in the span: "
+                     "no tracking thresholds")
     first = stats.lli_share("lli_first")
     if first["n"]:
         tracking["start"] = "cold" if first["bit0"] / first["n"] >= COLD_LLI_SHARE else "warm"

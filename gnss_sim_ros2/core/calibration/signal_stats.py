@@ -13,7 +13,8 @@ each (epoch, satellite):
   ``GAP_INTERVALS`` intervals and jumps over ``JUMP_SIGMAS`` sigma of the epoch differences); the standard
   deviation of what remains per elevation bin and per C/N0 bin;
 - tracking arcs (the signal's code or C/N0 present, split at gaps): rise and set elevations (first / last epoch of
-  arcs where the satellite rises / sets, arcs touching the span's start or end left out), C/N0 there;
+  arcs where the satellite rises / sets; an arc starting at the span's first epoch gives no rise, one ending at
+  its last no set), C/N0 there;
 - LLI: share of carrier phases with bit 0 (loss of lock) / bit 1 (half-cycle ambiguity) at the first epoch of the
   span and at arc starts (RINEX 3.05 section 5.7);
 - the (epoch, satellite) pairs with a code observation above the elevation mask (Jaccard index between two
@@ -273,13 +274,13 @@ def signal_statistics(tab: ObsTable, el_deg: np.ndarray, interval_s: float | Non
         present = np.isfinite(pr) | np.isfinite(cn0)
         arcs = arc_ids(present, t_s, max_gap)
         first_ep, last_ep = _arc_ends(arcs)
-        inner = (first_ep[:, 0] > 0) & (last_ep[:, 0] < n_e - 1) & (last_ep[:, 0] > first_ep[:, 0])
+        longer = last_ep[:, 0] > first_ep[:, 0]
         el_a = el[first_ep[:, 0], first_ep[:, 1]]
         el_a2 = el[np.minimum(first_ep[:, 0] + 1, n_e - 1), first_ep[:, 1]]
         el_b = el[last_ep[:, 0], last_ep[:, 1]]
         el_b2 = el[np.maximum(last_ep[:, 0] - 1, 0), last_ep[:, 1]]
-        rising = inner & (el_a2 > el_a)
-        setting = inner & (el_b2 > el_b)
+        rising = longer & (first_ep[:, 0] > 0) & (el_a2 > el_a)          # not at the span's start
+        setting = longer & (last_ep[:, 0] < n_e - 1) & (el_b2 > el_b)    # not at the span's end
         st.rise_el_deg, st.set_el_deg = el_a[rising], el_b[setting]
         st.rise_cn0_dbhz = cn0[first_ep[rising, 0], first_ep[rising, 1]]
         st.set_cn0_dbhz = cn0[last_ep[setting, 0], last_ep[setting, 1]]

@@ -32,6 +32,10 @@ Method (:func:`compare`):
   systems both files observe (optionally above an elevation mask computed
   from the navigation data): seen by both / only simulated / only real and
   the Jaccard index |both| / |union| over (epoch, satellite) pairs.
+* Signals: per-signal statistics of both files (core/calibration/signal_stats.py, the ones ``gnss-sim
+  calibrate`` fits to) compared by core/calibration/signal_compare.py: Jaccard of (epoch, satellite, signal)
+  triples above the mask, C/N0 per 10-degree bin, code noise by the multipath combination, LLI at the first
+  epoch (needs elevations: ``nav_paths``).
 * Positions: single point solutions of both files with the same solver
   (:func:`spp_solutions`: our :func:`~gnss_sim_ros2.core.solver.solve_pvt`
   with the broadcast ephemeris, Klobuchar ionosphere and Saastamoinen/Niell
@@ -51,6 +55,8 @@ from pathlib import Path
 import numpy as np
 
 from .. import constants as k
+from ..calibration.signal_compare import compare_statistics
+from ..calibration.signal_stats import RecordingStats, signal_statistics
 from ..ephemeris.broadcast import BroadcastEphemeris
 from ..frames import az_el_from_ecef
 from ..receiver.outputs import write_navigation
@@ -100,6 +106,10 @@ class Comparison:
     sol_real: Solutions | None = None
     position_note: str = ""
     warnings: list[str] = field(default_factory=list)   #: the inputs look like two sites or two days
+    #: per-signal statistics of both sides and their comparison (core/calibration; None without elevations)
+    signal_stats_sim: RecordingStats | None = None
+    signal_stats_real: RecordingStats | None = None
+    signals: dict | None = None
 
     # ------------------------------------------------------------------ summaries
     def sys_of_col(self) -> np.ndarray:
@@ -247,6 +257,21 @@ def _kind_diffs(c: str, sim: ObsTable, real: ObsTable, pairs, svs, i_sim, i_real
     return out
 
 
+def _signal_statistics(cmp: Comparison, i_sim, i_real) -> None:
+    """Per-signal statistics of both files over the common epochs (10-degree bins, the comparison's mask) and
+    their comparison (core/calibration/signal_compare.py)."""
+    out = []
+    for tab, idx in ((cmp.sim, i_sim), (cmp.real, i_real)):
+        col = {s: j for j, s in enumerate(cmp.sv.tolist())}
+        el = np.full((len(idx), len(tab.sv)), np.nan)
+        for j, s in enumerate(tab.sv.tolist()):
+            if s in col:
+                el[:, j] = cmp.el_deg[:, col[s]]
+        out.append(signal_statistics(tab.subset(epochs=idx), el, mask_deg=cmp.mask_deg, bin_deg=10.0))
+    cmp.signal_stats_sim, cmp.signal_stats_real = out
+    cmp.signals = compare_statistics(*out, [(p.system, p.sim_code, p.real_code) for p in cmp.pairs])
+
+
 def compare(sim_path, real_path, nav_paths=None, truth_ecef_m=None, truth_csv=None, mask_deg: float = 0.0,
             solver: str = "ours", restrict_real_to_sim_span: bool = True, workdir=None) -> Comparison:
     """Compare two observation sources (RINEX or bag).  ``nav_paths``: broadcast navigation files for
@@ -377,6 +402,8 @@ def compare(sim_path, real_path, nav_paths=None, truth_ecef_m=None, truth_csv=No
                 low = np.isfinite(cmp.el_deg) & (cmp.el_deg < mask_deg)
                 cmp.seen_sim = cmp.seen_sim & ~low
                 cmp.seen_real = cmp.seen_real & ~low
+    if cmp.el_deg is not None:
+        _signal_statistics(cmp, i_sim, i_real)
     cmp.warnings = _input_warnings(cmp, sim_path, real_path)
     for msg in cmp.warnings:
         warnings.warn(msg, CompareWarning, stacklevel=2)

@@ -1,13 +1,18 @@
 """The comparison report: ``report.md`` and its PNG figures (matplotlib Agg)."""
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
 import numpy as np
 
+from ..calibration.signal_compare import summary_lines
 from .compare import Comparison
 from .statistics import DESCRIPTION, GROSS_LIMITS, UNITS, enu_errors_m
+
+#: the per-signal statistics of both sides and their comparison, beside report.md
+SIGNALS_JSON = "signals.json"
 
 
 def _f(v, digits=3) -> str:
@@ -143,7 +148,7 @@ def write_report(cmp: Comparison, out_dir) -> Path:
           f"- systems compared: {cmp.systems or '-'}; only simulated: {cmp.systems_only_sim or '-'}; "
           f"only real: {cmp.systems_only_real or '-'}", ""]
     L += [f"**Warning**: {w}" for w in cmp.warnings] + ([""] if cmp.warnings else [])
-    L += ["## Signals", ""]
+    L += ["## Signal pairs", ""]
     L += _md_table(["system", "simulated", "real"], [[p.system, p.sim_code, p.real_code] for p in cmp.pairs])
     L += ["## Method", ""]
     for name, kr in cmp.kinds.items():
@@ -226,6 +231,16 @@ def write_report(cmp: Comparison, out_dir) -> Path:
     if rows:
         L += ["Satellites with epochs seen by one side only:", ""]
         L += _md_table(["sv", "both", "only sim", "only real"], rows)
+
+    L += ["## Signals", ""]
+    if cmp.signals is None:
+        L += ["No per-signal statistics: they need elevations (give broadcast navigation files with --nav).", ""]
+    else:
+        L += summary_lines(cmp.signals)
+        L += [f"Machine-readable: `{SIGNALS_JSON}` (both sides' statistics and their comparison).", ""]
+        (out_dir / SIGNALS_JSON).write_text(json.dumps(
+            {"comparison": cmp.signals, "sim": cmp.signal_stats_sim.to_json(),
+             "real": cmp.signal_stats_real.to_json()}, indent=1))
 
     L += ["## Positions", ""]
     if cmp.sol_sim is None:

@@ -1,0 +1,302 @@
+"""gnss-sim calibrate and the per-signal statistics it shares with gnss-sim compare (issue 26 part D).
+
+Synthetic checks of the method (the multipath combination gives a known code noise back, arcs split where they
+must) and a fit on 45 minutes of the ESBC station (Septentrio PolaRx5, choke ring, ../shared/data), whose C/N0
+must rise with elevation and whose code noise must fall with it, as every open-sky geodetic recording does.
+"""
+from __future__ import annotations
+
+import gzip
+import json
+
+import hatanaka
+import numpy as np
+import pytest
+import yaml
+
+from gnss_sim_ros2 import cli
+from gnss_sim_ros2.core import constants as k
+from gnss_sim_ros2.core.calibration.fit import fit_profile, pava
+from gnss_sim_ros2.core.calibration.reading import read_recording
+from gnss_sim_ros2.core.calibration.signal_compare import compare_statistics
+from gnss_sim_ros2.core.calibration.signal_stats import (
+    arc_ids,
+    mp_combination,
+    remove_arc_means,
+    signal_statistics,
+)
+from gnss_sim_ros2.core.rinex.obs_read import load_rinex
+from gnss_sim_ros2.core.rinex.obs_table import ObsTable
+
+ESBC = "esbc-2020-177-polarx5"
+ESBC_OBS = "ESBC00DNK_R_20201770000_01D_30S_MO.crx.gz"
+ESBC_NAV = "ESBC00DNK_R_20201770000_01D_MN.rnx.gz"
+SPAN = ("2020-06-25T00:00:00", 2700.0)          # 45 min
+
+
+# ---------------------------------------------------------------------------------------------- synthetic
+def _synthetic_table(sigma_m: float, n_e: int = 400, seed: int = 1, slip_epoch: int | None = None,
+                     flag_slip: bool = True) -> tuple[ObsTable, np.ndarray]:
+    """GPS L1 C/A + L2 P(Y): geometry, a strongly varying ionosphere, white code noise of ``sigma_m`` on C1C,
+    phases of 2 mm noise; optionally a 7-cycle slip on L1 at ``slip_epoch`` (with or without LLI bit 0)."""
+    rng = np.random.default_rng(seed)
+    svs = np.array(["G01", "G02", "G03"])
+    t = np.datetime64("2020-06-25T00:00:00", "ns") + np.arange(n_e) * np.timedelta64(30, "s")
+    f1, f2 = k.F_L1_HZ, k.F_L2_HZ
+    lam1, lam2 = k.C_MPS / f1, k.C_MPS / f2
+    e = np.arange(n_e)[:, None]
+    rho = 2.2e7 + 600.0 * e + 1e5 * np.arange(3)[None, :]
+    iono1 = 5.0 + 4.0 * np.sin(e / 40.0 + np.arange(3)[None, :])          # metres on L1, metres * (f1/f2)^2 on L2
+    iono2 = iono1 * (f1 / f2) ** 2
+    c1 = rho + iono1 + rng.normal(0.0, sigma_m, rho.shape)
+    l1 = (rho - iono1 + rng.normal(0.0, 0.002, rho.shape)) / lam1 + 1234.0
+    l2 = (rho - iono2 + rng.normal(0.0, 0.002, rho.shape)) / lam2 - 987.0
+    lli = {"L1C": np.zeros(rho.shape, np.int8), "L2W": np.zeros(rho.shape, np.int8)}
+    if slip_epoch is not None:
+        l1[slip_epoch:, 1] += 7.0
+        if flag_slip:
+            lli["L1C"][slip_epoch, 1] = 1
+    s1 = np.full(rho.shape, 45.0)
+    el = np.broadcast_to(np.linspace(10.0, 80.0, n_e)[:, None], rho.shape).copy()
+    tab = ObsTable(t, svs, {"C1C": c1, "L1C": l1, "S1C": s1, "C2W": c1 + (iono2 - iono1), "L2W": l2,
+                            "S2W": s1 - 5.0}, "synthetic", "rinex", lli=lli)
+    return tab, el
+
+
+def test_mp_combination_cancels_geometry_clock_and_ionosphere():
+    f1, f2 = k.F_L1_HZ, k.F_L5_HZ
+    rho = np.linspace(2.0e7, 2.5e7, 50)
+    iono = np.linspace(1.0, 30.0, 50)
+    a = (f1 / f2) ** 2
+    mp = mp_combination(rho + iono, rho - iono + 3.0, rho - a * iono - 2.0, f1, f2)
+    assert np.ptp(mp) < 1e-6          # a constant: ambiguities only
+    assert not np.isclose(mp[0], 0.0)
+
+
+@pytest.mark.parametrize("sigma_m", [0.1, 0.5])
+def test_multipath_combination_gives_the_code_noise_back(sigma_m):
+    tab, el = _synthetic_table(sigma_m)
+    st = signal_statistics(tab, el, interval_s=30.0, mask_deg=5.0)
+    g1 = st.signals["G1C"]
+    assert g1.mp_partner == "2W"
+    # C1C noise plus the phase noise amplified by the combination (1 + 2/(a-1) ~ 4.1 on L1, 3.1 on L2: 1 cm)
+    assert g1.mp_all_sigma_m == pytest.approx(np.hypot(sigma_m, 0.01), rel=0.06)
+    ok = g1.mp_n > 30
+    assert np.allclose(g1.mp_sigma_m[ok], sigma_m, rtol=0.2)
+
+
+@pytest.mark.parametrize("flag_slip", [True, False])
+def test_a_cycle_slip_starts_a_new_arc(flag_slip):
+    """A 7-cycle L1 slip (1.5 m on L1, x4.1 in the combination) flagged by LLI, or found as a jump."""
+    tab, el = _synthetic_table(0.2, slip_epoch=200, flag_slip=flag_slip)
+    st = signal_statistics(tab, el, interval_s=30.0)
+    assert st.signals["G1C"].mp_all_sigma_m == pytest.approx(0.2, rel=0.08)
+    # without splitting the arc the step would dominate: the check can fail
+    t_s = np.arange(len(tab.time)) * 30.0
+    mp = mp_combination(tab.values["C1C"], tab.values["L1C"] * k.C_MPS / k.F_L1_HZ,
+                        tab.values["L2W"] * k.C_MPS / k.F_L2_HZ, k.F_L1_HZ, k.F_L2_HZ)
+    r = remove_arc_means(mp, arc_ids(np.isfinite(mp), t_s, 61.0))
+    assert np.sqrt(np.nanmean(r**2)) > 0.5
+
+
+def test_arc_ids_split_at_gaps_and_breaks():
+    t_s = np.arange(12) * 30.0
+    valid = np.ones((12, 2), bool)
+    valid[4:6, 0] = False                  # a gap of 3 intervals: a new arc
+    valid[8, 1] = False                    # a gap of 2 intervals: the same arc
+    breaks = np.zeros((12, 2), bool)
+    breaks[10, 1] = True
+    a = arc_ids(valid, t_s, 2 * 30.0 + 1e-3, breaks)
+    assert (a[~valid] == -1).all()
+    assert len(set(a[:4, 0])) == 1 and len(set(a[6:, 0])) == 1 and a[0, 0] != a[6, 0]
+    assert len(set(a[:10, 1][valid[:10, 1]])) == 1 and a[10, 1] == a[11, 1] != a[9, 1]
+    assert len(np.unique(a[a >= 0])) == 4
+
+
+def test_rise_set_and_lli_statistics():
+    tab, el = _synthetic_table(0.1, n_e=100)
+    # G02 rises at epoch 20 (elevation increasing); G03 sets at epoch 70; G01 covers the whole span
+    for c in tab.values:
+        tab.values[c][:20, 1] = np.nan
+        tab.values[c][71:, 2] = np.nan
+    el[:, 2] = np.linspace(60.0, 1.0, 100)
+    tab.lli["L1C"][20, 1] = 1
+    tab.lli["L1C"][0, 0] = 3
+    st = signal_statistics(tab, el, interval_s=30.0).signals["G1C"]
+    assert st.rise_el_deg.tolist() == [el[20, 1]]
+    assert st.set_el_deg.tolist() == [el[70, 2]]
+    assert st.lli_first == {"n": 2, "bit0": 1, "bit1": 1}          # G02 has no phase at the first epoch
+    assert st.lli_arc_start == {"n": 1, "bit0": 1, "bit1": 0}
+
+
+def test_pava_makes_a_weighted_monotone_fit():
+    y = pava(np.array([1.0, 3.0, 2.0, 4.0]), np.array([1.0, 1.0, 3.0, 1.0]))
+    assert np.allclose(y, [1.0, 2.25, 2.25, 4.0])
+    assert np.allclose(pava(np.array([3.0, 1.0, 2.0]), np.ones(3), increasing=False), [3.0, 1.5, 1.5])
+
+
+# ---------------------------------------------------------------------------------------------- ESBC
+@pytest.fixture(scope="module")
+def esbc(shared_data, tmp_path_factory):
+    d = shared_data / ESBC
+    if not (d / ESBC_OBS).is_file():
+        pytest.skip(f"{d / ESBC_OBS} is absent")
+    out = tmp_path_factory.mktemp("esbc")
+    obs = out / "esbc.rnx"
+    obs.write_bytes(hatanaka.decompress(gzip.decompress((d / ESBC_OBS).read_bytes())))
+    return {"obs": obs, "crx": d / ESBC_OBS, "nav": d / ESBC_NAV, "dir": out}
+
+
+@pytest.fixture(scope="module")
+def esbc_fit(esbc):
+    rec = read_recording(esbc["obs"], [esbc["nav"]], start_iso=SPAN[0], duration_s=SPAN[1])
+    stats = signal_statistics(rec.table, rec.el_deg, rec.interval_s, mask_deg=5.0, bin_deg=5.0)
+    prof, notes = fit_profile(stats, rec.header, "esbc.rnx", "esbc_test")
+    return rec, stats, prof, notes
+
+
+def test_hatanaka_gz_reads_like_the_decompressed_file(esbc):
+    tlim = (np.datetime64("2020-06-25T00:00:00"), np.datetime64("2020-06-25T00:10:00"))
+    a, b = load_rinex(esbc["crx"], tlim), load_rinex(esbc["obs"], tlim)
+    assert len(a.time) == 21 and np.array_equal(a.time, b.time) and np.array_equal(a.sv, b.sv)
+    assert set(a.values) == set(b.values) and {"S1C", "S2W", "S7Q", "S2I"} <= set(a.values)
+    for c in a.values:
+        assert np.array_equal(np.isnan(a.values[c]), np.isnan(b.values[c])), c
+    assert set(a.lli) == {c for c in a.values if c[0] == "L"}
+
+
+def test_esbc_fit_rises_with_elevation_and_multipath_falls(esbc_fit):
+    rec, stats, prof, notes = esbc_fit
+    assert len(rec.table.time) == 90 and rec.interval_s == 30.0
+    assert prof["rinex"]["receiver_type"] == "SEPT POLARX5" and prof["antenna"] == "choke_ring"
+    assert prof["signals"]["G"][0] == "1C" and {"2W", "2L", "5Q"} <= set(prof["signals"]["G"])
+    assert {"1C", "5Q", "7Q"} <= set(prof["signals"]["E"])
+    cn0 = prof["link_budget"]["cn0_table_dbhz"]
+    mp = prof["code_multipath_m"]
+    for key in ("G1C", "G2W", "E1C", "E5Q", "C2I"):
+        # measured bin means (before the monotone fit): C/N0 rises with elevation
+        st = stats.signals[key]
+        ok = st.cn0_n >= 30
+        assert np.corrcoef(st.el_centres_deg[ok], st.cn0_mean_dbhz[ok])[0, 1] > 0.85, key
+        t = cn0[key]
+        assert np.all(np.diff(t["cn0_dbhz"]) >= 0) and t["el_deg"][0] == 0.0 and t["el_deg"][-1] == 90.0
+        assert np.interp(60.0, t["el_deg"], t["cn0_dbhz"]) - np.interp(15.0, t["el_deg"], t["cn0_dbhz"]) > 5.0, key
+    for key in ("G1C", "E1C", "E5Q"):
+        st = stats.signals[key]
+        ok = st.mp_n >= 30
+        lo, hi = st.mp_sigma_m[ok & (st.el_centres_deg < 20)], st.mp_sigma_m[ok & (st.el_centres_deg > 45)]
+        assert lo.size and hi.size and lo.mean() > 1.5 * hi.mean(), key
+        t = mp[key]
+        assert np.interp(10.0, t["el_deg"], t["sigma_m"]) > np.interp(60.0, t["el_deg"], t["sigma_m"]), key
+        assert min(t["sigma_m"]) >= 0.0
+    tr = prof["tracking"]
+    assert 20.0 < tr["tracking_cn0_dbhz"] < tr["acquisition_cn0_dbhz"] < 45.0
+    assert tr["start"] == "warm"                     # the station runs all day: no loss of lock at 00:00
+    assert 0.1 < prof["cn0_noise_db"] < 2.0
+
+
+def test_esbc_profile_loads_as_a_receiver_profile(esbc_fit, tmp_path):
+    from gnss_sim_ros2.core.receiver.profiles import load_profile
+
+    _, _, prof, _ = esbc_fit
+    p = tmp_path / "esbc_test.yaml"
+    p.write_text(yaml.safe_dump(prof, sort_keys=False))
+    loaded = load_profile(p)
+    assert loaded.name == "esbc_test" and loaded.signal_map() == prof["signals"]
+
+
+def _calibrate(*argv):
+    return cli.main(["calibrate", *map(str, argv)])
+
+
+def test_calibrate_cli_end_to_end(esbc, tmp_path, capsys):
+    out = tmp_path / "cal"
+    rc = _calibrate("--obs", esbc["crx"], "--nav", esbc["nav"], "--start", "2020-06-25T06:00:00", "--duration",
+                    1800, "--name", "esbc_half_hour", "--out", out)
+    text = capsys.readouterr().out
+    assert rc == 0, text
+    assert {"esbc_half_hour.yaml", "report.md", "statistics.json", "cn0_elevation.png", "code_noise_elevation.png"} \
+        <= {p.name for p in out.iterdir()}
+    prof = yaml.safe_load((out / "esbc_half_hour.yaml").read_text())
+    assert prof["gnss_sim_profile"] == 1 and "2020-06-25T06:00:00 .. 2020-06-25T06:29:30" in prof["source"]
+    report = (out / "report.md").read_text()
+    assert "## Per signal" in report and "![C/N0 against elevation](cn0_elevation.png)" in report
+    stats = json.loads((out / "statistics.json").read_text())
+    assert stats["epochs"] == 60 and "G1C" in stats["signals"]
+
+
+@pytest.mark.parametrize("case", ["missing obs", "missing nav", "bad position", "empty span", "bad duration",
+                                  "bad start"])
+def test_calibrate_bad_inputs_one_line_rc2(esbc, tmp_path, capsys, case):
+    obs, nav = esbc["obs"], esbc["nav"]
+    args = {"missing obs": ("--obs", tmp_path / "nope.rnx", "--nav", nav),
+            "missing nav": ("--obs", obs, "--nav", tmp_path / "nope_MN.rnx"),
+            "bad position": ("--obs", obs, "--nav", nav, "--position-ecef", "1,2"),
+            "empty span": ("--obs", obs, "--nav", nav, "--start", "2021-01-01T00:00:00", "--duration", 600),
+            "bad duration": ("--obs", obs, "--nav", nav, "--duration", -5),
+            "bad start": ("--obs", obs, "--nav", nav, "--start", "yesterday")}[case]
+    rc = _calibrate(*args, "--out", tmp_path / "out")
+    err = capsys.readouterr().err.strip().splitlines()
+    err = [e for e in err if "error" in e]
+    assert rc == 2 and len(err) == 1, err
+    named = {"missing obs": "nope.rnx", "missing nav": "nope_MN.rnx", "bad position": "--position-ecef",
+             "empty span": "no observation epochs", "bad duration": "--duration", "bad start": "--start"}[case]
+    assert named in err[0]
+    assert not (tmp_path / "out").exists()
+
+
+def test_calibrate_without_cn0_fits_the_rest(opec_dir, tmp_path, capsys):
+    """OPEC (Trimble NETR9) has no S observations: C/N0 cannot be fitted, signals / code noise / flags are."""
+    obs = opec_dir / "OPEC00NOR_S_20220010000_0340_30S_MO.rnx"
+    navs = sorted(opec_dir.glob("OPEC00NOR_S_20220010000_01D_?N.rnx"))
+    rc = _calibrate("--obs", obs, "--nav", *navs, "--duration", 3600, "--out", tmp_path / "cal")
+    text = capsys.readouterr().out
+    assert rc == 0
+    assert "C/N0 cannot be fitted" in text and "still fitted: signals, code multipath" in text
+    prof = yaml.safe_load((tmp_path / "cal" / "opec00nor_calibrated.yaml").read_text())
+    assert "link_budget" not in prof and "cn0_noise_db" not in prof
+    assert "G1C" in prof["code_multipath_m"] and prof["signals"]["G"][0] == "1C"
+
+
+# ---------------------------------------------------------------------------------------------- compare
+def test_compare_statistics_finds_a_cn0_offset_and_a_missing_signal(esbc_fit):
+    rec, real, _, _ = esbc_fit
+    tab = rec.table.subset()
+    tab.values["S1C"] = tab.values["S1C"] + 2.0                 # every system's band-1 C/N0 +2 dB
+    gps = np.array([s[0] == "G" for s in tab.sv.tolist()])
+    tab.values["C2L"] = np.where(gps[None, :] & (np.arange(len(tab.sv)) % 2 == 0)[None, :], np.nan,
+                                 tab.values["C2L"])
+    sim = signal_statistics(tab, rec.el_deg, rec.interval_s, mask_deg=10.0, bin_deg=10.0)
+    real10 = signal_statistics(rec.table, rec.el_deg, rec.interval_s, mask_deg=10.0, bin_deg=10.0)
+    res = compare_statistics(sim, real10)
+    g1 = res["signals"]["G1C"]
+    d = [v for v in g1["cn0_diff_db"] if v is not None]
+    assert len(d) >= 5 and np.allclose(d, 2.0)
+    assert g1["jaccard"] == 1.0 and g1["code_ratio"] == pytest.approx(1.0)
+    g2 = res["signals"]["G2L"]
+    assert 0.2 < g2["jaccard"] < 0.9 and g2["n_sim"] < g2["n_real"]
+    assert res["signals"]["E5Q"]["cn0_diff_db"][3] == pytest.approx(0.0)
+    assert res["jaccard_all"] < 1.0
+    assert res["lli_first"]["sim"] == res["lli_first"]["real"]
+    assert real.signals["G1C"].mp_all_sigma_m > 0
+
+
+def test_compare_reports_the_signals_section(esbc, tmp_path, capsys):
+    """A 20-minute excerpt compared with the whole file: identical statistics, Jaccard 1, ratios 1."""
+    lines = esbc["obs"].read_text().splitlines(keepends=True)
+    end = next(i for i, s in enumerate(lines) if s.startswith("> 2020 06 25 00 20 00"))
+    excerpt = tmp_path / "excerpt.rnx"
+    excerpt.write_text("".join(lines[:end]))
+    rc = cli.main(["compare", "--sim", str(excerpt), "--real", str(esbc["obs"]), "--nav", str(esbc["nav"]),
+                   "--mask-deg", "10", "--out", str(tmp_path / "cmp")])
+    out = capsys.readouterr().out
+    assert rc == 0
+    assert "(epoch, satellite, signal) triples, Jaccard: 1.000" in out
+    report = (tmp_path / "cmp" / "report.md").read_text()
+    assert "## Signals\n" in report and "Mean C/N0 simulated minus real" in report
+    js = json.loads((tmp_path / "cmp" / "signals.json").read_text())
+    res = js["comparison"]
+    assert res["jaccard_all"] == 1.0 and res["common_epochs"] == 40
+    assert all(r["code_ratio"] == pytest.approx(1.0) for r in res["signals"].values() if r.get("code_ratio"))
+    assert all(v in (None, 0.0) for r in res["signals"].values() for v in r.get("cn0_diff_db", []))
+    assert js["sim"]["signals"].keys() == js["real"]["signals"].keys()
