@@ -64,7 +64,9 @@ def test_beidou_2_and_3_glonass_cdma_galileo_e20():
     assert p.codes("C59", bds, d) == ["2I", "6I", "7D"]        # BeiDou-3 GEO: no B1C/B2a, no B2I
     glo = ("1C", "2C", "3Q")
     assert p.codes("R01", glo, d) == ["1C", "2C"]              # GLONASS-M: FDMA only
-    assert p.codes("R09", glo, d) == ["1C", "2C", "3Q"]        # GLONASS-K1 (R802): L3OC
+    assert p.codes("R09", glo, d) == ["1C", "2C", "3Q"]        # GLONASS-K1B (R802): L3OC
+    assert p.codes("R21", glo, d) == ["1C", "2C", "3Q"]        # GLONASS-M+ (R855): L3OC
+    assert p.codes("R15", glo, d) == ["1C", "2C"]              # R857: a GLONASS-M without L3
     assert p.codes("E20", ("1C", "5Q", "7Q", "6C"), d) == ["1C"]    # IOV FM4 lost E5/E6 in 2014
     assert p.codes("E20", ("1C", "5Q"), _day("2013-06-01T00:00:00")) == ["1C", "5Q"]
 
@@ -75,7 +77,7 @@ def test_unknown_satellites_take_the_documented_default():
     assert p.generation("G23", d) == "GPS-IIIA"     # G23 unassigned on that day (between SVN60 and SVN76)
     assert p.generation("G40", d) == "GPS-IIIA"
     assert p.generation("C17", d) == "BDS-2I"       # BeiDou PRN plan: C01-C18 BeiDou-2
-    assert p.generation("C55", d) == "BDS-3M"
+    assert p.generation("C55", d) == "BDS-3M-CAST"
     assert p.generation("C63", d) == "BDS-3G"
     assert p.generation("R30", d) == "GLO-M"
     assert p.codes("I03", ("5A", "9A"), d) == ["5A", "9A"]
