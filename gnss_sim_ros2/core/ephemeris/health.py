@@ -10,10 +10,13 @@ QZSS: the 6-bit SV health of the L1C/A navigation message holds one bit per sign
     bit 4 (0x10): L1C/A                                  bit 1 (0x02): L1C
     bit 3 (0x08): L2C                                    bit 0 (0x01): L1C/B (LEX/L6 in IS-QZSS 1.x)
 
-A set bit flags that one signal; the others stay usable.  RTKLIB (satexclude: ``svh &= 0xFE`` for QZSS) and real
-receivers use a QZS whose health is 1, so this module keeps a QZSS record while any of L1C/A, L2C, L5 and L1C is
-healthy, and ``signal_usable`` drops only the flagged signals.  (Bit layout as the georust/rinex crate documents
-it from IS-QZSS-PNT 5.4.1; written without re-reading the ICD here, check the bit order against the document.)
+A set bit flags that one signal; the others stay usable.  Every QZS broadcasts health 1 since the L1C/B bit was
+introduced (the satellites do not transmit L1C/B), and real receivers track them (NovAtel OEM729, Septentrio
+mosaic-X5: s-taka.org/en/qzss-health-info-update-for-7-sats); RTKLIB masks the bit too (satexclude:
+``svh &= 0xFE`` for QZSS, its comment's "LEX health" being the IS-QZSS 1.x meaning of the LSB).  So this module keeps
+a QZSS record while any of L1C/A, L2C, L5 and L1C is healthy, and ``signal_usable`` drops only the flagged
+signals.  (Bit layout as the georust/rinex crate documents it from IS-QZSS-PNT 5.4.1; written without re-reading
+the ICD here, check the bit order against the document.)
 L6 has no bit in this field: it is taken as usable.
 """
 from __future__ import annotations
