@@ -443,6 +443,13 @@ def tropo_slant_delay_m(el_deg, lat_deg, h_m, doy, humidity=TROPO_HUMIDITY_DEFAU
     """Slant tropospheric delay [m] (same on code and carrier): ZHD m_h + ZWD m_w.  ``epoch_of_row``:
     ``lat_deg``, ``h_m`` and ``doy`` per epoch, ``el_deg`` per row (niell_mapping): the zenith delays and the
     mapping coefficients once per epoch."""
+    return tropo_slant_parts_m(el_deg, lat_deg, h_m, doy, humidity, epoch_of_row)[0]
+
+
+def tropo_slant_parts_m(el_deg, lat_deg, h_m, doy, humidity=TROPO_HUMIDITY_DEFAULT, epoch_of_row=None):
+    """(slant delay ZHD m_h + ZWD m_w, ZWD, m_w) [m, m, -] per row, as :func:`tropo_slant_delay_m`: the
+    zenith wet delay and the wet mapping besides the delay, for a wet delay other than the model's
+    (receiver/world_errors.py: the true atmosphere's water vapour)."""
     if np.ndim(lat_deg) == 0 and np.ndim(h_m) == 0 and np.ndim(humidity) == 0:   # one receiver: cached
         zhd, zwd = _zenith_cached(float(lat_deg), float(h_m), float(humidity))
     else:
@@ -450,7 +457,8 @@ def tropo_slant_delay_m(el_deg, lat_deg, h_m, doy, humidity=TROPO_HUMIDITY_DEFAU
         if epoch_of_row is not None:
             zhd, zwd = zhd[epoch_of_row], zwd[epoch_of_row]
     mh, mw = niell_mapping(el_deg, lat_deg, h_m, doy, epoch_of_row)
-    return zhd * mh + zwd * mw
+    slant = zhd * mh + zwd * mw
+    return slant, np.broadcast_to(zwd, np.shape(slant)), mw
 
 
 @functools.lru_cache(maxsize=64)

@@ -28,13 +28,14 @@ IS-GPS-200N 20.3.3.3.3, RTKLIB manual E.5):
   times a slowly varying factor 1 + ``iono_error_frac`` g(t) (the model's own
   error); a receiver correcting with Klobuchar (``iono_model_m``) thus keeps
   a residual with a real one's size and spatial structure;
-  T: troposphere (Saastamoinen + Niell);
+  T: troposphere, the receiver's model (Saastamoinen with a standard atmosphere, Niell mapping;
+  ``tropo_model_m``) with the true zenith wet delay off the model's by 5 cm x w(t) (world_errors.py);
 - S_s: broadcast orbit and clock error of satellite s projected on the line of
   sight (signal-in-space range error, SISRE; same on every signal, code and
   phase), sigma ``sisre_m`` per system;
-- g(t) and S_s(t) belong to the simulated *world* (world_errors.py), not to one receiver: they
-  are smooth functions of GPS time (sums of sinusoids, periods 20 min to
-  12 h, random phases from ``world_seed``), so every receiver of one world
+- g(t), w(t) and S_s(t) belong to the simulated *world* (world_errors.py), not to one receiver: they
+  are smooth functions of GPS time (sums of sinusoids, periods 2 h to
+  24 h, random phases from ``world_seed``), so every receiver of one world
   (a base and a rover) sees the same ionosphere and satellite errors at any
   epoch rate, as in reality; what differs between receivers (multipath,
   thermal noise, clock) comes from ``seed``;
@@ -74,7 +75,7 @@ from .ionosphere import klobuchar_coeffs, truth_model
 from .observations import EpochObservations, untracked_epoch
 from .signal_rows import SignalRows, array_key
 from .tracking import Tracker
-from .world_errors import WorldErrorTerms, world_process
+from .world_errors import ZWD_RESIDUAL_SIGMA_M, WorldErrorTerms, world_process
 
 #: visibility states (gnss_sim_msgs/SatelliteVisibility)
 VISIBLE, BLOCKED, ATTENUATED, REFLECTED_ONLY = (VisibilityState.VISIBLE, VisibilityState.BLOCKED,
@@ -105,6 +106,7 @@ class Receiver:
         self._plans = default_plans()
         self._keep_cache = BoundedCache(64)
         self._iono_terms = None
+        self._tropo_terms = None
         self._doy_key = None
         self._doy0 = 0.0
 
@@ -327,13 +329,16 @@ class Receiver:
         if cfg.troposphere == "saastamoinen":
             doy = np.array([self._day_of_year(t) for t in b.ts])
             # the zenith delays and mapping coefficients per epoch, the mapping per satellite
-            b.tropo = prop.tropo_slant_delay_m(np.maximum(b.el, 1.0), b.lat_ep, b.h_ep, doy,
-                                               epoch_of_row=b.e_sat)[sat_i]
+            tropo, zwd, m_wet = prop.tropo_slant_parts_m(np.maximum(b.el, 1.0), b.lat_ep, b.h_ep, doy,
+                                                         epoch_of_row=b.e_sat)
+            b.tropo, b.zwd_j, b.m_wet_j = tropo[sat_i], zwd[sat_i], m_wet[sat_i]
         else:
             b.tropo = np.zeros(m)
+            b.zwd_j = None
 
     def _world_errors(self, b: _Block) -> None:
-        """The world's errors (world_errors.py): the true ionosphere's own error, each satellite's SISRE."""
+        """The world's errors (world_errors.py): the true ionosphere's own error, the true zenith wet delay's,
+        each satellite's SISRE."""
         cfg = self.cfg
         frac = cfg.iono_error_frac.get(self.iono_truth, 0.0)
         if cfg.noise and frac != 0:
@@ -343,6 +348,15 @@ class Receiver:
             b.iono_true = b.iono_base * (1.0 + frac * (g_iono[0] if b.k_n == 1 else g_iono[b.e_sig]))
         else:
             b.iono_true = b.iono_base
+        # the true troposphere: the model's (b.tropo, what the receiver corrects with) with the true zenith wet
+        # delay, ZWD + ZWD_RESIDUAL_SIGMA_M w(t) (no negative water vapour), on the wet mapping
+        b.tropo_true = b.tropo
+        if cfg.noise and b.zwd_j is not None:
+            if self._tropo_terms is None:
+                self._tropo_terms = self.world_terms.stacked([("tropo",)])
+            w = world_process(b.t_true, self._tropo_terms)
+            d_zwd = ZWD_RESIDUAL_SIGMA_M * (w[0] if b.k_n == 1 else w[b.e_sig])
+            b.tropo_true = b.tropo + (np.maximum(b.zwd_j + d_zwd, 0.0) - b.zwd_j) * b.m_wet_j
         rows = b.rows
         b.sisre_m = (rows.sisre_sigma * world_process(b.t_true_sat, rows.sisre_terms))[b.sat_i] if cfg.noise else None
 
@@ -434,7 +448,7 @@ class Receiver:
         """Pseudorange, carrier phase and Doppler (the observation equations of the module doc)."""
         k_n, lam = b.k_n, b.rows.lam
         bias_j = b.bias_ep[0] if k_n == 1 else b.bias_ep[b.e_sig]
-        common = b.rho + k.C_MPS * (bias_j - b.dts) + b.tropo
+        common = b.rho + k.C_MPS * (bias_j - b.dts) + b.tropo_true
         if b.sisre_m is not None:
             common = common + b.sisre_m
         b.pr = common + b.iono_true + b.rows.code_bias_m + b.mp + b.e_p + b.mp_code
