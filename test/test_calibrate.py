@@ -78,7 +78,7 @@ def test_multipath_combination_gives_the_code_noise_back(sigma_m):
     tab, el = _synthetic_table(sigma_m)
     st = signal_statistics(tab, el, interval_s=30.0, mask_deg=5.0)
     g1 = st.signals["G1C"]
-    assert g1.mp_partner == "2W"
+    assert g1.mp_partner == "2W"             # the only other phase of these satellites
     # C1C noise plus the phase noise amplified by the combination (1 + 2/(a-1) ~ 4.1 on L1, 3.1 on L2: 1 cm)
     assert g1.mp_all_sigma_m == pytest.approx(np.hypot(sigma_m, 0.01), rel=0.06)
     ok = g1.mp_n > 30

@@ -2,7 +2,8 @@
 
 What is fitted and how:
 
-- ``signals``: the signals of the file with pseudoranges, per system (RINEX codes the signal table knows);
+- ``signals``: the signals of the file with pseudoranges, per system (RINEX codes the signal table knows; also
+  where the navigation data give no elevation);
 - ``link_budget.cn0_table_dbhz``: per signal the mean C/N0 of each elevation bin with at least
   ``MIN_BIN_SAMPLES`` samples, made non-decreasing with elevation (weighted pool-adjacent-violators: the
   receiver's C/N0 rises with elevation; what breaks it is noise of few samples or one satellite), bins the signal
@@ -211,11 +212,11 @@ def fit_profile(stats: RecordingStats, header: dict, source_file: str, name: str
     notes: list[str] = []
     signals: dict[str, list[str]] = {}
     for key, st in stats.signals.items():
-        if st.tracked is not None and st.tracked.any() and (key[0], key[1:]) in SIGNALS:
+        if st.n_code and (key[0], key[1:]) in SIGNALS:
             signals.setdefault(key[0], []).append(key[1:])
     if not signals:
-        raise ValueError(f"{source_file}: no signal with pseudoranges above {stats.mask_deg:g} deg: nothing to fit")
-    n_bands = len({c[0] for codes in signals.values() for c in codes})
+        raise ValueError(f"{source_file}: no pseudoranges of a signal the simulator knows: nothing to fit")
+    n_bands = max(len({c[0] for c in codes}) for codes in signals.values())
     traits_name = _traits_name(header.get("receiver_type", ""), n_bands)
     base = filled_in(traits_name)
     bn_hz, spacing = float(base["dll_bn_hz"]), float(base["dll_spacing_chips"])

@@ -70,6 +70,7 @@ class SignalStats:
     lli_first: dict = field(default_factory=dict)     #: {"n", "bit0", "bit1"} at the span's first epoch
     lli_arc_start: dict = field(default_factory=dict)  #: the same at arc starts (not at the span's start)
     tracked: np.ndarray | None = None    #: (E, S) bool: code observation at or above the mask
+    n_code: int = 0                      #: code observations in the span (any elevation, known or not)
 
     @property
     def system(self) -> str:
@@ -87,7 +88,7 @@ class SignalStats:
         def arr(a):
             return None if a is None else [None if not np.isfinite(v) else round(float(v), 4) for v in np.ravel(a)]
 
-        return {"el_edges_deg": arr(self.el_edges_deg), "cn0_mean_dbhz": arr(self.cn0_mean_dbhz),
+        return {"n_code": self.n_code, "el_edges_deg": arr(self.el_edges_deg), "cn0_mean_dbhz": arr(self.cn0_mean_dbhz),
                 "cn0_std_db": arr(self.cn0_std_db), "cn0_n": [int(v) for v in self.cn0_n],
                 "mp_partner": self.mp_partner, "mp_sigma_m": arr(self.mp_sigma_m), "mp_cn0_dbhz": arr(self.mp_cn0_dbhz),
                 "mp_n": None if self.mp_n is None else [int(v) for v in self.mp_n],
@@ -219,29 +220,33 @@ def _freq(tab: ObsTable, svs: list[str], code: str) -> np.ndarray:
     return np.array(out, dtype=float)
 
 
-def _mp_partner(tab: ObsTable, cols: np.ndarray, svs: list[str], code: str) -> str:
-    """The other carrier phase of the combination: among those of another frequency with at least 80 % of the epochs
-    (together with L``code``) of the best, the one farthest in frequency (a = (f_i/f_j)^2 far from 1: close bands
-    such as L5/L2 multiply the phases by 2/(a-1) = -24 and with them every phase error)."""
+def _mp_partners(tab: ObsTable, cols: np.ndarray, svs: list[str], code: str) -> list[str]:
+    """Per satellite the other carrier phase of the combination ("" = none): among those of another frequency
+    with at least 80 % of the epochs (together with L``code``) of the best, the one farthest in frequency
+    (a = (f_i/f_j)^2 far from 1: close bands such as L5/L2 multiply the phases by 2/(a-1) = -24 and with them
+    every phase error).  Chosen per satellite: BeiDou-2 and -3 share B1I and B3I but not B2I."""
     li = tab.values.get("L" + code)
+    out = [""] * len(svs)
     if li is None:
-        return ""
+        return out
+    li = np.isfinite(li[:, cols])
     f_i = _freq(tab, svs, code)
-    cands = []
+    counts, seps, names = [], [], []
     for c in tab.values:
         if c[0] != "L" or c[1] == code[0]:
             continue
         f_j = _freq(tab, svs, c[1:])
-        if not np.all(np.isfinite(f_j) | ~np.isfinite(f_i)) or np.any(np.isclose(f_i, f_j)):
-            continue
-        n = int((np.isfinite(li[:, cols]) & np.isfinite(tab.values[c][:, cols])).sum())
-        sep = float(np.nanmedian(np.abs(np.log(f_i / f_j)))) if np.isfinite(f_i / f_j).any() else 0.0
-        if n:
-            cands.append((n, sep, c[1:]))
-    if not cands:
-        return ""
-    most = max(n for n, _, _ in cands)
-    return max((c for c in cands if c[0] >= 0.8 * most), key=lambda c: (c[1], c[0]))[2]
+        usable = np.isfinite(f_i) & np.isfinite(f_j) & ~np.isclose(f_i, f_j)
+        counts.append(np.where(usable, (li & np.isfinite(tab.values[c][:, cols])).sum(axis=0), 0))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            seps.append(np.where(usable, np.abs(np.log(f_i / f_j)), 0.0))
+        names.append(c[1:])
+    if not names:
+        return out
+    n, sep = np.array(counts), np.array(seps)          # (candidates, satellites)
+    ok = (n > 0) & (n >= 0.8 * n.max(axis=0, keepdims=True))
+    best = np.argmax(np.where(ok, sep, -1.0), axis=0)
+    return [names[b] if ok[b, j] else "" for j, b in enumerate(best)]
 
 
 # ---------------------------------------------------------------------------- the statistics
@@ -301,12 +306,14 @@ def signal_statistics(tab: ObsTable, el_deg: np.ndarray, interval_s: float | Non
             has = np.isfinite(phase[starts[:, 0], starts[:, 1]])
             st.lli_arc_start = _lli_count(lli[starts[has, 0], starts[has, 1]])
         st.tracked = np.isfinite(pr) & (el >= mask_deg)
+        st.n_code = int(np.isfinite(pr).sum())
 
         # code noise by the multipath combination
-        partner = _mp_partner(tab, cols, svs, code) if np.isfinite(pr).any() else ""
-        if partner:
-            st.mp_partner = partner
-            _code_noise(st, tab, cols, svs, code, partner, pr, cn0, el, t_s, max_gap, mask_deg)
+        partners = _mp_partners(tab, cols, svs, code) if np.isfinite(pr).any() else [""] * len(svs)
+        used = [p for p in partners if p]
+        if used:
+            st.mp_partner = "/".join(sorted(set(used), key=lambda p: -used.count(p)))
+            _code_noise(st, tab, cols, svs, code, partners, pr, cn0, el, t_s, max_gap, mask_deg)
         out[key] = st
     keep = np.isin(sysc, list(CALIBRATED_SYSTEMS))
     flags = [f[:, keep][np.isfinite(tab.column(c)[:, keep])] for c, f in tab.lli.items()]
@@ -331,19 +338,23 @@ def _arc_ends(arcs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return first, last
 
 
-def _code_noise(st: SignalStats, tab, cols, svs, code, partner, pr, cn0, el, t_s, max_gap, mask_deg) -> None:
+def _code_noise(st: SignalStats, tab, cols, svs, code, partners, pr, cn0, el, t_s, max_gap, mask_deg) -> None:
     from .. import constants as k
 
-    f_i, f_j = _freq(tab, svs, code)[None, :], _freq(tab, svs, partner)[None, :]
+    f_i = _freq(tab, svs, code)[None, :]
     phi_i = tab.column("L" + code)[:, cols] * (k.C_MPS / f_i)
-    phi_j = tab.column("L" + partner)[:, cols] * (k.C_MPS / f_j)
-    mp = mp_combination(pr, phi_i, phi_j, f_i, f_j)
+    mp = np.full(pr.shape, np.nan)
+    lli_i = tab.lli.get("L" + code)
+    breaks = ((lli_i[:, cols] & 1) > 0) if lli_i is not None else np.zeros(pr.shape, dtype=bool)
+    for p in set(partners) - {""}:
+        j = np.array([q == p for q in partners])
+        f_j = _freq(tab, svs, p)[None, :]
+        phi_j = tab.column("L" + p)[:, cols] * (k.C_MPS / f_j)
+        mp[:, j] = mp_combination(pr, phi_i, phi_j, f_i, f_j)[:, j]
+        lli_j = tab.lli.get("L" + p)
+        if lli_j is not None:
+            breaks[:, j] |= (lli_j[:, cols][:, j] & 1) > 0
     valid = np.isfinite(mp)
-    breaks = np.zeros(mp.shape, dtype=bool)
-    for c in (code, partner):
-        lli = tab.lli.get("L" + c)
-        if lli is not None:
-            breaks |= (lli[:, cols] & 1) > 0
     arcs = arc_ids(valid, t_s, max_gap, breaks)
     # jumps: steps over JUMP_SIGMAS robust sigma of the steps in the same 10-deg elevation band
     step = np.full(mp.shape, np.nan)

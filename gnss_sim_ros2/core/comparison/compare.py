@@ -55,14 +55,13 @@ from pathlib import Path
 import numpy as np
 
 from .. import constants as k
+from ..calibration.reading import elevations_deg
 from ..calibration.signal_compare import compare_statistics
 from ..calibration.signal_stats import RecordingStats, signal_statistics
 from ..ephemeris.broadcast import BroadcastEphemeris
-from ..frames import az_el_from_ecef
 from ..receiver.outputs import write_navigation
 from ..rinex.header import read_obs_header
-from ..rinex.obs_table import GPS_EPOCH_NP, ObsTable, match_epochs
-from ..time import GnssTime
+from ..rinex.obs_table import ObsTable, match_epochs
 from .pairing import SignalPair, pair_signals
 from .rtklib import rtklib_solutions
 from .sources import load_observations
@@ -204,27 +203,6 @@ def _input_warnings(cmp: Comparison, sim_path, real_path) -> list[str]:
     if day_s != day_r:
         out.append(f"{sim_path} starts on {day_s}, {real_path} on {day_r}: files of different days")
     return out
-
-
-def _elevations(eph, times: np.ndarray, svs: np.ndarray, rx_ecef: np.ndarray) -> np.ndarray:
-    """(E, S) elevation [deg] from the broadcast ephemeris at ``rx_ecef`` ((E, 3)); NaN without a record."""
-    col = {s: j for j, s in enumerate(svs.tolist())}
-    el = np.full((len(times), len(svs)), np.nan)
-    systems = "".join(sorted({s[0] for s in svs.tolist()} & set("GRECJI")))
-    if not systems:
-        return el
-    for i, t in enumerate(times):
-        if not np.all(np.isfinite(rx_ecef[i])):
-            continue
-        ns = int((t.astype("datetime64[ns]") - GPS_EPOCH_NP) / np.timedelta64(1, "ns"))
-        st = eph.states(GnssTime(ns // 1_000_000_000, (ns % 1_000_000_000) * 1e-9), systems=systems)
-        if not len(st):
-            continue
-        _, e, _ = az_el_from_ecef(rx_ecef[i], st.pos_ecef_m)
-        for s, v in zip(st.sv.tolist(), np.atleast_1d(e)):
-            if s in col:
-                el[i, col[s]] = v
-    return el
 
 
 def _kind_diffs(c: str, sim: ObsTable, real: ObsTable, pairs, svs, i_sim, i_real) -> dict[SignalPair, np.ndarray]:
@@ -397,7 +375,7 @@ def compare(sim_path, real_path, nav_paths=None, truth_ecef_m=None, truth_csv=No
         if rx is None and cmp.sol_real is not None:
             rx = cmp.sol_real.pos_ecef_m
         if rx is not None:
-            cmp.el_deg = _elevations(eph, times, svs, rx)
+            cmp.el_deg = elevations_deg(eph, times, svs, rx)
             if mask_deg > 0:
                 low = np.isfinite(cmp.el_deg) & (cmp.el_deg < mask_deg)
                 cmp.seen_sim = cmp.seen_sim & ~low
