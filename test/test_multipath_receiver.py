@@ -1,6 +1,8 @@
 """What the receiver makes of reflected paths: NLOS tracking, envelope code error, composite C/N0, profiles."""
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -120,7 +122,9 @@ def test_hysteresis_keeps_a_weak_reflection_only_once_tracked(provider):
     kept.epoch(T0, RX, st)                                               # acquired in line of sight
     obs = kept.epoch(T0 + 1.0, RX, st, vis, np.zeros(len(st)), multipath=paths)
     assert sv in set(obs.sv)
-    fresh = _rx()
+    # a receiver switched on now (a cold start: a warm one finds every signal above the loss threshold locked)
+    tracking = dataclasses.replace(probe.cfg.tracking, start="cold")
+    fresh = _rx(tracking=tracking)
     obs = fresh.epoch(T0, RX, st, vis, np.zeros(len(st)), multipath=paths)
     assert sv not in set(obs.sv)                                        # too weak to acquire
 
