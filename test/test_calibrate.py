@@ -300,3 +300,23 @@ def test_compare_reports_the_signals_section(esbc, tmp_path, capsys):
     assert all(r["code_ratio"] == pytest.approx(1.0) for r in res["signals"].values() if r.get("code_ratio"))
     assert all(v in (None, 0.0) for r in res["signals"].values() for v in r.get("cn0_diff_db", []))
     assert js["sim"]["signals"].keys() == js["real"]["signals"].keys()
+
+
+def test_a_profile_describes_the_data_it_was_fitted_on(esbc_fit):
+    """check_profile on the fitted span: the tables give the measured C/N0 and code noise back (the monotone
+    fit and the 10-degree pooling leave small differences; a wrong table or formula would not)."""
+    from gnss_sim_ros2.core.calibration.profile_check import check_profile
+
+    _, stats, prof, _ = esbc_fit
+    res = check_profile(stats, prof)
+    cn0 = np.array([v for k_ in ("G1C", "G2L", "E1C", "E5Q", "C2I") for v in res[k_]["cn0_diff_db"]], float)
+    code = np.array([v for k_ in ("G1C", "G2L", "E1C", "E5Q") for v in res[k_]["code_ratio"]], float)
+    cn0, code = cn0[np.isfinite(cn0)], code[np.isfinite(code)]
+    assert cn0.size >= 20 and np.median(np.abs(cn0)) < 0.5 and np.abs(cn0).max() < 2.0
+    assert code.size >= 15 and 0.9 < np.median(code) < 1.15
+    # another receiver's tables do not describe it: 3 dB more C/N0 everywhere is seen
+    louder = {**prof, "link_budget": {"cn0_table_dbhz": {
+        k_: {"el_deg": t["el_deg"], "cn0_dbhz": [v + 3.0 for v in t["cn0_dbhz"]]}
+        for k_, t in prof["link_budget"]["cn0_table_dbhz"].items()}}}
+    d = np.array(check_profile(stats, louder)["G1C"]["cn0_diff_db"], float)
+    assert np.nanmedian(d) == pytest.approx(np.nanmedian(np.array(res["G1C"]["cn0_diff_db"], float)) - 3.0)
