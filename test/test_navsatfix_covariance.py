@@ -38,8 +38,11 @@ def test_published_covariance_is_the_solvers(ros, tmp_path):  # noqa: F811
     from gnss_sim_ros2.nodes.receiver_node import ReceiverNode
 
     systems = "GE"
+    # a patch-antenna receiver: its open-sky code multipath (code_multipath.OPEN_SKY_MP_M) makes epochs whose
+    # residuals exceed the solver's weights (chi2/dof > 1) occur; the choke ring of the default profile has
+    # three times less and none in 40 epochs
     overrides = [Parameter("output_dir", value=str(tmp_path)), Parameter("systems", value=systems),
-                 Parameter("seed", value=3)]
+                 Parameter("seed", value=3), Parameter("profile", value="single_frequency")]
     node = ros.add(ReceiverNode(parameter_overrides=overrides, context=ros.context))
     node.trigger_configure()
     assert node._state_machine.current_state[1] == "inactive", node.last_error
