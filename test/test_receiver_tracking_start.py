@@ -134,3 +134,49 @@ def test_the_parameter_reaches_the_chain_and_the_first_epoch(tmp_path):
     setup, cold = _first_epoch(tmp_path / "c", tracking_start="cold")
     assert chain_settings(setup).receiver.tracking.start == "cold"
     assert np.all(cold.lli & LLI_LOSS_OF_LOCK) and np.all(cold.lock_time_s == 0.0)
+
+
+def _aided_epochs():
+    """G05 (1C, 2W, 5Q) and E11 (1C, 5Q) over 200 s: G05's L1 falls below the loss threshold from 120 s,
+    its L2 P(Y) is always below the acquisition threshold (15 dB-Hz, as the PolaRx5 reports it near the
+    horizon), its L5 at 26 dB-Hz between 50 and 80 s; E11 steady."""
+    out = []
+    for t in range(200):
+        cn0 = np.array([40.0 if t < 120 else 25.0, 15.0, 26.0 if 50 <= t < 80 else 35.0, 45.0, 44.0])
+        out.append((float(t), cn0))
+    return np.array(["G05", "G05", "G05", "E11", "E11"]), np.array(["1C", "2W", "5Q", "1C", "5Q"]), out
+
+
+def test_aided_signals_follow_their_satellites_first_signal():
+    """aided_cn0_dbhz: the other signals of a satellite are tracked while its first is and their own C/N0 is
+    at or above the aided threshold (L2 P(Y) at 15 dB-Hz tracked with L1; L5 kept down to 26 dB-Hz); without
+    it, each signal on the acquisition / loss thresholds (L2 P(Y) never acquired, L5 lost below 28)."""
+    sv, code, epochs = _aided_epochs()
+    tracked = {}
+    for aided in (None, 12.0):
+        tr = Tracker(TrackingConfig(start="cold", random_slips=False, aided_cn0_dbhz=aided), rng=3)
+        tracked[aided] = np.array([tr.update(t, sv, code, cn0).tracked for t, cn0 in epochs])
+    alone, aided = tracked[None], tracked[12.0]
+    assert not alone[:, 1].any() and alone[:120, 0].all()
+    assert not alone[50:80, 2].any() and alone[:50, 2].all()
+    assert aided[:120, 1].all() and aided[:120, 2].all()        # aided: L2 P(Y) and a 26 dB-Hz L5 kept
+    assert not aided[120:, :3].any()                              # G05 L1 lost: its other signals with it
+    assert aided[:, 3:].all()
+
+
+def test_aided_tracking_in_blocks_equals_epoch_by_epoch():
+    sv, code, epochs = _aided_epochs()
+    cfg = TrackingConfig(start="cold", aided_cn0_dbhz=12.0)
+    one, many = Tracker(cfg, rng=9), Tracker(cfg, rng=9)
+    want = [one.update(t, sv, code, cn0) for t, cn0 in epochs]
+    k = len(sv)
+    for b0 in range(0, len(epochs), 50):
+        blk = epochs[b0:b0 + 50]
+        seg = np.arange(len(blk) + 1) * k
+        res = many.update_many([t for t, _ in blk], np.tile(sv, len(blk)), np.tile(code, len(blk)),
+                               np.concatenate([c for _, c in blk]), np.ones(k * len(blk), bool), seg)
+        for i in range(len(blk)):
+            w = want[b0 + i]
+            for got, exp in zip((a[seg[i]:seg[i + 1]] for a in res),
+                                (w.tracked, w.lli, w.lock_time_s, w.ambiguity_cyc)):
+                np.testing.assert_array_equal(got, exp)

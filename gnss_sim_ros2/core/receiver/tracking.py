@@ -43,6 +43,14 @@ Measured on the real files: ESBC 2020-177 (Septentrio PolaRx5, a daily file) has
 its first epoch, OPEC 2022-001 (Trimble NetR9) bit 0 on every track at its first epoch (its logging
 session starts there) and bit 0 on 1 of 16 arcs of rising satellites later.
 
+``aided_cn0_dbhz`` (default None: every signal on the two thresholds): a multi-frequency receiver acquires a
+satellite on its first signal (the profile lists it first: GPS L1 C/A, Galileo E1, BeiDou B1I) and tracks
+the others aided by it (semi-codeless L2 P(Y), L2C, L5, E5 ... from the first signal's code and carrier):
+with a value, a satellite's other signals are tracked while its first one is and their own C/N0 is at or
+above it.  On ESBC 2020-177 0-8 h the other signals start within a few tenths of a degree of the first
+(rise median: L1 C/A 2.6 deg, L2C 2.6, L2 P(Y) 2.8 at 13 dB-Hz as the PolaRx5 reports it, L5 2.4; E1 3.8,
+E5b 3.8) and end at their own C/N0 (set: L2C 25.5, L5 24.2, E5a 25.0, E5b 25.2 dB-Hz, median).
+
 ``half_cycle_flags`` (default True): whether this receiver class reports LLI bit 1 at all.  Geodetic
 receivers resolve the half cycle before they output a phase: no bit 1 in 24 h of ESBC (PolaRx5, every
 signal) nor in 3.7 h of OPEC (NetR9); a u-blox M8T (Hong Kong drive 2019-118, RINEX by RTKLIB convbin)
@@ -128,10 +136,15 @@ class TrackingConfig:
     start: str = "warm"
     #: whether the receiver reports LLI bit 1 (half-cycle ambiguity); geodetic receivers do not (module doc)
     half_cycle_flags: bool = True
+    #: None: each signal on the thresholds above; a value: a satellite's signals after its first are tracked
+    #: while the first is and their C/N0 >= this (aided tracking, module doc)
+    aided_cn0_dbhz: float | None = None
 
     def __post_init__(self):
         if self.start not in TRACKING_STARTS:
             raise ValueError(f"TrackingConfig: 'start' = {self.start!r} (one of {TRACKING_STARTS})")
+        if self.aided_cn0_dbhz is not None and not np.isfinite(self.aided_cn0_dbhz):
+            raise ValueError(f"TrackingConfig: 'aided_cn0_dbhz' = {self.aided_cn0_dbhz!r} must be a number or null")
         if not isinstance(self.half_cycle_flags, (bool, np.bool_)):
             raise ValueError(f"TrackingConfig: 'half_cycle_flags' = {self.half_cycle_flags!r} must be true or false")
         if self.tracking_cn0_dbhz > self.acquisition_cn0_dbhz:
@@ -256,8 +269,9 @@ class Tracker:
             self._idx_prev, self._n_prev = idx, self._n
 
         was = self._tracked[idx]
-        ok_track = vis & (cn0 >= c.tracking_cn0_dbhz)
-        ok_acq = vis & (cn0 >= c.acquisition_cn0_dbhz)
+        thr_track, thr_acq, aided = self._thresholds(sv)
+        ok_track = vis & (cn0 >= thr_track)
+        ok_acq = vis & (cn0 >= thr_acq)
         keep = was & ok_track
 
         cand = self._cand_since[idx]
@@ -266,6 +280,11 @@ class Tracker:
         # a warm start: at the run's first epoch every key above the tracking threshold was locked long ago
         warm = ~was & ok_track if (first and c.start == "warm") else np.zeros(n, bool)
         new |= warm
+        if aided is not None:           # signals after a satellite's first: only while the first is tracked
+            first_on = (keep | new)[aided]
+            keep &= first_on
+            new &= first_on
+            warm &= new
         self._cand_since[idx] = np.where(new, np.nan, cand)
 
         amb = self._amb[idx]
@@ -301,6 +320,19 @@ class Tracker:
         lock_time = np.where(tracked, ts - lock_start, 0.0)
         return TrackingOutput(tracked.copy(), lli, lock_time, amb.copy(), new.copy(), slipped.copy())
 
+    def _thresholds(self, sv):
+        """(tracking, acquisition thresholds [dB-Hz], row of each row's satellite's first signal or None) of an
+        epoch's rows ``sv``: the config's thresholds, or with ``aided_cn0_dbhz`` that value for every row
+        after its satellite's first (module doc)."""
+        c = self.config
+        if c.aided_cn0_dbhz is None:
+            return c.tracking_cn0_dbhz, c.acquisition_cn0_dbhz, None
+        _, first_idx, inv = np.unique(sv, return_index=True, return_inverse=True)
+        first = first_idx[inv]
+        is_first = first == np.arange(len(sv))
+        return (np.where(is_first, c.tracking_cn0_dbhz, c.aided_cn0_dbhz),
+                np.where(is_first, c.acquisition_cn0_dbhz, c.aided_cn0_dbhz), first)
+
     def _half_cycle_open(self, idx, tracked, t_s, track_start):
         """Rows (keys ``idx``) whose half-cycle ambiguity is not resolved yet at ``t_s``: tracked data signals
         within their half-cycle time of the start of their track (module doc); none when the receiver does not
@@ -334,13 +366,21 @@ class Tracker:
         dt_ep = np.array([t - p if p is not None else 0.0 for t, p in zip(t_s, prev)])
         n_ep = np.diff(seg)
         # per row: what would change the state of a tracked key (lost, or a possible slip), of an untracked one
-        ok_track = vis & (cn0 >= c.tracking_cn0_dbhz)
+        if c.aided_cn0_dbhz is None:
+            thr_track = c.tracking_cn0_dbhz
+            thr_acq = c.acquisition_cn0_dbhz
+        else:               # per epoch: a satellite's first signal on the thresholds, the others aided
+            thr_track, thr_acq = np.empty(n_all), np.empty(n_all)
+            for b in range(len(ts)):
+                s = slice(seg[b], seg[b + 1])
+                thr_track[s], thr_acq[s], _ = self._thresholds(sv[s])
+        ok_track = vis & (cn0 >= thr_track)
         stop_tracked = ~ok_track
         if c.random_slips and n_all:
             p = slip_probability(np.where(ok_track, cn0, 99.0), np.repeat(np.where(dt_ep > 0, dt_ep, 1.0), n_ep),
                                  c.pll_bn_hz, c.pll_t_int_s)
             stop_tracked |= p > 0
-        start_untracked = vis & (cn0 >= c.acquisition_cn0_dbhz)
+        start_untracked = vis & (cn0 >= thr_acq)
         may = ((n_ep > 0) & (dt_ep > 0)).tolist()
         run: list = []            # epochs of the current steady run
         held = None               # tracked flags of the run's keys
