@@ -11,9 +11,10 @@ What is fitted and how:
   same code, else of the best-covered signal (offset matched at the nearest fitted bin), 0 deg extrapolated
   from the two lowest bins (slope 0 to ``MAX_LOW_SLOPE_DB_PER_DEG``), 90 deg held from the highest;
 - ``code_multipath_m``: per signal and elevation bin the multipath-combination sigma minus the DLL thermal noise
-  in quadrature (receiver/noise.code_sigma_m at the bin's mean C/N0 with the profile's DLL bandwidth and
-  correlator spacing), floored at 0, made non-increasing with elevation (pool-adjacent-violators); bins beyond
-  the signal's range filled like the C/N0 (the reference's shape scaled);
+  in quadrature (receiver/noise.code_sigma_m as the engine draws it, at the bin's mean C/N0 with the profile's
+  DLL bandwidth, correlator spacing, integration time and front end), floored at 0, made non-increasing with
+  elevation (pool-adjacent-violators); bins beyond the signal's range filled like the C/N0 (the reference's
+  shape scaled);
 - ``tracking``: acquisition / tracking thresholds = median over signals of each signal's median C/N0 at the
   first epoch of rising arcs / last epoch of setting arcs below ``MAX_RISE_SET_EL_DEG`` (so that the simulated
   arcs start and end where the real ones do in the median; their spread comes from the satellites' power, not
@@ -92,6 +93,13 @@ def _round(a, digits):
     return [round(float(v), digits) for v in a]
 
 
+def dll_noise_m(key: str, cn0_dbhz, loops: dict):
+    """DLL thermal code noise [m] of signal ``key`` ("G1C") as the receiver engine draws it (receiver/noise.py
+    code_sigma_m: chip length, BOC factor, front end) with the loop fields of ``loops`` (a profile)."""
+    return code_sigma_m(key[0], key[1:], cn0_dbhz, float(loops["dll_bn_hz"]), float(loops["dll_spacing_chips"]),
+                        float(loops.get("dll_t_int_s") or 0.02), loops.get("frontend_bandwidth_hz"))
+
+
 def _cn0_bins(st: SignalStats) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     ok = (st.cn0_n >= MIN_BIN_SAMPLES) & np.isfinite(st.cn0_mean_dbhz)
     return st.el_centres_deg[ok], st.cn0_mean_dbhz[ok], st.cn0_n[ok]
@@ -147,23 +155,23 @@ def _mp_bins(st: SignalStats) -> np.ndarray:
     return (st.mp_n >= MIN_BIN_SAMPLES) & np.isfinite(st.mp_sigma_m) & np.isfinite(st.mp_cn0_dbhz)
 
 
-def fit_dll_bn_hz(stats: list[SignalStats], bn_hz: float, spacing_chips: float) -> float:
-    """The DLL bandwidth: ``bn_hz`` or less, so that the DLL thermal noise (receiver/noise.code_sigma_m, which
-    grows as sqrt(B_n)) stays within the measured code noise in all but DLL_EXCEED_SHARE of the usable bins."""
+def fit_dll_bn_hz(stats: list[SignalStats], loops: dict) -> float:
+    """The DLL bandwidth: ``loops["dll_bn_hz"]`` or less, so that the DLL thermal noise (dll_noise_m, which grows
+    as sqrt(B_n)) stays within the measured code noise in all but DLL_EXCEED_SHARE of the usable bins."""
     r2 = []
     for st in stats:
         ok = _mp_bins(st)
         if ok.any():
-            dll = code_sigma_m(st.system, st.code, st.mp_cn0_dbhz[ok], bn_hz, spacing_chips)
+            dll = dll_noise_m(st.key, st.mp_cn0_dbhz[ok], loops)
             r2.append((st.mp_sigma_m[ok] / dll) ** 2)
+    bn_hz = float(loops["dll_bn_hz"])
     if not r2:
         return bn_hz
     q = float(np.quantile(np.concatenate(r2), DLL_EXCEED_SHARE))
     return bn_hz if q >= 1.0 else float(f"{bn_hz * q:.2g}")
 
 
-def fit_code_multipath(st: SignalStats, bn_hz: float, spacing_chips: float,
-                       references: list[SignalStats] = ()) -> dict | None:
+def fit_code_multipath(st: SignalStats, loops: dict, references: list[SignalStats] = ()) -> dict | None:
     """{"el_deg": [...], "sigma_m": [...]}: multipath-combination sigma minus DLL thermal noise in quadrature,
     non-increasing with elevation (None: no bins); bins beyond its range from the first of ``references``
     covering them (their shape, scaled to agree at the end bin)."""
@@ -172,7 +180,7 @@ def fit_code_multipath(st: SignalStats, bn_hz: float, spacing_chips: float,
         if not ok.any():
             return {}
         el, sig, cn0, n = s.el_centres_deg[ok], s.mp_sigma_m[ok], s.mp_cn0_dbhz[ok], s.mp_n[ok]
-        dll = code_sigma_m(s.system, s.code, cn0, bn_hz, spacing_chips)
+        dll = dll_noise_m(s.key, cn0, loops)
         mp = np.maximum(pava(np.sqrt(np.maximum(sig**2 - dll**2, 0.0)), n, increasing=False), 0.0)
         return dict(zip(el.tolist(), mp.tolist()))
 
@@ -219,7 +227,8 @@ def fit_profile(stats: RecordingStats, header: dict, source_file: str, name: str
     n_bands = max(len({c[0] for c in codes}) for codes in signals.values())
     traits_name = _traits_name(header.get("receiver_type", ""), n_bands)
     base = filled_in(traits_name)
-    bn_hz, spacing = float(base["dll_bn_hz"]), float(base["dll_spacing_chips"])
+    loops = {f: base.get(f) for f in ("dll_bn_hz", "dll_spacing_chips", "dll_t_int_s", "frontend_bandwidth_hz")}
+    bn_hz = float(loops["dll_bn_hz"])
     has_cn0 = any((st.cn0_n > 0).any() for st in stats.signals.values())
 
     cn0_table = {}
@@ -240,16 +249,16 @@ def fit_profile(stats: RecordingStats, header: dict, source_file: str, name: str
         if not has_cn0 and st.mp_sigma_m is not None:
             st.mp_cn0_dbhz = np.where(np.isfinite(st.mp_sigma_m), 45.0, np.nan)
     fitted = [st for k_, st in stats.signals.items() if k_[1:] in signals.get(k_[0], [])]
-    bn_fit = fit_dll_bn_hz(fitted, bn_hz, spacing)
+    bn_fit = fit_dll_bn_hz(fitted, loops)
     if bn_fit < bn_hz:
         notes.append(f"dll_bn_hz {bn_fit:g} Hz instead of the {traits_name} profile's {bn_hz:g} Hz: with it the DLL "
                      f"thermal noise would exceed the measured code noise in more than {100 * DLL_EXCEED_SHARE:g} % "
                      "of the elevation bins")
-        bn_hz = bn_fit
+        loops["dll_bn_hz"] = bn_hz = bn_fit
     code_mp = {}
     for st in fitted:
         key = st.key
-        t = fit_code_multipath(st, bn_hz, spacing, _references(stats, key, lambda s: int(_mp_bins(s).sum())))
+        t = fit_code_multipath(st, loops, _references(stats, key, lambda s: int(_mp_bins(s).sum())))
         if t is None:
             why = "no second carrier phase for the multipath combination" if not st.mp_partner else \
                 f"fewer than {MIN_BIN_SAMPLES} multipath-combination samples in every bin"
@@ -291,9 +300,10 @@ def fit_profile(stats: RecordingStats, header: dict, source_file: str, name: str
         "signals": signals,
         "antenna": _antenna(header.get("antenna_type", "")),
         "rinex": {"receiver_type": header.get("receiver_type", ""), "antenna_type": header.get("antenna_type", "")},
-        "frontend_bandwidth_hz": float(base["frontend_bandwidth_hz"]),
+        "frontend_bandwidth_hz": float(loops["frontend_bandwidth_hz"]),
         "dll_bn_hz": bn_hz,
-        "dll_spacing_chips": spacing,
+        "dll_spacing_chips": float(loops["dll_spacing_chips"]),
+        "dll_t_int_s": float(loops.get("dll_t_int_s") or 0.02),
     }
     scatter = _median(st.cn0_scatter_db for st in stats.signals.values())
     if np.isfinite(scatter):

@@ -8,8 +8,7 @@ import math
 
 import numpy as np
 
-from ..receiver.noise import code_sigma_m
-from .fit import MIN_BIN_SAMPLES
+from .fit import MIN_BIN_SAMPLES, dll_noise_m
 from .signal_stats import RecordingStats
 
 #: width of the bins of the check [deg]
@@ -22,7 +21,6 @@ def check_profile(stats: RecordingStats, profile: dict, min_el_deg: float = 10.0
     weighted by their counts; NaN where no data); "cn0_max_abs_db" / "code_ratio_range" summarise each signal."""
     cn0_tab = profile.get("link_budget", {}).get("cn0_table_dbhz", {})
     mp_tab = profile.get("code_multipath_m", {})
-    bn, d = float(profile.get("dll_bn_hz", 0.25)), float(profile.get("dll_spacing_chips", 0.1))
     out = {}
     for key, st in stats.signals.items():
         c = st.el_centres_deg
@@ -43,7 +41,7 @@ def check_profile(stats: RecordingStats, profile: dict, min_el_deg: float = 10.0
             if key in mp_tab and m.any():
                 t = mp_tab[key]
                 mp = np.interp(c[m], t["el_deg"], t["sigma_m"])
-                dll = code_sigma_m(key[0], key[1:], st.mp_cn0_dbhz[m], bn, d)
+                dll = dll_noise_m(key, st.mp_cn0_dbhz[m], profile)
                 w = st.mp_n[m]
                 meas = math.sqrt(np.average(st.mp_sigma_m[m] ** 2, weights=w))
                 model = math.sqrt(np.average(mp**2 + dll**2, weights=w))

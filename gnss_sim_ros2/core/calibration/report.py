@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .fit import dll_noise_m
 from .reading import Recording
 from .signal_stats import RecordingStats
 
@@ -30,8 +31,6 @@ def _md_table(header, rows) -> list[str]:
 def write_figures(stats: RecordingStats, profile: dict, out_dir) -> dict[str, Path]:
     """cn0_elevation.png, code_noise_elevation.png, rise_set.png (those with data); name -> path."""
     from ..figures import pyplot, save_figure
-    from ..receiver.noise import code_sigma_m
-
     plt = pyplot()
     out_dir = Path(out_dir)
     figs: dict[str, Path] = {}
@@ -63,7 +62,7 @@ def write_figures(stats: RecordingStats, profile: dict, out_dir) -> dict[str, Pa
                     if key in mp_tab:
                         mp = np.interp(c, mp_tab[key]["el_deg"], mp_tab[key]["sigma_m"])
                         cn0 = np.where(np.isfinite(st.mp_cn0_dbhz), st.mp_cn0_dbhz, np.nan)
-                        dll = code_sigma_m(s, key[1:], cn0, profile["dll_bn_hz"], profile["dll_spacing_chips"])
+                        dll = dll_noise_m(key, cn0, profile)
                         ax.plot(c, np.sqrt(mp**2 + dll**2), "-", color=col)
                     ax.set_ylabel("sigma [m]")
                     ax.set_yscale("log")
