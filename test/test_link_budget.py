@@ -189,27 +189,50 @@ def test_dll_noise_with_a_finite_front_end():
     assert noise.code_sigma_m("E", "1C", 45.0) == pytest.approx(noise.code_sigma_m("G", "1C", 45.0) / np.sqrt(3))
 
 
+def _epochs(cfg: ReceiverConfig, n: int = 40):
+    """The receiver's observations of four GPS satellites on exact circular orbits, every 30 s."""
+    rcv = Receiver(cfg)
+    for k in range(n):
+        t = GnssTime(1_300_000_000 + 30 * k, 0.0)
+        pos, vel, acc = ORB.ecef(np.full(4, 30.0 * k))
+        m = len(pos)
+        st = SatelliteStates(t=t, sv=np.array(["G01", "G02", "G03", "G04"]), pos_ecef_m=pos, vel_ecef_mps=vel,
+                             acc_ecef_mps2=acc, clock_bias_s=np.zeros(m), clock_drift_sps=np.zeros(m),
+                             relativistic_s=np.zeros(m), tgd_s=np.zeros(m), health=np.zeros(m, dtype=int),
+                             iode=np.zeros(m, dtype=int), age_s=np.zeros(m), glo_channel=np.zeros(m, dtype=int),
+                             source="synthetic")
+        yield rcv.epoch(t, RX, st)
+
+
 def test_receiver_code_noise_follows_its_dll_bandwidth():
     """The engine takes the profile's loop parameters: quartering B_n halves the code thermal noise."""
+
     def code_minus_phase(bn):
         cfg = ReceiverConfig(profile={"G": ["1C"]}, antenna="choke_ring", dll_bn_hz=bn, mp_zenith_m=0.0,
                              mp_low_m=0.0, seed=3, elevation_mask_deg=0.0, cn0_noise_db=0.0)
-        rcv = Receiver(cfg)
-        out = []
-        for k in range(40):
-            t = GnssTime(1_300_000_000 + 30 * k, 0.0)
-            pos, vel, acc = ORB.ecef(np.full(4, 30.0 * k))
-            n = len(pos)
-            st = SatelliteStates(t=t, sv=np.array(["G01", "G02", "G03", "G04"]), pos_ecef_m=pos, vel_ecef_mps=vel,
-                                 acc_ecef_mps2=acc, clock_bias_s=np.zeros(n), clock_drift_sps=np.zeros(n),
-                                 relativistic_s=np.zeros(n), tgd_s=np.zeros(n), health=np.zeros(n, dtype=int),
-                                 iode=np.zeros(n, dtype=int), age_s=np.zeros(n), glo_channel=np.zeros(n, dtype=int),
-                                 source="synthetic")
-            o = rcv.epoch(t, RX, st)
-            out.append(o.pseudorange_m - o.carrier_phase_cyc * 299792458.0 / 1575.42e6 - 2 * o.iono_model_m)
+        out = [o.pseudorange_m - o.carrier_phase_cyc * 299792458.0 / 1575.42e6 - 2 * o.iono_model_m
+               for o in _epochs(cfg)]
         d = np.diff(np.array(out), axis=0)           # epoch differences: the constant ambiguity drops out
         d = d[np.isfinite(d)]
         return 1.4826 * np.median(np.abs(d - np.median(d)))      # robust: a cycle slip is an outlier
 
     lo, hi = code_minus_phase(0.25), code_minus_phase(1.0)
     assert hi > 0.05 and lo / hi == pytest.approx(0.5, rel=0.2), (lo, hi)
+
+
+def test_cn0_scatter_grows_with_the_multipath_and_has_the_receivers_resolution():
+    cfg = ReceiverConfig(profile="geodetic")
+    mp = CodeMultipath(cfg, np.random.default_rng(0))
+    f = mp.fading_scale(np.array([90.0, 15.0, 5.0]))
+    # the choke ring's envelope sigma_mp(el) / sigma_mp(90): 1 at the zenith, x4.2 at 15 deg, x7.3 at 5 deg
+    env = 0.05 + 0.45 * np.exp(-np.array([6.0, 1.0, 1.0 / 3.0]))
+    np.testing.assert_allclose(f, env / env[0], rtol=1e-9)
+    assert f[1] == pytest.approx(4.2, abs=0.05) and f[2] == pytest.approx(7.3, abs=0.05)
+    # the output resolution: 0.25 dB steps (a Septentrio SBF record), whole dB-Hz (u-blox UBX-RXM-RAWX)
+    for res in (0.25, 1.0):
+        cfg = ReceiverConfig(profile={"G": ["1C"]}, antenna="choke_ring", cn0_resolution_db=res, seed=3,
+                             elevation_mask_deg=0.0)
+        cn0 = np.concatenate([o.cn0_dbhz for o in _epochs(cfg, 5)])
+        assert len(cn0) and np.all(np.abs(cn0 / res - np.round(cn0 / res)) < 1e-9)
+    with pytest.raises(ValueError, match="cn0_resolution_db"):
+        ReceiverConfig(profile={"G": ["1C"]}, cn0_resolution_db=-0.25)

@@ -38,6 +38,12 @@ def _positive(v):
     return v
 
 
+def _nonnegative(v):
+    if not v >= 0:
+        raise ValueError(f"{v!r} must be >= 0")
+    return v
+
+
 def _spacing(v):
     if not 0 < v <= 1:
         raise ValueError(f"{v!r} must be in (0, 1] chips")
@@ -116,8 +122,11 @@ class ReceiverConfig:
     world_seed: int = 0
     #: hardware code biases [m] (core/receiver/hardware_bias.py)
     code_bias_m: dict | None = _owned({}, check=hardware_bias.validate)
-    #: C/N0 scatter [dB] (1 sigma, epoch to epoch)
-    cn0_noise_db: float | None = _owned(0.3)
+    #: C/N0 scatter [dB] (1 sigma, epoch to epoch) at high elevation; it grows towards the horizon as the open-sky
+    #: multipath does (code_multipath.CodeMultipath.fading_scale); C/N0 resolution of the receiver's output [dB]
+    #: (0: none; a Septentrio SBF record 0.25 dB, u-blox UBX-RXM-RAWX cno 1 dB-Hz)
+    cn0_noise_db: float | None = _owned(0.3, check=_nonnegative)
+    cn0_resolution_db: float | None = _owned(0.0, check=_nonnegative)
     #: acquisition / loss-of-lock thresholds, ...; None: the profile's mapping of TrackingConfig fields
     tracking: TrackingConfig | None = None
     clock: ClockConfig = field(default_factory=ClockConfig)

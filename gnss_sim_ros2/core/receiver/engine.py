@@ -432,7 +432,9 @@ class Receiver:
                 mp_x[s] = self.code_multipath.state(b.rows.mp_idx[s], b.dt_ep[e], w_mp[s])
 
         cn0 = b.cn0
-        b.cn0_meas = cn0 + cfg.cn0_noise_db * z_cn0 if draw_cn0 else cn0
+        b.cn0_meas = cn0 + cfg.cn0_noise_db * self.code_multipath.fading_scale(b.el_j) * z_cn0 if draw_cn0 else cn0
+        if cfg.cn0_resolution_db > 0:           # the receiver's output resolution
+            b.cn0_meas = np.round(b.cn0_meas / cfg.cn0_resolution_db) * cfg.cn0_resolution_db
         if cfg.noise:
             # the profile's loops (noise.py); the front end in chip rates b = B_fe T_c per signal
             code_sig = noise_model.dll_sigma_m(cn0, b.chip, cfg.dll_bn_hz, cfg.dll_spacing_chips, cfg.dll_t_int_s,
