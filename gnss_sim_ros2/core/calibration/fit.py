@@ -21,7 +21,9 @@ What is fitted and how:
   from the threshold);
   ``start`` warm when under ``COLD_LLI_SHARE`` of the phases carry LLI bit 0 at the first epoch;
   ``half_cycle_flags`` whether the file ever sets LLI bit 1;
-- ``cn0_noise_db``: median over signals of the epoch-to-epoch C/N0 scatter;
+- ``cn0_noise_db``: the epoch-to-epoch C/N0 scatter above ``ZENITH_SCATTER_EL_DEG`` (the profile's value is the
+  zenith's; the engine grows it towards the horizon), quantisation removed; ``cn0_resolution_db``: the step of
+  the reported C/N0 values;
 - ``antenna``: choke_ring when the RINEX antenna type is a known choke-ring model, else patch;
 - the DLL bandwidth, correlator spacing and front-end bandwidth cannot be separated from multipath with a
   recording: the DLL bandwidth is that of the built-in profile, lowered where its thermal noise would exceed
@@ -50,6 +52,8 @@ DLL_EXCEED_SHARE = 0.05
 MAX_RISE_SET_EL_DEG = 30.0
 #: the thresholds need this many rising and setting arcs (all signals together)
 MIN_ARCS = 3
+#: the zenith C/N0 scatter is measured at and above this elevation [deg]
+ZENITH_SCATTER_EL_DEG = 60.0
 #: at or above this share of phases with LLI bit 0 at the first epoch the recording starts cold
 COLD_LLI_SHARE = 0.5
 #: RINEX antenna types (IGS antenna names, first characters) of choke-ring antennas
@@ -210,6 +214,22 @@ def _references(stats: RecordingStats, key: str, score) -> list[SignalStats]:
     return out
 
 
+def zenith_cn0_scatter_db(stats: RecordingStats) -> float:
+    """Epoch-to-epoch C/N0 scatter at and above ZENITH_SCATTER_EL_DEG (all signals pooled, weighted by steps),
+    the output resolution's share (q^2/12 per value) removed: the receiver's ``cn0_noise_db`` (its zenith value;
+    receiver/code_multipath.py fading_scale grows it towards the horizon)."""
+    s2 = n = 0.0
+    for st in stats.signals.values():
+        if st.cn0_scatter_by_el_db is None:
+            continue
+        ok = (st.el_centres_deg >= ZENITH_SCATTER_EL_DEG) & np.isfinite(st.cn0_scatter_by_el_db)
+        s2 += float(np.sum(st.cn0_scatter_by_el_db[ok] ** 2 * st.cn0_scatter_n[ok]))
+        n += float(np.sum(st.cn0_scatter_n[ok]))
+    if n < MIN_BIN_SAMPLES:
+        return math.nan
+    return math.sqrt(max(s2 / n - stats.cn0_resolution_db**2 / 12.0, 0.0))
+
+
 def _median(values) -> float:
     v = np.array([x for x in values if x is not None and np.isfinite(x)], dtype=float)
     return float(np.median(v)) if v.size else math.nan
@@ -305,9 +325,11 @@ def fit_profile(stats: RecordingStats, header: dict, source_file: str, name: str
         "dll_spacing_chips": float(loops["dll_spacing_chips"]),
         "dll_t_int_s": float(loops.get("dll_t_int_s") or 0.02),
     }
-    scatter = _median(st.cn0_scatter_db for st in stats.signals.values())
+    scatter = zenith_cn0_scatter_db(stats)
     if np.isfinite(scatter):
         prof["cn0_noise_db"] = round(scatter, 2)
+    if stats.cn0_resolution_db > 0:
+        prof["cn0_resolution_db"] = stats.cn0_resolution_db
     if code_mp:
         prof["code_multipath_m"] = code_mp
     if tracking:

@@ -42,6 +42,8 @@ JUMP_SIGMAS = 5.0
 MIN_ARC_EPOCHS = 10
 #: C/N0 steps larger than this [dB] are obstructions or re-acquisitions, not the receiver's scatter
 CN0_JUMP_DB = 5.0
+#: output steps of C/N0 receivers use, largest first [dB]
+RESOLUTIONS_DB = (1.0, 0.5, 0.25, 0.1, 0.01)
 #: C/N0 bins of the code noise [dB-Hz]
 CN0_EDGES_DBHZ = np.arange(15.0, 61.0, 3.0)
 
@@ -67,6 +69,8 @@ class SignalStats:
     rise_cn0_dbhz: np.ndarray = field(default_factory=lambda: np.zeros(0))
     set_cn0_dbhz: np.ndarray = field(default_factory=lambda: np.zeros(0))
     cn0_scatter_db: float = math.nan
+    cn0_scatter_by_el_db: np.ndarray | None = None    #: (B,) the same per elevation bin
+    cn0_scatter_n: np.ndarray | None = None           #: (B,) steps in each bin
     lli_first: dict = field(default_factory=dict)     #: {"n", "bit0", "bit1"} at the span's first epoch
     lli_arc_start: dict = field(default_factory=dict)  #: the same at arc starts (not at the span's start)
     tracked: np.ndarray | None = None    #: (E, S) bool: code observation at or above the mask
@@ -96,7 +100,8 @@ class SignalStats:
                 "mp_all_sigma_m": arr([self.mp_all_sigma_m])[0],
                 "rise_el_deg": arr(self.rise_el_deg), "set_el_deg": arr(self.set_el_deg),
                 "rise_cn0_dbhz": arr(self.rise_cn0_dbhz), "set_cn0_dbhz": arr(self.set_cn0_dbhz),
-                "cn0_scatter_db": arr([self.cn0_scatter_db])[0], "lli_first": self.lli_first,
+                "cn0_scatter_db": arr([self.cn0_scatter_db])[0],
+                "cn0_scatter_by_el_db": arr(self.cn0_scatter_by_el_db), "lli_first": self.lli_first,
                 "lli_arc_start": self.lli_arc_start}
 
 
@@ -112,6 +117,8 @@ class RecordingStats:
     signals: dict[str, SignalStats]
     #: {"n", "bit0", "bit1"} over every carrier phase of the span (does the receiver ever set the bits?)
     lli_all: dict = field(default_factory=dict)
+    #: the step of the reported C/N0 values [dB] (0.25 Septentrio, 1 u-blox; 0: finer than 0.01 or none)
+    cn0_resolution_db: float = 0.0
 
     def lli_share(self, which: str = "lli_first") -> dict:
         """{"n", "bit0", "bit1"} summed over the signals (``which``: "lli_first" | "lli_arc_start")."""
@@ -126,7 +133,7 @@ class RecordingStats:
                 "last_epoch": str(self.time[-1])[:19] if len(self.time) else "", "epochs": int(len(self.time)),
                 "interval_s": self.interval_s, "mask_deg": self.mask_deg, "bin_deg": self.bin_deg,
                 "lli_first": self.lli_share("lli_first"), "lli_arc_start": self.lli_share("lli_arc_start"),
-                "lli_all": self.lli_all,
+                "lli_all": self.lli_all, "cn0_resolution_db": self.cn0_resolution_db,
                 "signals": {k_: s.to_json() for k_, s in self.signals.items()}}
 
 
@@ -292,9 +299,12 @@ def signal_statistics(tab: ObsTable, el_deg: np.ndarray, interval_s: float | Non
 
         # C/N0 scatter, epoch to epoch within arcs
         same = (arcs[1:] == arcs[:-1]) & (arcs[1:] >= 0)
-        d = (cn0[1:] - cn0[:-1])[same]
-        d = d[np.isfinite(d) & (np.abs(d) < CN0_JUMP_DB)]
+        step = np.where(same, cn0[1:] - cn0[:-1], np.nan)
+        step[np.abs(np.nan_to_num(step)) >= CN0_JUMP_DB] = np.nan
+        d = step[np.isfinite(step)]
         st.cn0_scatter_db = float(np.std(d) / math.sqrt(2.0)) if d.size > 10 else math.nan
+        sc, st.cn0_scatter_n = _binned(step, el[1:], edges, "std")
+        st.cn0_scatter_by_el_db = sc / math.sqrt(2.0)
 
         # LLI at the first epoch and at arc starts
         lli = tab.lli.get("L" + code)
@@ -318,7 +328,21 @@ def signal_statistics(tab: ObsTable, el_deg: np.ndarray, interval_s: float | Non
     keep = np.isin(sysc, list(CALIBRATED_SYSTEMS))
     flags = [f[:, keep][np.isfinite(tab.column(c)[:, keep])] for c, f in tab.lli.items()]
     lli_all = _lli_count(np.concatenate(flags) if flags else np.zeros(0, np.int8))
-    return RecordingStats(tab.time, tab.sv, float(mask_deg), float(bin_deg), float(interval_s), out, lli_all)
+    s_all = [a[:, keep][np.isfinite(a[:, keep])] for c, a in tab.values.items() if c[0] == "S"]
+    res = cn0_resolution_db(np.concatenate(s_all) if s_all else np.zeros(0))
+    return RecordingStats(tab.time, tab.sv, float(mask_deg), float(bin_deg), float(interval_s), out, lli_all, res)
+
+
+def cn0_resolution_db(values: np.ndarray) -> float:
+    """The largest of RESOLUTIONS_DB that every C/N0 value is a multiple of (0.0: none)."""
+    v = np.asarray(values, float)
+    v = v[np.isfinite(v)]
+    if v.size < 10:
+        return 0.0
+    for q in RESOLUTIONS_DB:
+        if np.all(np.abs(v / q - np.round(v / q)) < 1e-3):
+            return q
+    return 0.0
 
 
 def _arc_ends(arcs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
