@@ -164,9 +164,10 @@ def test_code_multipath_table_replaces_the_formula_of_its_signal():
 # ---------------------------------------------------------------- noise from the loop parameters
 def test_loop_parameters_are_receiver_fields_with_the_old_defaults():
     cfg = ReceiverConfig(profile={"G": ["1C"]})
-    assert (cfg.dll_t_int_s, cfg.pll_bn_hz, cfg.pll_t_int_s) == (0.02, 15.0, 0.001)
-    with pytest.raises(ValueError, match="pll_bn_hz"):
-        ReceiverConfig(profile={"G": ["1C"]}, pll_bn_hz=0.0)
+    # the DLL's integration time; the PLL's loop is the tracking's (its carrier noise and its cycle slips)
+    assert (cfg.dll_t_int_s, cfg.tracking.pll_bn_hz, cfg.tracking.pll_t_int_s) == (0.02, 15.0, 0.001)
+    with pytest.raises(ValueError, match="dll_t_int_s"):
+        ReceiverConfig(profile={"G": ["1C"]}, dll_t_int_s=0.0)
 
 
 def test_dll_noise_with_a_finite_front_end():

@@ -91,11 +91,9 @@ class ReceiverConfig:
     #: DLL: noise bandwidth [Hz], early-late spacing [chips]
     dll_bn_hz: float | None = _owned(0.5)
     dll_spacing_chips: float | None = _owned(0.2, check=_spacing)
-    #: DLL coherent integration [s]; PLL noise bandwidth [Hz] and coherent integration [s] (receiver/noise.py:
-    #: the thermal noise of code and carrier phase, the cycle-slip rate)
+    #: DLL coherent integration [s] (receiver/noise.py; the PLL's loop: tracking.pll_bn_hz, tracking.pll_t_int_s,
+    #: for the carrier-phase noise as for the cycle slips)
     dll_t_int_s: float | None = _owned(0.02, check=_positive)
-    pll_bn_hz: float | None = _owned(15.0, check=_positive)
-    pll_t_int_s: float | None = _owned(0.001, check=_positive)
     #: antenna pattern for reflections (multipath/antenna.py), double-sided front-end bandwidth [Hz],
     #: satellites not tracked (regular expression on the RINEX id)
     antenna: str | None = _owned("patch", check=_antenna)

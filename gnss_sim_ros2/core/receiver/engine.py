@@ -439,7 +439,7 @@ class Receiver:
             # the profile's loops (noise.py); the front end in chip rates b = B_fe T_c per signal
             code_sig = noise_model.dll_sigma_m(cn0, b.chip, cfg.dll_bn_hz, cfg.dll_spacing_chips, cfg.dll_t_int_s,
                                                cfg.frontend_bandwidth_hz * b.chip / k.C_MPS) * b.rows.dll_factor
-            ph_sig = noise_model.pll_sigma_m(cn0, b.rows.lam, cfg.pll_bn_hz, cfg.pll_t_int_s)
+            ph_sig = noise_model.pll_sigma_m(cn0, b.rows.lam, cfg.tracking.pll_bn_hz, cfg.tracking.pll_t_int_s)
             dop_sig = noise_model.doppler_sigma_hz(cn0)
             b.e_p, b.e_l, b.e_d = code_sig * r[0], ph_sig * r[1], dop_sig * r[2]
             b.mp = self.code_multipath.sigma_m(b.el_j, b.rows.sig_key) * mp_x

@@ -31,7 +31,7 @@ Formulas (C/N0 as a ratio c = 10^(cn0_dbhz/10) Hz; all functions broadcast):
 Defaults: DLL B_n = 1 Hz, D = 0.5 chip, T = 20 ms, infinite front end; PLL B_n = 15 Hz, T = 1 ms
 (the figures of /work/shared/notes/physics-anchors.md); FLL B_n = 2 Hz, T = 20 ms.  The receiver takes
 its profile's loop parameters (ReceiverConfig dll_bn_hz, dll_spacing_chips, dll_t_int_s,
-frontend_bandwidth_hz, pll_bn_hz, pll_t_int_s).
+frontend_bandwidth_hz; TrackingConfig pll_bn_hz, pll_t_int_s, also for the cycle slips).
 """
 from __future__ import annotations
 
