@@ -16,10 +16,12 @@ import yaml
 
 from gnss_sim_ros2 import cli
 from gnss_sim_ros2.core import constants as k
-from gnss_sim_ros2.core.calibration.fit import fit_profile, pava
+from gnss_sim_ros2.core.calibration.fit import fit_profile, pava, table_thresholds
 from gnss_sim_ros2.core.calibration.reading import read_recording
 from gnss_sim_ros2.core.calibration.signal_compare import compare_statistics
 from gnss_sim_ros2.core.calibration.signal_stats import (
+    RecordingStats,
+    SignalStats,
     arc_ids,
     cn0_resolution_db,
     mp_combination,
@@ -332,3 +334,22 @@ def test_a_profile_describes_the_data_it_was_fitted_on(esbc_fit):
         for k_, t in prof["link_budget"]["cn0_table_dbhz"].items()}}}
     d = np.array(check_profile(stats, louder)["G1C"]["cn0_diff_db"], float)
     assert np.nanmedian(d) == pytest.approx(np.nanmedian(np.array(res["G1C"]["cn0_diff_db"], float)) - 3.0)
+
+
+def test_thresholds_put_rises_and_sets_where_the_fitted_table_reaches_them():
+    """The thresholds are the first signal's fitted C/N0 table at the median rise / set elevation (below 30 deg):
+    a simulated receiver whose C/N0 follows the table then rises and sets there; arcs above 30 deg are
+    re-acquisitions and do not count, and a system without a table gives no threshold."""
+    edges = np.arange(0.0, 95.0, 5.0)
+    nan = np.full(len(edges) - 1, np.nan)
+    g = SignalStats("G1C", edges, nan, nan, np.zeros(len(edges) - 1, dtype=int),
+                    rise_el_deg=np.array([2.0, 3.0, 4.0, 45.0]), set_el_deg=np.array([1.0, 1.5, 2.0, 60.0]))
+    e = SignalStats("E1C", edges, nan, nan, np.zeros(len(edges) - 1, dtype=int),
+                    rise_el_deg=np.array([3.0]), set_el_deg=np.array([1.0]))
+    stats = RecordingStats(np.array([], dtype="datetime64[ns]"), np.array([]), 5.0, 5.0, 30.0,
+                           {"G1C": g, "E1C": e})
+    tables = {"G1C": {"el_deg": [0.0, 10.0, 90.0], "cn0_dbhz": [30.0, 40.0, 50.0]}}
+    acq, trk = table_thresholds(stats, {"G": ["1C"], "E": ["1C"]}, tables)
+    assert acq == pytest.approx(33.0)      # median rise 3 deg (45 deg excluded) on 30 + 1 dB/deg
+    assert trk == pytest.approx(31.5)      # median set 1.5 deg
+    assert all(np.isnan(table_thresholds(stats, {"E": ["1C"]}, tables)))

@@ -15,10 +15,11 @@ What is fitted and how:
   DLL bandwidth, correlator spacing, integration time and front end), floored at 0, made non-increasing with
   elevation (pool-adjacent-violators); bins beyond the signal's range filled like the C/N0 (the reference's
   shape scaled);
-- ``tracking``: acquisition / tracking thresholds = median over signals of each signal's median C/N0 at the
-  first epoch of rising arcs / last epoch of setting arcs below ``MAX_RISE_SET_EL_DEG`` (so that the simulated
-  arcs start and end where the real ones do in the median; their spread comes from the satellites' power, not
-  from the threshold);
+- ``tracking``: acquisition / tracking thresholds = the fitted C/N0 table of each system's first signal at the
+  median elevation of its rising / setting arcs below ``MAX_RISE_SET_EL_DEG``, median over systems
+  (table_thresholds: the simulated arcs start and end where the real ones do in the median; their spread comes
+  from the satellites' power, not from the threshold); without tables the median measured C/N0 at arc ends;
+  ``aided_cn0_dbhz``: the median C/N0 at which the other signals set (they are tracked aided by the first);
   ``start`` warm when under ``COLD_LLI_SHARE`` of the phases carry LLI bit 0 at the first epoch;
   ``half_cycle_flags`` whether the file ever sets LLI bit 1;
 - ``cn0_noise_db``: the epoch-to-epoch C/N0 scatter above ``ZENITH_SCATTER_EL_DEG`` (the profile's value is the
@@ -230,6 +231,26 @@ def zenith_cn0_scatter_db(stats: RecordingStats) -> float:
     return math.sqrt(max(s2 / n - stats.cn0_resolution_db**2 / 12.0, 0.0))
 
 
+def table_thresholds(stats: RecordingStats, signals: dict, cn0_table: dict) -> tuple[float, float]:
+    """(acquisition, tracking) thresholds [dB-Hz] at which a receiver whose C/N0 follows the fitted tables rises and
+    sets where the real one did: per system, its first signal's table at the median elevation of that signal's
+    rising / setting arcs below MAX_RISE_SET_EL_DEG; the median over systems (NaN without tables or arcs).  The
+    measured C/N0 at arc ends lies below the table's low bins (5-deg means), so thresholds taken from it would let
+    simulated satellites set at the horizon (ESBC: fitted 24.4 dB-Hz against a table of 30 dB-Hz at 0 deg)."""
+    acq, trk = [], []
+    for sys_, codes in signals.items():
+        key = sys_ + codes[0]
+        st, tab = stats.signals.get(key), cn0_table.get(key)
+        if st is None or tab is None:
+            continue
+        for el, out in ((st.rise_el_deg, acq), (st.set_el_deg, trk)):
+            el = np.asarray(el, dtype=float)
+            el = el[np.isfinite(el) & (el < MAX_RISE_SET_EL_DEG)]
+            if el.size:
+                out.append(float(np.interp(np.median(el), tab["el_deg"], tab["cn0_dbhz"])))
+    return _median(acq), _median(trk)
+
+
 def _median(values) -> float:
     v = np.array([x for x in values if x is not None and np.isfinite(x)], dtype=float)
     return float(np.median(v)) if v.size else math.nan
@@ -294,10 +315,16 @@ def fit_profile(stats: RecordingStats, header: dict, source_file: str, name: str
     sets = [arc_cn0(st.set_cn0_dbhz, st.set_el_deg) for st in stats.signals.values()]
     tracking: dict = {}
     if sum(r.size for r in rise) >= MIN_ARCS and sum(r.size for r in sets) >= MIN_ARCS:
-        acq = _median(np.median(r) for r in rise if r.size)
-        trk = _median(np.median(r) for r in sets if r.size)
+        acq, trk = table_thresholds(stats, signals, cn0_table)
+        if not (np.isfinite(acq) and np.isfinite(trk)):
+            acq = _median(np.median(r) for r in rise if r.size)
+            trk = _median(np.median(r) for r in sets if r.size)
         tracking["acquisition_cn0_dbhz"] = round(acq, 1)
         tracking["tracking_cn0_dbhz"] = round(min(trk, acq - 1.0), 1)
+        aided = _median(np.median(arc_cn0(st.set_cn0_dbhz, st.set_el_deg)) for k_, st in stats.signals.items()
+                        if k_[1:] in signals.get(k_[0], [])[1:] and arc_cn0(st.set_cn0_dbhz, st.set_el_deg).size)
+        if np.isfinite(aided) and aided < tracking["tracking_cn0_dbhz"]:
+            tracking["aided_cn0_dbhz"] = round(aided, 1)
     elif has_cn0:
         notes.append(f"fewer than {MIN_ARCS} rising or setting arcs (below {MAX_RISE_SET_EL_DEG:g} deg) in the span: "
                      "no tracking thresholds")
