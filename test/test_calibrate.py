@@ -16,7 +16,7 @@ import yaml
 
 from gnss_sim_ros2 import cli
 from gnss_sim_ros2.core import constants as k
-from gnss_sim_ros2.core.calibration.fit import fit_profile, pava, table_thresholds
+from gnss_sim_ros2.core.calibration.fit import fit_excluded_signals, fit_profile, pava, table_thresholds
 from gnss_sim_ros2.core.calibration.reading import read_recording
 from gnss_sim_ros2.core.calibration.signal_compare import compare_statistics
 from gnss_sim_ros2.core.calibration.signal_stats import (
@@ -353,3 +353,25 @@ def test_thresholds_put_rises_and_sets_where_the_fitted_table_reaches_them():
     assert acq == pytest.approx(33.0)      # median rise 3 deg (45 deg excluded) on 30 + 1 dB/deg
     assert trk == pytest.approx(31.5)      # median set 1.5 deg
     assert all(np.isnan(table_thresholds(stats, {"E": ["1C"]}, tables)))
+
+
+def test_excluded_signals_are_satellites_that_send_a_signal_the_receiver_never_tracked():
+    """C20 (BeiDou-3) tracked on B1I for 40 epochs but never on B3I, which it transmits: excluded from C6I;
+    it does not transmit B2I (a BeiDou-2 signal), so it is no exclusion of C7I; C11 (BeiDou-2) tracked on all
+    three: nothing; a satellite seen for fewer than MIN_EXCLUDE_EPOCHS epochs: no evidence."""
+    t = np.datetime64("2020-06-25T00:00:00") + np.arange(40) * np.timedelta64(30, "s")
+    svs = np.array(["C11", "C20", "C21"])
+    edges = np.arange(0.0, 95.0, 5.0)
+    nan = np.full(len(edges) - 1, np.nan)
+    zeros = np.zeros(len(edges) - 1, dtype=int)
+    seen = {"C11": 40, "C20": 40, "C21": 5}
+
+    def tracked(on):
+        m = np.zeros((len(t), 3), dtype=bool)
+        for j, sv in enumerate(svs):
+            m[: seen[sv], j] = sv in on
+        return m
+    sig = {"C2I": tracked({"C11", "C20", "C21"}), "C6I": tracked({"C11"}), "C7I": tracked({"C11"})}
+    stats = RecordingStats(t, svs, 10.0, 5.0, 30.0,
+                           {k_: SignalStats(k_, edges, nan, nan, zeros, tracked=m) for k_, m in sig.items()})
+    assert fit_excluded_signals(stats, {"C": ["2I", "6I", "7I"]}) == {"C6I": "C20"}

@@ -159,13 +159,13 @@ def esbc_nav(shared_data, tmp_path_factory):
     return plain, d / "ESBC_J02_health1.rnx"
 
 
-def _tracked_pairs(nav, iso="2020-06-25T00:00:00", n_epochs=20):
+def _tracked_pairs(nav, iso="2020-06-25T00:00:00", n_epochs=20, **config):
     t0 = GnssTime.from_iso(iso, scale="GPS")
     prov = BroadcastEphemeris.from_files([nav], start=t0 - 3600.0, end=t0 + 3600.0)
     # an explicit signal list (the shipped profiles may change): L2C, L5, B2I, B1C where the plans allow them
     profile = {"G": ["1C", "2L", "5Q"], "R": ["1C"], "E": ["1C"], "C": ["2I", "7I", "1P"], "J": ["1C", "2L", "5Q"]}
-    rcv = Receiver(ReceiverConfig(systems="GRECJ", profile=profile, noise=False, elevation_mask_deg=0.0), prov,
-                   prov.iono)
+    rcv = Receiver(ReceiverConfig(systems="GRECJ", profile=profile, noise=False, elevation_mask_deg=0.0, **config),
+                   prov, prov.iono)
     pairs = set()
     for i in range(n_epochs):
         t = t0 + 1.0 * i
@@ -199,3 +199,24 @@ def test_qzss_health_1_is_kept(esbc_nav):
     st = prov.states(t0, systems="J")
     assert "J02" in st.sv.tolist() and int(st.health[st.index_of("J02")]) == 1
     assert {("J02", "1C"), ("J02", "2L"), ("J02", "5Q")} <= pairs
+
+
+def test_a_profiles_excluded_signals_drop_only_those_satellite_signals(esbc_nav):
+    """excluded_signals (a profile's, e.g. fitted by calibrate: a receiver skipping B3I or L2C on some
+    satellites) removes exactly the (satellite, signal) pairs its expressions match; other signals of those
+    satellites and the signal on other satellites stay."""
+    plain, _ = esbc_nav
+    _, pairs = _tracked_pairs(plain)
+    bds2 = sorted({sv for sv, c in pairs if c == "7I"})
+    iif = sorted({sv for sv, c in pairs if c == "5Q" and sv[0] == "G"})
+    assert len(bds2) >= 2 and len(iif) >= 2
+    _, fewer = _tracked_pairs(plain, excluded_signals={"C7I": bds2[0], "G5Q": "|".join(iif[:2])})
+    assert pairs - fewer == {(bds2[0], "7I"), (iif[0], "5Q"), (iif[1], "5Q")}
+    assert fewer <= pairs
+
+
+@pytest.mark.parametrize("value, says", [({"C9Z": "C20"}, "C9Z"), ({"C6I": "C(20"}, "C6I"), ("C20", "mapping")])
+def test_bad_excluded_signals_are_named(value, says):
+    with pytest.raises(ValueError, match="excluded_signals") as err:
+        ReceiverConfig(excluded_signals=value)
+    assert says in str(err.value)

@@ -19,12 +19,15 @@ What is fitted and how:
   median elevation of its rising / setting arcs below ``MAX_RISE_SET_EL_DEG``, median over systems
   (table_thresholds: the simulated arcs start and end where the real ones do in the median; their spread comes
   from the satellites' power, not from the threshold); without tables the median measured C/N0 at arc ends;
-  ``aided_cn0_dbhz``: the median C/N0 at which the other signals set (they are tracked aided by the first);
+  ``aided_cn0_dbhz``: the lowest table C/N0 at which the other signals set (they are tracked aided by the
+  first; aided_threshold);
   ``start`` warm when under ``COLD_LLI_SHARE`` of the phases carry LLI bit 0 at the first epoch;
   ``half_cycle_flags`` whether the file ever sets LLI bit 1;
 - ``cn0_noise_db``: the epoch-to-epoch C/N0 scatter above ``ZENITH_SCATTER_EL_DEG`` (the profile's value is the
   zenith's; the engine grows it towards the horizon), quantisation removed; ``cn0_resolution_db``: the step of
   the reported C/N0 values;
+- ``excluded_signals``: per signal the satellites transmitting it (signal plans) that the receiver never tracked
+  on it while it tracked them on another signal (fit_excluded_signals);
 - ``antenna``: choke_ring when the RINEX antenna type is a known choke-ring model, else patch;
 - the DLL bandwidth, correlator spacing and front-end bandwidth cannot be separated from multipath with a
   recording: the DLL bandwidth is that of the built-in profile, lowered where its thermal noise would exceed
@@ -40,7 +43,9 @@ import numpy as np
 
 from ..receiver.noise import code_sigma_m
 from ..receiver.profiles import filled_in
+from ..signal_plans import default_plans, gps_day
 from ..signals import SIGNALS
+from .reading import gnss_times
 from .signal_stats import RecordingStats, SignalStats
 
 #: an elevation bin needs this many samples to enter a table
@@ -53,6 +58,8 @@ DLL_EXCEED_SHARE = 0.05
 MAX_RISE_SET_EL_DEG = 30.0
 #: the thresholds need this many rising and setting arcs (all signals together)
 MIN_ARCS = 3
+#: a satellite tracked on other signals this many epochs but never on one is excluded from it (excluded_signals)
+MIN_EXCLUDE_EPOCHS = 20
 #: the zenith C/N0 scatter is measured at and above this elevation [deg]
 ZENITH_SCATTER_EL_DEG = 60.0
 #: at or above this share of phases with LLI bit 0 at the first epoch the recording starts cold
@@ -251,6 +258,51 @@ def table_thresholds(stats: RecordingStats, signals: dict, cn0_table: dict) -> t
     return _median(acq), _median(trk)
 
 
+def aided_threshold(stats: RecordingStats, signals: dict, cn0_table: dict) -> float:
+    """``tracking.aided_cn0_dbhz`` [dB-Hz]: the lowest, over the signals after each system's first, of the signal's
+    fitted C/N0 table at the median elevation of its setting arcs below MAX_RISE_SET_EL_DEG, so that each sets no
+    later than the real one (ESBC: L2 P(Y) as the PolaRx5 reports it sets at about 13 dB-Hz); NaN without any."""
+    out = []
+    for sys_, codes in signals.items():
+        for code in codes[1:]:
+            st, tab = stats.signals.get(sys_ + code), cn0_table.get(sys_ + code)
+            if st is None or tab is None:
+                continue
+            el = np.asarray(st.set_el_deg, dtype=float)
+            el = el[np.isfinite(el) & (el < MAX_RISE_SET_EL_DEG)]
+            if el.size:
+                out.append(float(np.interp(np.median(el), tab["el_deg"], tab["cn0_dbhz"])))
+    return min(out) if out else math.nan
+
+
+def fit_excluded_signals(stats: RecordingStats, signals: dict) -> dict:
+    """{signal key: regular expression of the satellites the receiver did not track it on}: satellites tracked on
+    another signal of their system above the mask for at least MIN_EXCLUDE_EPOCHS epochs, never on this one,
+    although their signal plan (core/signal_plans: generation by PRN and date) says they transmit it; e.g. a
+    receiver configured without B3I on BeiDou-3 (ESBC 2020-177, PolaRx5 5.2.0: C6I on BeiDou-2 only)."""
+    if not len(stats.time):
+        return {}
+    day = gps_day(int(gnss_times(stats.time[:1]).sec[0]))
+    plans = default_plans()
+    out = {}
+    for sys_, codes in signals.items():
+        svs = [sv for sv in stats.sv.tolist() if sv[0] == sys_]
+        own = {c: stats.signals[sys_ + c].tracked for c in codes
+               if sys_ + c in stats.signals and stats.signals[sys_ + c].tracked is not None}
+        if not own:
+            continue
+        seen = np.sum(np.logical_or.reduce(list(own.values())), axis=0)
+        for code, tr in own.items():
+            n = tr.sum(axis=0)
+            if not n.any():
+                continue
+            skip = [sv for j, sv in enumerate(svs) if seen[j] >= MIN_EXCLUDE_EPOCHS and n[j] == 0
+                    and plans.codes(sv, (code,), day)]
+            if skip:
+                out[sys_ + code] = "|".join(skip)
+    return out
+
+
 def _median(values) -> float:
     v = np.array([x for x in values if x is not None and np.isfinite(x)], dtype=float)
     return float(np.median(v)) if v.size else math.nan
@@ -321,8 +373,7 @@ def fit_profile(stats: RecordingStats, header: dict, source_file: str, name: str
             trk = _median(np.median(r) for r in sets if r.size)
         tracking["acquisition_cn0_dbhz"] = round(acq, 1)
         tracking["tracking_cn0_dbhz"] = round(min(trk, acq - 1.0), 1)
-        aided = _median(np.median(arc_cn0(st.set_cn0_dbhz, st.set_el_deg)) for k_, st in stats.signals.items()
-                        if k_[1:] in signals.get(k_[0], [])[1:] and arc_cn0(st.set_cn0_dbhz, st.set_el_deg).size)
+        aided = aided_threshold(stats, signals, cn0_table)
         if np.isfinite(aided) and aided < tracking["tracking_cn0_dbhz"]:
             tracking["aided_cn0_dbhz"] = round(aided, 1)
     elif has_cn0:
@@ -359,6 +410,9 @@ def fit_profile(stats: RecordingStats, header: dict, source_file: str, name: str
         prof["cn0_resolution_db"] = stats.cn0_resolution_db
     if code_mp:
         prof["code_multipath_m"] = code_mp
+    excluded = fit_excluded_signals(stats, signals)
+    if excluded:
+        prof["excluded_signals"] = excluded
     if tracking:
         prof["tracking"] = tracking
     if cn0_table:

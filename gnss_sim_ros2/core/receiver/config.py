@@ -9,6 +9,7 @@ from dataclasses import dataclass, field, fields
 
 import numpy as np
 
+from .. import signals as sig
 from ..multipath.antenna import PATTERNS
 from ..vocabulary import IONOSPHERE_MODELS, TRANSMIT_TIME_MODES, TROPOSPHERE_MODELS
 from . import cn0 as cn0_model
@@ -64,6 +65,21 @@ def _regex(v):
     return v
 
 
+def _signal_regexes(v):
+    """{signal key ("C6I"): regular expression on the RINEX id} (excluded_signals)."""
+    if not isinstance(v, dict):
+        raise ValueError(f"'excluded_signals' = {v!r} is not a mapping of signal keys (C6I) to regular expressions")
+    for key, rx in v.items():
+        key = str(key)
+        if len(key) != 3 or (key[0], key[1:]) not in sig.SIGNALS:
+            raise ValueError(f"'excluded_signals': key {key!r} is not a signal (system letter + RINEX code, e.g. C6I)")
+        try:
+            re.compile(str(rx))
+        except re.error as exc:
+            raise ValueError(f"'excluded_signals.{key}' = {rx!r} is not a regular expression: {exc}") from None
+    return {str(k_): str(rx) for k_, rx in v.items()}
+
+
 #: dataclass-typed fields a profile gives as a mapping of their fields
 _NESTED = {"tracking": TrackingConfig, "link_budget": cn0_model.LinkBudget}
 
@@ -99,6 +115,9 @@ class ReceiverConfig:
     antenna: str | None = _owned("patch", check=_antenna)
     frontend_bandwidth_hz: float | None = _owned(4e6, check=_positive)
     excluded_svs: str | None = _owned("", check=_regex)
+    #: satellites a signal is not tracked on: per signal ("C6I") a regular expression on the RINEX id (a receiver
+    #: configured or built to skip them, e.g. B3I of BeiDou-3; gnss-sim calibrate fits it from a recording)
+    excluded_signals: dict | None = _owned({}, check=_signal_regexes)
     #: RINEX header text: {receiver_type, antenna_type} (REC # / TYPE, ANT # / TYPE; outputs.header's defaults
     #: where left out: GNSS_SIM and the antenna pattern's name)
     rinex: dict | None = _owned({}, check=outputs.check_rinex_names)
@@ -162,6 +181,7 @@ class ReceiverConfig:
                     said = f"'{f.name}'" in str(exc)
                     raise (exc if said else ValueError(f"receiver: parameter '{f.name}': {exc}")) from None
         self._excluded = re.compile(self.excluded_svs) if self.excluded_svs else None
+        self._excluded_signals = {k_: re.compile(rx) for k_, rx in self.excluded_signals.items()}
         if self.link_budget.antenna is None:      # the link budget's gain pattern: the receiver's antenna class
             self.link_budget = dataclasses.replace(self.link_budget, antenna=self.antenna)
         zen, low = code_multipath.OPEN_SKY_MP_M[self.antenna]    # open-sky multipath of the antenna class

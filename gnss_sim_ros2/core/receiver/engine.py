@@ -134,11 +134,14 @@ class Receiver:
         sat_i, codes, freq, chip, systems = [], [], [], [], []
         plans = self._plans
         profile = {s: tuple(c) for s, c in self.cfg.profile.items()}
+        skip = self.cfg._excluded_signals
         for i, sv in enumerate(svs.tolist()):
             s = sv[0]
             h = int(health[i])
             for code in plans.codes(sv, profile.get(s, ()), day):
                 if h and s == "J" and not signal_usable(s, h, code):   # other systems: the provider's choice
+                    continue
+                if skip and s + code in skip and skip[s + code].fullmatch(sv):   # the profile's excluded_signals
                     continue
                 sat_i.append(i)
                 codes.append(code)
