@@ -17,9 +17,9 @@ project's own commands and Debian's RTKLIB (``rnx2rtkp``):
 5. GPS L1-only RTK on a simulated 1 m baseline (instantaneous ambiguity resolution, ratio 3): fix rate and
    the largest error of a fixed solution (the real pair of the issue: 99.3 % fixed).
 
-Printed: one Markdown table per step.  Takes about 10 minutes on this machine kind (2 cores).
+Printed: one Markdown table per step.  Takes about 15 minutes on this machine kind (2 cores).
 
-    python bench/bench_realism.py [--hours 3] [--work DIR] [--profile-file FILE.yaml]
+    python bench/bench_realism.py [--hours 12] [--work DIR] [--profile-file FILE.yaml]
 """
 from __future__ import annotations
 
@@ -191,7 +191,7 @@ def _f(v, d=2):
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--hours", type=float, default=3.0, help="checked span of ESBC after hour 12 [h] (3)")
+    ap.add_argument("--hours", type=float, default=12.0, help="checked span of ESBC after hour 12 [h] (12)")
     ap.add_argument("--work", help="working folder (kept; default a temporary one)")
     ap.add_argument("--profile-file", help="check this profile instead of calibrating one on ESBC 0-12 h")
     a = ap.parse_args(argv)
@@ -214,7 +214,10 @@ def main(argv=None) -> int:
         fitted = next(cal.glob("*.yaml"))
     print(f"profile checked: {fitted}")
 
-    t0, t1 = "2020/06/25 12:00:00", f"2020/06/25 {12 + int(a.hours):02d}:00:00"
+    if not 0 < a.hours <= 12:
+        raise SystemExit("bench_realism: --hours must be in (0, 12] (ESBC's file ends at 24 h)")
+    end_s = 12 * 3600 + int(a.hours * 3600) - 30            # the last 30 s epoch of the checked span
+    t0, t1 = "2020/06/25 12:00:00", f"2020/06/25 {end_s // 3600:02d}:{end_s % 3600 // 60:02d}:{end_s % 60:02d}"
     ref_esbc = ppp_reference([f["esbc_obs"], f["esbc_nav"], f["esbc_sp3"], f["esbc_clk"]],
                              work / "esbc_ppp.pos", "2020/06/25 08:00:00", t1)
     ref_opec = ppp_reference([f["opec_obs"], f["opec_nav"], f["opec_sp3"]], work / "opec_ppp.pos")

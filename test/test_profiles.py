@@ -30,12 +30,28 @@ def _cli(argv, capsys) -> tuple[int, str, str]:
 
 
 # ------------------------------------------------------------------------------------------------ shipped profiles
-def test_the_four_profiles_ship_as_files():
-    assert set(builtin_names()) == {"geodetic", "single_frequency", "ublox_m8t", "ublox_f9p"}
+def test_the_profiles_ship_as_files():
+    assert set(builtin_names()) == {"geodetic", "single_frequency", "ublox_m8t", "ublox_f9p", "polarx5_choke_ring"}
     for name in builtin_names():
         prof = load_profile(name)
         assert prof.name == name and prof.description and prof.source
         assert prof.path.endswith(f"profiles/{name}.yaml")
+
+
+def test_the_polarx5_profile_is_what_calibrate_fits_on_esbc(shared_data, tmp_path, capsys):
+    """The shipped polarx5_choke_ring is gnss-sim calibrate's output on ESBC 2020-06-25 hours 0-12 (its header says
+    how): the same command gives the same profile, so the file can be made again and nobody edited it by hand."""
+    d = shared_data / "esbc-2020-177-polarx5"
+    rc, _, err = _cli(["calibrate", "--quiet", "--obs", d / "ESBC00DNK_R_20201770000_01D_30S_MO.crx.gz",
+                       "--nav", d / "ESBC00DNK_R_20201770000_01D_MN.rnx.gz", "--start", "2020-06-25T00:00:00",
+                       "--duration", "43200", "--name", "polarx5_choke_ring", "--out", tmp_path / "cal"], capsys)
+    assert rc == 0, err
+    fitted = yaml.safe_load((tmp_path / "cal" / "polarx5_choke_ring.yaml").read_text())
+    shipped = yaml.safe_load(open(load_profile("polarx5_choke_ring").path).read())
+    assert fitted == shipped
+    cfg = ReceiverConfig(profile="polarx5_choke_ring")
+    assert cfg.antenna == "choke_ring" and cfg.tracking.start == "warm" and not cfg.tracking.half_cycle_flags
+    assert cfg.rinex["receiver_type"] == "SEPT POLARX5"
 
 
 def test_geodetic_profile_values():

@@ -393,7 +393,8 @@ def fit_profile(stats: RecordingStats, header: dict, source_file: str, name: str
         "name": name or "calibrated",
         "description": (f"{header.get('receiver_type') or 'receiver'} with "
                         f"{header.get('antenna_type', '').strip() or 'antenna'}, fitted from a recording; correlator "
-                        f"spacing and front end of the built-in profile {traits_name}, DLL bandwidth at most its"),
+                        f"spacing and front end of the built-in profile {traits_name}, DLL bandwidth at most "
+                        "that profile's"),
         "source": f"fitted by gnss-sim calibrate on {source_file}, span {t0} .. {t1} GPS",
         "signals": signals,
         "antenna": _antenna(header.get("antenna_type", "")),
