@@ -65,7 +65,9 @@ def test_nlos_only_pseudorange_carries_the_excess_delay_and_weaker_cn0(provider)
     assert abs(dphi_m - 37.5) <= lam / 2 + 1e-6
     amp, _ = reflection_amplitudes(np.array([0j]), np.array([0.6 + 0j]), np.array([el_all[srow]]),
                                    np.array(el_all[srow]), "patch")
-    assert obs.cn0_dbhz[j] - ref.cn0_dbhz[j_ref] == pytest.approx(20 * np.log10(amp[0]), abs=1e-6)
+    # both C/N0 are reported in the profile's steps (cn0_resolution_db: 0.25 dB for the geodetic profile)
+    step_db = b.cfg.cn0_resolution_db
+    assert obs.cn0_dbhz[j] - ref.cn0_dbhz[j_ref] == pytest.approx(20 * np.log10(amp[0]), abs=step_db + 1e-6)
     assert obs.cn0_dbhz[j] < ref.cn0_dbhz[j_ref] - 10       # LHCP rejection of the patch + |Gamma|
     others = ref.sv != sv
     np.testing.assert_allclose(obs.pseudorange_m[obs.sv != sv], ref.pseudorange_m[others], atol=1e-9)
@@ -142,6 +144,7 @@ def test_profiles_f9p_drops_beidou_geo_and_m8t_is_single_frequency(provider):
     cfg = ReceiverConfig(profile="ublox_m8t")
     assert (cfg.dll_spacing_chips, cfg.antenna, cfg.tracking.acquisition_cn0_dbhz) == (0.5, "patch", 22.0)
     geod = ReceiverConfig(profile="geodetic")
-    assert (geod.dll_spacing_chips, geod.dll_bn_hz, geod.tracking.acquisition_cn0_dbhz) == (0.2, 0.5, 33.0)
+    # the geodetic profile's narrow correlator and 0.25 Hz DLL (profiles/geodetic.yaml, issue 26)
+    assert (geod.dll_spacing_chips, geod.dll_bn_hz, geod.tracking.acquisition_cn0_dbhz) == (0.1, 0.25, 33.0)
     with pytest.raises(ValueError, match="antenna"):
         ReceiverConfig(antenna="dipole")
