@@ -40,6 +40,7 @@ from ..simulation import run_simulation, setup_from_config
 from ..time import GnssTime
 from ..trajectory import Trajectory
 from ..visibility import VisibilityOptions
+from ..visibility.line_of_sight import line_of_sight
 from ..vocabulary import VisibilityState
 from .rtklib import rtklib_solutions
 from .sources import load_observations
@@ -230,7 +231,6 @@ def model_offset_m(drive: Drive, scene, provider, real: FileView, *, strong_cn0_
     blocks, plus the share of the satellites above the mask it does not track that the model leaves in the
     line of sight; minimised on a grid of ``step_m`` within +-``span_m``, then of step_m / 4 within +-step_m
     around the best, on every ``every``-th epoch.  Returns (offset (2,), criterion at 0, criterion at it)."""
-    opts = VisibilityOptions(mask_deg=mask_deg)
     col = {s: j for j, s in enumerate(real.sv)}
     epochs = []
     for d in range(0, len(drive.t), max(1, int(every))):
@@ -246,9 +246,9 @@ def model_offset_m(drive: Drive, scene, provider, real: FileView, *, strong_cn0_
         strong_blk = strong_n = lost_los = lost_n = 0
         for d, sat, tracked, strong in epochs:
             a = drive.antenna_world_m[d] + np.array([off[0], off[1], 0.0])
-            state, _, v = opts.cast(scene, a, sat)
+            clear, v = line_of_sight(scene, a, sat, mask_deg)
             above = v.el_deg >= mask_deg
-            blk = state == int(VisibilityState.BLOCKED)
+            blk = above & ~clear
             s_ = tracked & strong & above
             lost = ~tracked & above
             strong_blk += int(np.sum(blk & s_))
@@ -359,7 +359,6 @@ def clear_sky_shares(drive: Drive, scene, provider, view: FileView, *, mask_deg:
     (elevation band 0: below ``split_el_deg`` / 1: above, azimuth bin start [deg]) -> (tracked share, satellite-
     epochs) and ``clear``, ``tracked_clear`` are (K, S) bool on ``view.sv`` (epochs not visited: False).  A sky
     sector the file leaves untracked where the model is clear points at what the model lacks there."""
-    opts = VisibilityOptions(mask_deg=mask_deg)
     col = {s: j for j, s in enumerate(view.sv)}
     clear = np.zeros(view.tracked.shape, bool)
     acc: dict = {}
@@ -367,8 +366,7 @@ def clear_sky_shares(drive: Drive, scene, provider, view: FileView, *, mask_deg:
         st = provider.states(drive.t[d], systems="".join(sorted({s[0] for s in view.sv})))
         if len(st) == 0:
             continue
-        state, _, v = opts.cast(scene, drive.antenna_world_m[d], st.pos_ecef_m)
-        ok = (state != int(VisibilityState.BLOCKED)) & (v.el_deg >= mask_deg)
+        ok, v = line_of_sight(scene, drive.antenna_world_m[d], st.pos_ecef_m, mask_deg)
         for s, el, az, c in zip(st.sv, v.el_deg, v.az_deg, ok):
             if not c:
                 continue
