@@ -375,3 +375,132 @@ def test_excluded_signals_are_satellites_that_send_a_signal_the_receiver_never_t
     stats = RecordingStats(t, svs, 10.0, 5.0, 30.0,
                            {k_: SignalStats(k_, edges, nan, nan, zeros, tracked=m) for k_, m in sig.items()})
     assert fit_excluded_signals(stats, {"C": ["2I", "6I", "7I"]}) == {"C6I": "C20"}
+
+
+# ------------------------------------------------------------------------------- line of sight from a scene
+#: a wall south of the antenna (issue 26 part F): its face at WALL_SOUTH_M, WALL_TOP_M above the antenna, 10 km long
+WALL_SOUTH_M, WALL_TOP_M = 20.0, 14.0
+
+
+def _wall_world(antenna_ecef_m):
+    """A wall (box y -21..-20 m, x +-5 km, z -5..WALL_TOP_M) in a world whose origin is the antenna."""
+    from multipath_scenes import _box
+
+    from gnss_sim_ros2.core.frames import ecef_to_geodetic
+    from gnss_sim_ros2.core.scene.georeference import SphericalCoordinates
+    from gnss_sim_ros2.core.scene.materials import MaterialTable
+    from gnss_sim_ros2.core.scene.world_mesh import WorldMesh
+
+    v, f = _box(-5000.0, 5000.0, -WALL_SOUTH_M - 1.0, -WALL_SOUTH_M, -5.0, WALL_TOP_M)
+    lat, lon, h = ecef_to_geodetic(*antenna_ecef_m)
+    return WorldMesh(v, f, np.zeros(len(f), np.int16), MaterialTable(),
+                     spherical_coordinates=SphericalCoordinates(float(lat), float(lon), float(h)))
+
+
+def _behind_the_wall(rec, nav, antenna_ecef_m):
+    """(E, S) bool: the ray to the satellite meets the wall's face y = -WALL_SOUTH_M below its top (geometry
+    alone: southward and WALL_SOUTH_M tan(el) / -cos(az) < WALL_TOP_M), from the broadcast positions."""
+    from gnss_sim_ros2.core.calibration.reading import elevations_deg, gnss_times
+    from gnss_sim_ros2.core.ephemeris.broadcast import BroadcastEphemeris
+    from gnss_sim_ros2.core.frames import az_el_from_ecef
+
+    ends = gnss_times(rec.table.time[[0, -1]])
+    eph = BroadcastEphemeris.from_files([str(nav)], start=ends[0] + (-7200.0), end=ends[1] + 7200.0)
+    sat = np.full(rec.el_deg.shape + (3,), np.nan)
+    elevations_deg(eph, rec.table.time, rec.table.sv, antenna_ecef_m, np.isfinite(rec.el_deg), sat)
+    ok = np.all(np.isfinite(sat), axis=-1)
+    az = np.full(rec.el_deg.shape, np.nan)
+    el = np.full(rec.el_deg.shape, np.nan)
+    a, e, _ = az_el_from_ecef(np.broadcast_to(antenna_ecef_m, (int(ok.sum()), 3)), sat[ok])
+    az[ok], el[ok] = a, e
+    south = -np.cos(np.radians(np.nan_to_num(az)))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return ok & (south > 0) & (WALL_SOUTH_M * np.tan(np.radians(np.nan_to_num(el))) / south < WALL_TOP_M)
+
+
+def test_a_wall_keeps_the_satellites_behind_it_out_of_the_statistics(esbc, esbc_fit):
+    """A wall south of the ESBC antenna: every C/N0 sample of a satellite behind it (or under the mask) leaves the
+    tables, exactly those, and nothing else changes for the satellites it leaves in sight."""
+    from gnss_sim_ros2.core.calibration.reading import antenna_from_header
+    from gnss_sim_ros2.core.scene.visibility import Scene
+
+    rec0, stats0, _, _ = esbc_fit
+    pos = antenna_from_header(rec0.header, esbc["obs"])
+    scene = Scene(_wall_world(pos))
+    rec = read_recording(esbc["obs"], [esbc["nav"]], start_iso=SPAN[0], duration_s=SPAN[1], scene=scene,
+                         mask_deg=5.0, scene_name="a wall")
+    stats = signal_statistics(rec.table, rec.el_deg, rec.interval_s, 5.0, 5.0, rec.los, rec.scene)
+    behind = _behind_the_wall(rec, esbc["nav"], pos)
+    expected_los = np.isfinite(rec.el_deg) & (rec.el_deg >= 5.0) & ~behind
+    assert np.array_equal(rec.los, expected_los)
+    sysc = np.array([s[0] for s in rec.table.sv])
+    dropped_any = 0
+    for key, st in stats.signals.items():
+        cols = sysc == key[0]
+        cn0 = rec.table.column("S" + key[1:])[:, cols]
+        known = np.isfinite(cn0) & np.isfinite(rec.el_deg[:, cols])
+        kept = known & expected_los[:, cols]
+        assert st.los_samples == (int(known.sum()), int(kept.sum())), key
+        assert int(st.cn0_n.sum()) == int(kept.sum()), key
+        # the plain fit's counts (samples at 0..90 deg) drop by exactly those behind the wall or under the mask
+        el = np.nan_to_num(rec.el_deg[:, cols], nan=-1.0)
+        dropped = known & (el >= 0.0) & (el < 90.0) & ~expected_los[:, cols]
+        assert int(stats0.signals[key].cn0_n.sum()) - int(st.cn0_n.sum()) == int(dropped.sum()), key
+        dropped_any += int((known & behind[:, cols]).sum())
+        # the bins that lost no sample keep their mean
+        same = st.cn0_n == stats0.signals[key].cn0_n
+        assert np.allclose(st.cn0_mean_dbhz[same], stats0.signals[key].cn0_mean_dbhz[same], equal_nan=True), key
+    g = stats.signals["G1C"]
+    assert 0 < g.los_samples[1] < g.los_samples[0] and dropped_any > 100
+    assert stats.to_json()["line_of_sight_selected_by"] == "a wall"
+    assert "line_of_sight_selected_by" not in stats0.to_json()
+
+
+def test_calibrate_mesh_selects_line_of_sight_and_says_so(esbc, esbc_fit, tmp_path, capsys):
+    from gnss_sim_ros2.core.calibration.reading import antenna_from_header
+    from gnss_sim_ros2.core.scene.mesh_io import write_scene
+
+    pos = antenna_from_header(esbc_fit[0].header, esbc["obs"])
+    mesh = tmp_path / "wall.ply"
+    write_scene(mesh, _wall_world(pos))
+    common = ("--obs", esbc["obs"], "--nav", esbc["nav"], "--start", SPAN[0], "--duration", SPAN[1], "--name", "w")
+    assert _calibrate(*common, "--mesh", mesh, "--out", tmp_path / "wall") == 0
+    assert _calibrate(*common, "--out", tmp_path / "plain") == 0
+    out = capsys.readouterr().out
+    assert f"line of sight from --mesh {mesh}: C/N0 samples kept G1C " in out
+    report = (tmp_path / "wall" / "report.md").read_text()
+    assert "## Line-of-sight selection" in report and f"The scene (--mesh {mesh}) selected the samples" in report
+    assert "Line-of-sight" not in (tmp_path / "plain" / "report.md").read_text()
+    wall = json.loads((tmp_path / "wall" / "statistics.json").read_text())["signals"]["G1C"]
+    plain = json.loads((tmp_path / "plain" / "statistics.json").read_text())["signals"]["G1C"]
+    # all: every C/N0 sample with an elevation (the plain bins take those at 0..90 deg)
+    assert sum(wall["cn0_n"]) == wall["cn0_samples_line_of_sight"] < sum(plain["cn0_n"]) <= wall["cn0_samples_all"]
+    assert f"| G1C | {wall['cn0_samples_all']} | {wall['cn0_samples_line_of_sight']} |" in report
+
+
+@pytest.mark.parametrize("case", ["missing world", "missing mesh", "bad world", "bad mesh", "both"])
+def test_calibrate_bad_scene_one_line_rc2(esbc, tmp_path, capsys, case):
+    (tmp_path / "bad.world").write_text("not an SDF world\n")
+    (tmp_path / "bad.ply").write_text("ply\nnot a mesh\n")
+    opt = {"missing world": ("--world", tmp_path / "nope.world"), "missing mesh": ("--mesh", tmp_path / "nope.ply"),
+           "bad world": ("--world", tmp_path / "bad.world"), "bad mesh": ("--mesh", tmp_path / "bad.ply"),
+           "both": ("--world", tmp_path / "bad.world", "--mesh", tmp_path / "bad.ply")}[case]
+    try:
+        rc = _calibrate("--obs", esbc["obs"], "--nav", esbc["nav"], "--duration", 600, *opt, "--out", tmp_path / "o")
+    except SystemExit as exc:         # argparse: --world and --mesh exclude each other
+        rc = exc.code
+    err = [e for e in capsys.readouterr().err.strip().splitlines() if "error" in e]
+    assert rc == 2 and len(err) == 1, err
+    assert ("not allowed with" in err[0]) if case == "both" else (f"{opt[0]} {opt[1]}" in err[0])
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_scene_that_blocks_nothing_changes_no_statistic(esbc_fit):
+    """Every sample in the line of sight: the same tables, code noise, rises / sets and scatter as without a scene
+    (only the selection's counts are added), so a scene changes the fit only through what it blocks."""
+    rec, stats0, _, _ = esbc_fit
+    stats = signal_statistics(rec.table, rec.el_deg, rec.interval_s, 5.0, 5.0, np.ones(rec.el_deg.shape, bool), "x")
+    for key, st0 in stats0.signals.items():
+        j0, j = st0.to_json(), stats.signals[key].to_json()
+        assert j.pop("cn0_samples_line_of_sight") == j.pop("cn0_samples_all") > 0
+        assert j == j0, key

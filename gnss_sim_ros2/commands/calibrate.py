@@ -1,14 +1,19 @@
 """``gnss-sim calibrate``: fit a receiver profile (YAML) to a real recording, with a report and figures.
 
     gnss-sim calibrate --obs FILE --nav FILE [FILE ...] [--position-ecef X,Y,Z | --trajectory CSV]
-                       [--start ISO --duration S] [--mask-deg 5] [--bin-deg 5] [--name NAME] --out DIR
+                       [--world SDF | --mesh FILE] [--start ISO --duration S] [--mask-deg 5] [--bin-deg 5]
+                       [--name NAME] --out DIR
 
 Reads a RINEX 3 observation file (plain, .gz, Hatanaka .crx / .crx.gz) over the span, its broadcast navigation
 file(s) and the antenna position (default: the header's APPROX POSITION XYZ + ANTENNA: DELTA H/E/N) or path
 (a trajectory CSV as ``simulate --trajectory`` reads it, ``t_s`` from the span's first epoch), computes per-signal
 statistics (C/N0 and code noise against elevation, arcs, LLI flags) and writes into DIR: ``NAME.yaml`` (the
 profile, ``--profile DIR/NAME.yaml``), ``report.md`` with PNG figures and ``statistics.json``.  ``--start`` /
-``--duration`` fit on part of a file (e.g. hours 0-12, then check on 12-24).  Method: core/calibration/.
+``--duration`` fit on part of a file (e.g. hours 0-12, then check on 12-24).  ``--world`` / ``--mesh``: the
+scene of the recording (loaded as ``gnss-sim simulate`` loads it): only the (epoch, satellite) pairs it leaves in
+the line of sight of the antenna above the mask enter the C/N0 tables, code noise, rise / set and thresholds (an
+urban recording's blocked and reflected signals stay out); the path may then be in the scene's world frame.
+Method: core/calibration/.
 """
 from __future__ import annotations
 
@@ -31,6 +36,10 @@ def add_arguments(p):
                         "DELTA H/E/N)")
     a.add_argument("--trajectory", metavar="CSV",
                    help="antenna path: t_s,lat_deg,lon_deg,h_m or t_s,x_m,y_m,z_m (t_s from the span's first epoch)")
+    sc = p.add_mutually_exclusive_group()
+    sc.add_argument("--world", metavar="SDF", help="Gazebo world of the recording's surroundings: only satellites it "
+                    "leaves in the line of sight are fitted")
+    sc.add_argument("--mesh", metavar="FILE", help="mesh exported by export-world, instead of --world")
     p.add_argument("--start", metavar="ISO", help="first epoch of the span, GPS time (default: the file's first)")
     p.add_argument("--duration", type=float, metavar="S", help="length of the span [s] (default: to the file's end)")
     p.add_argument("--mask-deg", type=float, default=5.0,
@@ -47,6 +56,24 @@ def _default_name(obs: str) -> str:
     return f"{stem or 'receiver'}_calibrated"
 
 
+def _scene(args):
+    """(scene or None, its option and file for the report) of --world / --mesh; ValueError naming the option."""
+    world, mesh = getattr(args, "world", None), getattr(args, "mesh", None)
+    if not world and not mesh:
+        return None, ""
+    from gnss_sim_ros2.core.visibility import load_scene
+
+    opt, path = ("--world", world) if world else ("--mesh", mesh)
+    if not Path(path).is_file():
+        raise ValueError(f"option {opt} {path}: no such file")
+    try:
+        scene = load_scene(world or "", mesh or "")
+    except Exception as exc:  # the loaders raise ValueError, OSError, XML and mesh errors: one line naming the file
+        msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise ValueError(f"option {opt} {path}: {msg}") from None
+    return scene, f"{opt} {path}"
+
+
 def run(args) -> int:
     import yaml
 
@@ -58,7 +85,8 @@ def run(args) -> int:
 
     name = args.name if args.name is not None else _default_name(args.obs)
     folder = OutputFolder(Path(args.out), command="gnss-sim calibrate",
-                          inputs=[args.obs, *(args.nav or ()), args.trajectory])
+                          inputs=[args.obs, *(args.nav or ()), args.trajectory, getattr(args, "world", None),
+                                  getattr(args, "mesh", None)])
     try:
         if not NAME_RE.match(name):
             raise ValueError(f"option --name {name!r}: letters, digits, '_', '-' and '.' only")
@@ -66,8 +94,11 @@ def run(args) -> int:
             raise ValueError(f"option --mask-deg {args.mask_deg!r}: must be in [0, 90)")
         pos = parse_triple(args.position_ecef, "option --position-ecef (ECEF X,Y,Z [m])") \
             if args.position_ecef else None
-        rec = read_recording(args.obs, args.nav, pos, args.trajectory, args.start, args.duration)
-        stats = signal_statistics(rec.table, rec.el_deg, rec.interval_s, args.mask_deg, args.bin_deg)
+        scene, scene_name = _scene(args)
+        rec = read_recording(args.obs, args.nav, pos, args.trajectory, args.start, args.duration, scene,
+                             args.mask_deg, scene_name)
+        stats = signal_statistics(rec.table, rec.el_deg, rec.interval_s, args.mask_deg, args.bin_deg, rec.los,
+                                  rec.scene)
         profile, notes = fit_profile(stats, rec.header, Path(args.obs).name, name)
         staging = folder.acquire()
         try:
@@ -88,6 +119,10 @@ def run(args) -> int:
     t0, t1 = rec.span
     print(f"calibrated on {args.obs}: {len(rec.table.time)} epochs {t0} .. {t1} GPS, "
           f"{len(stats.signals)} signals")
+    if stats.scene:
+        kept = ", ".join(f"{k_} {st.los_samples[1]}/{st.los_samples[0]}" for k_, st in stats.signals.items()
+                         if st.los_samples is not None)
+        print(f"line of sight from {stats.scene}: C/N0 samples kept {kept}")
     for n in notes:
         print(f"note: {n}")
     print(f"wrote {prof_path}")

@@ -37,6 +37,9 @@ class Recording:
     interval_s: float            #: epoch interval (header INTERVAL, else the median step)
     antenna: str                 #: how the antenna position was given (for the report)
     path: str                    #: the observation file
+    #: (E, S) bool: the scene leaves the satellite in the line of sight (None: no scene, every sample counts)
+    los: np.ndarray | None = None
+    scene: str = ""              #: the scene that selected ``los`` (for the report)
 
     @property
     def span(self) -> tuple[str, str]:
@@ -51,10 +54,12 @@ def gnss_times(times: np.ndarray) -> GnssTime:
     return GnssTime(ns // 1_000_000_000, (ns % 1_000_000_000) * 1e-9)
 
 
-def elevations_deg(eph, times: np.ndarray, svs: np.ndarray, rx_ecef_m: np.ndarray, present=None) -> np.ndarray:
+def elevations_deg(eph, times: np.ndarray, svs: np.ndarray, rx_ecef_m: np.ndarray, present=None,
+                   sat_out: np.ndarray | None = None) -> np.ndarray:
     """(E, S) elevation [deg] of satellites ``svs`` at ``times`` seen from ``rx_ecef_m`` ((3,) or (E, 3)), from
     the ephemeris provider ``eph`` (one vectorised ``states_at`` call); NaN without a healthy record, outside
-    the provider's systems or where ``present`` ((E, S) bool, optional) is False."""
+    the provider's systems or where ``present`` ((E, S) bool, optional) is False.  ``sat_out``: an (E, S, 3)
+    array that receives the satellites' ECEF positions [m] where the elevation is known."""
     n_e, n_s = len(times), len(svs)
     el = np.full((n_e, n_s), np.nan)
     rx = np.broadcast_to(np.asarray(rx_ecef_m, float).reshape(-1, 3), (n_e, 3)) if n_e else np.zeros((0, 3))
@@ -78,6 +83,8 @@ def elevations_deg(eph, times: np.ndarray, svs: np.ndarray, rx_ecef_m: np.ndarra
     ok = rows >= 0
     _, e, _ = az_el_from_ecef(rx[ie[ok]], st.pos_ecef_m[rows[ok]])
     el[ie[ok], js[ok]] = e
+    if sat_out is not None:
+        sat_out[ie[ok], js[ok]] = st.pos_ecef_m[rows[ok]]
     return el
 
 
@@ -109,10 +116,16 @@ def antenna_from_header(hdr: dict, path) -> np.ndarray:
 
 
 def read_recording(obs_path, nav_paths, position_ecef_m=None, trajectory_csv=None, start_iso=None,
-                   duration_s=None) -> Recording:
+                   duration_s=None, scene=None, mask_deg: float = 5.0, scene_name: str = "") -> Recording:
     """The recording ``obs_path`` over [``start_iso``, + ``duration_s``] with elevations from ``nav_paths``.
 
-    Errors (ValueError) name the file or option: missing files, a span without epochs, a bad position."""
+    ``scene`` (core/scene Scene, georeferenced): ``Recording.los`` marks the (epoch, satellite) pairs the scene
+    leaves in the line of sight of the antenna above ``mask_deg`` (core/visibility/line_of_sight.py); the path
+    may then also be in the scene's world frame (t_s,e_m,n_m,u_m), as ``gnss-sim simulate --trajectory`` places
+    it.  Errors (ValueError) name the file or option: missing files, a span without epochs, a bad position."""
+    if scene is not None and scene.spherical is None:
+        raise ValueError(f"{scene_name or 'the scene'}: no spherical_coordinates (geodetic origin): cannot place "
+                         "the antenna in it")
     obs_path = Path(obs_path)
     if not obs_path.is_file():
         raise ValueError(f"--obs {obs_path}: no such file")
@@ -156,12 +169,13 @@ def read_recording(obs_path, nav_paths, position_ecef_m=None, trajectory_csv=Non
     t0 = tab.time[0]
     if trajectory_csv is not None:
         tr = Trajectory.from_csv(trajectory_csv)
-        if tr.frame == "world":
+        if tr.frame == "world" and scene is None:
             raise ValueError(f"--trajectory {trajectory_csv}: a world-frame path (e_m,n_m,u_m) needs a scene; "
                              "give t_s,lat_deg,lon_deg,h_m or t_s,x_m,y_m,z_m")
         t_s = (tab.time - t0).astype("timedelta64[ns]").astype(np.int64) / 1e9
         p = tr.position(t_s)
-        rx = geodetic_to_ecef_rows(p) if tr.frame == "geodetic" else p
+        rx = geodetic_to_ecef_rows(p) if tr.frame == "geodetic" else \
+            scene.spherical.world_to_ecef(p) if tr.frame == "world" else p
         outside = (t_s < tr.t_s[0]) | (t_s > tr.t_s[-1])
         rx = np.where(outside[:, None], np.nan, rx)
         if outside.all():
@@ -180,11 +194,22 @@ def read_recording(obs_path, nav_paths, position_ecef_m=None, trajectory_csv=Non
     present = np.zeros((len(tab.time), len(tab.sv)), bool)
     for a in tab.values.values():
         present |= np.isfinite(a)
-    el = elevations_deg(eph, tab.time, tab.sv, rx, present)
+    sat = np.full(present.shape + (3,), np.nan) if scene is not None else None
+    el = elevations_deg(eph, tab.time, tab.sv, rx, present, sat)
     if not np.isfinite(el).any():
         raise ValueError(f"--nav {', '.join(map(str, nav_paths))}: no satellite of --obs {obs_path} has a healthy "
                          "broadcast record over the span (wrong day or navigation file?)")
-    return Recording(tab, hdr, el, float(interval), antenna, str(obs_path))
+    rec = Recording(tab, hdr, el, float(interval), antenna, str(obs_path))
+    if scene is not None:
+        from ..visibility.line_of_sight import line_of_sight_epochs
+
+        rx_e = np.broadcast_to(np.asarray(rx, float).reshape(-1, 3), (len(tab.time), 3))
+        world = np.full(rx_e.shape, np.nan)
+        fin = np.all(np.isfinite(rx_e), axis=1)
+        world[fin] = scene.spherical.ecef_to_world(rx_e[fin])
+        rec.los = line_of_sight_epochs(scene, world, sat, mask_deg)
+        rec.scene = scene_name
+    return rec
 
 
 def geodetic_to_ecef_rows(llh: np.ndarray) -> np.ndarray:

@@ -108,6 +108,16 @@ def write_report(rec: Recording, stats: RecordingStats, profile: dict, notes: li
          f"- antenna position: {rec.antenna}",
          f"- elevation mask of the statistics: {stats.mask_deg:g} deg, bins of {stats.bin_deg:g} deg",
          f"- profile: `{profile_path.name}` (load it with `--profile {profile_path.name}`)", ""]
+    if stats.scene:
+        L += ["## Line-of-sight selection", "",
+              f"The scene ({stats.scene}) selected the samples: only (epoch, satellite) pairs it leaves in the line "
+              f"of sight of the antenna at or above {stats.mask_deg:g} deg enter the C/N0 tables, the C/N0 scatter, "
+              "the code noise, the rise / set elevations and with them the tracking thresholds "
+              "(core/visibility/line_of_sight.py).", ""]
+        L += _md_table(["signal", "C/N0 samples", "kept (line of sight)", "share"],
+                       [[k_, a, b, f"{100.0 * b / a:.1f} %" if a else "-"]
+                        for k_, (a, b) in ((k_, st.los_samples) for k_, st in stats.signals.items()
+                                           if st.los_samples is not None)])
     if notes:
         L += ["## Not fitted", ""] + [f"- {n}" for n in notes] + [""]
     L += ["## Method", "",

@@ -21,6 +21,13 @@ each (epoch, satellite):
   receivers);
 - the epoch-to-epoch C/N0 scatter: std of the first differences within arcs / sqrt(2) (jumps over
   ``CN0_JUMP_DB`` left out).
+
+With a line-of-sight selection ``los`` ((E, S) bool, from a scene: ``gnss-sim calibrate --world | --mesh``) only
+the samples of satellites in the line of sight enter the C/N0 bins, the C/N0 scatter (both epochs of a step) and
+the code noise (the multipath combination of other samples is dropped before the arcs are formed); a rise / set
+counts only where the satellite is in the line of sight at the arc's first / last epoch and at the epoch before /
+after it (an arc that starts as the satellite clears a building is the scene's doing, not the receiver's
+threshold).  The tracked pairs, LLI shares and code counts stay over every sample.
 """
 from __future__ import annotations
 
@@ -75,6 +82,8 @@ class SignalStats:
     lli_arc_start: dict = field(default_factory=dict)  #: the same at arc starts (not at the span's start)
     tracked: np.ndarray | None = None    #: (E, S) bool: code observation at or above the mask
     n_code: int = 0                      #: code observations in the span (any elevation, known or not)
+    #: with a line-of-sight selection: C/N0 samples with a known elevation, all / in the line of sight
+    los_samples: tuple[int, int] | None = None
 
     @property
     def system(self) -> str:
@@ -102,7 +111,9 @@ class SignalStats:
                 "rise_cn0_dbhz": arr(self.rise_cn0_dbhz), "set_cn0_dbhz": arr(self.set_cn0_dbhz),
                 "cn0_scatter_db": arr([self.cn0_scatter_db])[0],
                 "cn0_scatter_by_el_db": arr(self.cn0_scatter_by_el_db), "lli_first": self.lli_first,
-                "lli_arc_start": self.lli_arc_start}
+                "lli_arc_start": self.lli_arc_start} | (
+            {} if self.los_samples is None else {"cn0_samples_all": self.los_samples[0],
+                                                 "cn0_samples_line_of_sight": self.los_samples[1]})
 
 
 @dataclass
@@ -119,6 +130,8 @@ class RecordingStats:
     lli_all: dict = field(default_factory=dict)
     #: the step of the reported C/N0 values [dB] (0.25 Septentrio, 1 u-blox; 0: finer than 0.01 or none)
     cn0_resolution_db: float = 0.0
+    #: the scene that selected the line-of-sight samples ("": none, every sample counts)
+    scene: str = ""
 
     def lli_share(self, which: str = "lli_first") -> dict:
         """{"n", "bit0", "bit1"} summed over the signals (``which``: "lli_first" | "lli_arc_start")."""
@@ -134,7 +147,8 @@ class RecordingStats:
                 "interval_s": self.interval_s, "mask_deg": self.mask_deg, "bin_deg": self.bin_deg,
                 "lli_first": self.lli_share("lli_first"), "lli_arc_start": self.lli_share("lli_arc_start"),
                 "lli_all": self.lli_all, "cn0_resolution_db": self.cn0_resolution_db,
-                "signals": {k_: s.to_json() for k_, s in self.signals.items()}}
+                "signals": {k_: s.to_json() for k_, s in self.signals.items()}} | (
+            {"line_of_sight_selected_by": self.scene} if self.scene else {})
 
 
 # ---------------------------------------------------------------------------- building blocks
@@ -258,8 +272,9 @@ def _mp_partners(tab: ObsTable, cols: np.ndarray, svs: list[str], code: str) -> 
 
 # ---------------------------------------------------------------------------- the statistics
 def signal_statistics(tab: ObsTable, el_deg: np.ndarray, interval_s: float | None = None, mask_deg: float = 5.0,
-                      bin_deg: float = 5.0) -> RecordingStats:
-    """Per-signal statistics of ``tab`` with ``el_deg`` ((E, S) elevation of ``tab.sv``, NaN unknown)."""
+                      bin_deg: float = 5.0, los: np.ndarray | None = None, scene: str = "") -> RecordingStats:
+    """Per-signal statistics of ``tab`` with ``el_deg`` ((E, S) elevation of ``tab.sv``, NaN unknown); ``los``:
+    (E, S) bool line-of-sight selection (module docstring; None: every sample), ``scene`` its source's name."""
     if bin_deg <= 0 or 90.0 % bin_deg:
         raise ValueError(f"signal statistics: bin_deg {bin_deg!r} must divide 90")
     t_s = (tab.time - tab.time[0]).astype("timedelta64[ns]").astype(np.int64) / 1e9 if len(tab.time) else np.zeros(0)
@@ -276,29 +291,39 @@ def signal_statistics(tab: ObsTable, el_deg: np.ndarray, interval_s: float | Non
         cols = sysc == system
         svs = tab.sv[cols].tolist()
         el = el_deg[:, cols]
+        sel = None if los is None else los[:, cols]
+        el_sel = el if sel is None else np.where(sel, el, np.nan)     # the samples the statistics take
         pr = tab.column("C" + code)[:, cols]
         cn0 = tab.column("S" + code)[:, cols]
-        cn0_mean, n = _binned(cn0, el, edges, "mean")
-        cn0_std, _ = _binned(cn0, el, edges, "std")
+        cn0_mean, n = _binned(cn0, el_sel, edges, "mean")
+        cn0_std, _ = _binned(cn0, el_sel, edges, "std")
         st = SignalStats(key, edges, cn0_mean, cn0_std, n)
+        if sel is not None:
+            known = np.isfinite(cn0) & np.isfinite(el)
+            st.los_samples = (int(known.sum()), int((known & sel).sum()))
 
         # tracking arcs: the signal's code or C/N0 present
         present = np.isfinite(pr) | np.isfinite(cn0)
         arcs = arc_ids(present, t_s, max_gap)
         first_ep, last_ep = _arc_ends(arcs)
         longer = last_ep[:, 0] > first_ep[:, 0]
-        el_a = el[first_ep[:, 0], first_ep[:, 1]]
+        el_a = el_sel[first_ep[:, 0], first_ep[:, 1]]
         el_a2 = el[np.minimum(first_ep[:, 0] + 1, n_e - 1), first_ep[:, 1]]
-        el_b = el[last_ep[:, 0], last_ep[:, 1]]
+        el_b = el_sel[last_ep[:, 0], last_ep[:, 1]]
         el_b2 = el[np.maximum(last_ep[:, 0] - 1, 0), last_ep[:, 1]]
         rising = longer & (first_ep[:, 0] > 0) & (el_a2 > el_a)          # not at the span's start
         setting = longer & (last_ep[:, 0] < n_e - 1) & (el_b2 > el_b)    # not at the span's end
+        if sel is not None:      # in the line of sight also the epoch before the rise / after the set
+            rising &= sel[np.maximum(first_ep[:, 0] - 1, 0), first_ep[:, 1]]
+            setting &= sel[np.minimum(last_ep[:, 0] + 1, n_e - 1), last_ep[:, 1]]
         st.rise_el_deg, st.set_el_deg = el_a[rising], el_b[setting]
         st.rise_cn0_dbhz = cn0[first_ep[rising, 0], first_ep[rising, 1]]
         st.set_cn0_dbhz = cn0[last_ep[setting, 0], last_ep[setting, 1]]
 
         # C/N0 scatter, epoch to epoch within arcs
         same = (arcs[1:] == arcs[:-1]) & (arcs[1:] >= 0)
+        if sel is not None:
+            same &= sel[1:] & sel[:-1]
         step = np.where(same, cn0[1:] - cn0[:-1], np.nan)
         step[np.abs(np.nan_to_num(step)) >= CN0_JUMP_DB] = np.nan
         d = step[np.isfinite(step)]
@@ -323,14 +348,15 @@ def signal_statistics(tab: ObsTable, el_deg: np.ndarray, interval_s: float | Non
         used = [p for p in partners if p]
         if used:
             st.mp_partner = "/".join(sorted(set(used), key=lambda p: -used.count(p)))
-            _code_noise(st, tab, cols, svs, code, partners, pr, cn0, el, t_s, max_gap, mask_deg)
+            _code_noise(st, tab, cols, svs, code, partners, pr, cn0, el, t_s, max_gap, mask_deg, sel)
         out[key] = st
     keep = np.isin(sysc, list(CALIBRATED_SYSTEMS))
     flags = [f[:, keep][np.isfinite(tab.column(c)[:, keep])] for c, f in tab.lli.items()]
     lli_all = _lli_count(np.concatenate(flags) if flags else np.zeros(0, np.int8))
     s_all = [a[:, keep][np.isfinite(a[:, keep])] for c, a in tab.values.items() if c[0] == "S"]
     res = cn0_resolution_db(np.concatenate(s_all) if s_all else np.zeros(0))
-    return RecordingStats(tab.time, tab.sv, float(mask_deg), float(bin_deg), float(interval_s), out, lli_all, res)
+    return RecordingStats(tab.time, tab.sv, float(mask_deg), float(bin_deg), float(interval_s), out, lli_all, res,
+                          scene if los is not None else "")
 
 
 def cn0_resolution_db(values: np.ndarray) -> float:
@@ -362,7 +388,8 @@ def _arc_ends(arcs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return first, last
 
 
-def _code_noise(st: SignalStats, tab, cols, svs, code, partners, pr, cn0, el, t_s, max_gap, mask_deg) -> None:
+def _code_noise(st: SignalStats, tab, cols, svs, code, partners, pr, cn0, el, t_s, max_gap, mask_deg,
+                sel=None) -> None:
     from .. import constants as k
 
     f_i = _freq(tab, svs, code)[None, :]
@@ -378,6 +405,8 @@ def _code_noise(st: SignalStats, tab, cols, svs, code, partners, pr, cn0, el, t_
         lli_j = tab.lli.get("L" + p)
         if lli_j is not None:
             breaks[:, j] |= (lli_j[:, cols][:, j] & 1) > 0
+    if sel is not None:
+        mp[~sel] = np.nan         # only line-of-sight samples: the arcs end where the scene blocks the satellite
     valid = np.isfinite(mp)
     arcs = arc_ids(valid, t_s, max_gap, breaks)
     # jumps: steps over JUMP_SIGMAS robust sigma of the steps in the same 10-deg elevation band
