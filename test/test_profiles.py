@@ -31,7 +31,8 @@ def _cli(argv, capsys) -> tuple[int, str, str]:
 
 # ------------------------------------------------------------------------------------------------ shipped profiles
 def test_the_profiles_ship_as_files():
-    assert set(builtin_names()) == {"geodetic", "single_frequency", "ublox_m8t", "ublox_f9p", "polarx5_choke_ring"}
+    assert set(builtin_names()) == {"geodetic", "single_frequency", "ublox_m8t", "ublox_f9p", "polarx5_choke_ring",
+                                    "ublox_m8t_hk"}
     for name in builtin_names():
         prof = load_profile(name)
         assert prof.name == name and prof.description and prof.source
@@ -52,6 +53,36 @@ def test_the_polarx5_profile_is_what_calibrate_fits_on_esbc(shared_data, tmp_pat
     cfg = ReceiverConfig(profile="polarx5_choke_ring")
     assert cfg.antenna == "choke_ring" and cfg.tracking.start == "warm" and not cfg.tracking.half_cycle_flags
     assert cfg.rinex["receiver_type"] == "SEPT POLARX5"
+
+
+def test_the_ublox_m8t_hk_profile_is_what_calibrate_fits_on_the_hong_kong_drive(shared_data, tmp_path, capsys,
+                                                                               monkeypatch):
+    """The shipped ublox_m8t_hk is gnss-sim calibrate's line-of-sight fit on the Hong Kong drive with the city model
+    (the three steps of its header: the city mesh, the antenna path placed in it, calibrate --mesh): the same steps
+    give the same profile."""
+    from gnss_sim_ros2.core.comparison import drive_check
+
+    drive_dir, city = shared_data / "hk-tst-2019-118-urban-drive", shared_data / "hk-tst-city-model"
+    if not (drive_dir / "COM3_190428_124409.obs.gz").is_file() or not city.is_dir():
+        pytest.skip("needs hk-tst-2019-118-urban-drive and hk-tst-city-model in ../shared/data")
+    scene = drive_check.city_scene(city, tmp_path / "city")        # unpacks the terrain mesh (the README's step)
+    path = drive_check.write_trajectory_csv(drive_check.load_drive(drive_dir / "groundTruth_TST.csv", scene),
+                                            tmp_path / "hk_path_world.csv")
+    monkeypatch.setenv("GZ_SIM_RESOURCE_PATH", str(tmp_path / "city" / "models"))
+    rc, _, err = _cli(["export-world", tmp_path / "city" / "worlds" / "hong_kong_city_only.world", "--keep-dynamic",
+                       "--out", tmp_path / "hk_city.ply"], capsys)
+    assert rc == 0, err
+    rc, out, err = _cli(["calibrate", "--obs", drive_dir / "COM3_190428_124409.obs.gz", "--nav",
+                         drive_dir / "hksc1180.19n", drive_dir / "hksc1180.19b", "--trajectory", path,
+                         "--mesh", tmp_path / "hk_city.ply", "--start", "2019-04-28T12:58:21", "--duration", "485",
+                         "--name", "ublox_m8t_hk", "--out", tmp_path / "cal"], capsys)
+    assert rc == 0, err
+    assert "C/N0 samples kept G1C 1842/2834, C2I 3277/4263" in out       # the counts the header states
+    fitted = yaml.safe_load((tmp_path / "cal" / "ublox_m8t_hk.yaml").read_text())
+    shipped = yaml.safe_load(open(load_profile("ublox_m8t_hk").path).read())
+    assert fitted == shipped
+    cfg = ReceiverConfig(profile="ublox_m8t_hk")
+    assert cfg.antenna == "patch" and cfg.cn0_resolution_db == 1.0
 
 
 def test_geodetic_profile_values():
