@@ -16,7 +16,14 @@ import yaml
 
 from gnss_sim_ros2 import cli
 from gnss_sim_ros2.core import constants as k
-from gnss_sim_ros2.core.calibration.fit import fit_excluded_signals, fit_profile, pava, table_thresholds
+from gnss_sim_ros2.core.calibration.fit import (
+    fit_cn0_table,
+    fit_excluded_signals,
+    fit_profile,
+    link_budget_shape_db,
+    pava,
+    table_thresholds,
+)
 from gnss_sim_ros2.core.calibration.reading import read_recording
 from gnss_sim_ros2.core.calibration.signal_compare import compare_statistics
 from gnss_sim_ros2.core.calibration.signal_stats import (
@@ -504,3 +511,22 @@ def test_a_scene_that_blocks_nothing_changes_no_statistic(esbc_fit):
         j0, j = st0.to_json(), stats.signals[key].to_json()
         assert j.pop("cn0_samples_line_of_sight") == j.pop("cn0_samples_all") > 0
         assert j == j0, key
+
+
+def test_a_table_without_low_satellites_follows_the_antennas_link_budget_below():
+    """A signal seen only above 30 deg (an urban drive's line of sight): below its lowest bin the table follows the
+    link budget's elevation shape for the antenna class (receiver/cn0.py), anchored at the lowest measured bin,
+    instead of a straight line to 0 deg."""
+    edges = np.arange(0.0, 95.0, 5.0)
+    centres = 0.5 * (edges[:-1] + edges[1:])
+    mean = np.where(centres > 30, 30.0 + 0.1 * centres, np.nan)
+    n = np.where(centres > 30, 100, 0)
+    st = SignalStats("G1C", edges, mean, np.zeros_like(mean), n)
+    tab = fit_cn0_table(st, (), "patch")
+    el, cn0 = np.array(tab["el_deg"]), np.array(tab["cn0_dbhz"])
+    low = el < 32.5
+    shape = link_budget_shape_db(np.r_[el[low], 32.5], "patch")
+    assert cn0[low] == pytest.approx(mean[centres == 32.5][0] + shape[:-1] - shape[-1], abs=0.01)
+    assert np.all(np.diff(cn0) >= 0) and cn0[0] > 15.0            # rising, and no collapse to ~0 dB-Hz
+    straight = fit_cn0_table(st)                                  # without an antenna class: the linear slope
+    assert straight["el_deg"][0] == 0.0 and straight["el_deg"][1] == 32.5

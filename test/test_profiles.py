@@ -75,7 +75,7 @@ def test_the_ublox_m8t_hk_profile_is_what_calibrate_fits_on_the_hong_kong_drive(
     rc, out, err = _cli(["calibrate", "--obs", drive_dir / "COM3_190428_124409.obs.gz", "--nav",
                          drive_dir / "hksc1180.19n", drive_dir / "hksc1180.19b", "--trajectory", path,
                          "--mesh", tmp_path / "hk_city.ply", "--start", "2019-04-28T12:58:21", "--duration", "485",
-                         "--name", "ublox_m8t_hk", "--out", tmp_path / "cal"], capsys)
+                         "--base-profile", "ublox_m8t", "--name", "ublox_m8t_hk", "--out", tmp_path / "cal"], capsys)
     assert rc == 0, err
     assert "C/N0 samples kept G1C 1842/2834, C2I 3277/4263" in out       # the counts the header states
     fitted = yaml.safe_load((tmp_path / "cal" / "ublox_m8t_hk.yaml").read_text())
@@ -83,6 +83,9 @@ def test_the_ublox_m8t_hk_profile_is_what_calibrate_fits_on_the_hong_kong_drive(
     assert fitted == shipped
     cfg = ReceiverConfig(profile="ublox_m8t_hk")
     assert cfg.antenna == "patch" and cfg.cn0_resolution_db == 1.0
+    # no line-of-sight rise or set on the drive: the base profile's thresholds, and its loops
+    assert (cfg.tracking.acquisition_cn0_dbhz, cfg.tracking.tracking_cn0_dbhz, cfg.dll_spacing_chips) == \
+        (22.0, 16.0, 0.5)
 
 
 def test_geodetic_profile_values():

@@ -27,6 +27,8 @@ NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 
 
 def add_arguments(p):
+    from gnss_sim_ros2.core.receiver.profiles import builtin_names
+
     p.add_argument("--obs", required=True, metavar="FILE",
                    help="real RINEX 3 observation file (plain, .gz, Hatanaka .crx / .crx.gz)")
     p.add_argument("--nav", required=True, nargs="+", metavar="FILE", help="broadcast navigation file(s) of the day")
@@ -47,6 +49,10 @@ def add_arguments(p):
     p.add_argument("--bin-deg", type=float, default=5.0, choices=(5.0, 10.0),
                    help="elevation bins of the tables [deg] (5 or 10; default 5)")
     p.add_argument("--name", help="profile name (default: <file stem>_calibrated)")
+    p.add_argument("--base-profile", choices=builtin_names(), metavar="NAME",
+                   help="built-in profile of the receiver's class (its loops and front end; its thresholds where the "
+                        "recording has no rise or set): one of " + ", ".join(builtin_names())
+                        + " (default: from the RINEX header's receiver type)")
     p.add_argument("--out", required=True, metavar="DIR",
                    help="output folder: new, empty or one of an earlier calibrate (only its files are replaced)")
 
@@ -99,7 +105,7 @@ def run(args) -> int:
                              args.mask_deg, scene_name)
         stats = signal_statistics(rec.table, rec.el_deg, rec.interval_s, args.mask_deg, args.bin_deg, rec.los,
                                   rec.scene)
-        profile, notes = fit_profile(stats, rec.header, Path(args.obs).name, name)
+        profile, notes = fit_profile(stats, rec.header, Path(args.obs).name, name, args.base_profile)
         staging = folder.acquire()
         try:
             prof_path = staging / f"{name}.yaml"

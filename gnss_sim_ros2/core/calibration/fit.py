@@ -41,6 +41,7 @@ import math
 
 import numpy as np
 
+from ..receiver import cn0 as cn0_model
 from ..receiver.noise import code_sigma_m
 from ..receiver.profiles import filled_in
 from ..signal_plans import default_plans, gps_day
@@ -50,6 +51,8 @@ from .signal_stats import RecordingStats, SignalStats
 
 #: an elevation bin needs this many samples to enter a table
 MIN_BIN_SAMPLES = 30
+#: a table whose lowest bin lies above this elevation is extended down with the link budget's shape [deg]
+LOW_SHAPE_EL_DEG = 10.0
 #: largest slope used to extrapolate C/N0 from the lowest bin down to 0 deg [dB/deg]
 MAX_LOW_SLOPE_DB_PER_DEG = 1.5
 #: the DLL thermal noise may exceed the measured code noise in this share of the elevation bins (fit_dll_bn_hz)
@@ -142,9 +145,21 @@ def cn0_bins_monotone(st: SignalStats) -> dict:
     return dict(zip(el.tolist(), pava(y, n, increasing=True).tolist())) if len(el) >= 2 else {}
 
 
-def fit_cn0_table(st: SignalStats, references: list[SignalStats] = ()) -> dict | None:
+def link_budget_shape_db(el_deg, antenna: str, system: str = "G", code: str = "1C") -> np.ndarray:
+    """C/N0 of the link budget (receiver/cn0.py: the signal's power, the satellites' shaped beam, the antenna
+    class's gain per elevation) at ``el_deg`` [dB-Hz], for a MEO satellite (26 560 km orbit radius, GPS)."""
+    el = np.asarray(el_deg, dtype=float)
+    r_sat_m = 26_560e3
+    budget = cn0_model.LinkBudget(antenna=antenna)
+    return cn0_model.cn0_dbhz(system, code, cn0_model.slant_range_m(r_sat_m, el), el, sat_radius_m=r_sat_m,
+                              budget=budget)
+
+
+def fit_cn0_table(st: SignalStats, references: list[SignalStats] = (), antenna: str | None = None) -> dict | None:
     """{"el_deg": [...], "cn0_dbhz": [...]} of one signal (None: fewer than two usable bins); bins beyond its
-    range from the first of ``references`` covering them (their shape, offset to agree at the end bin)."""
+    range from the first of ``references`` covering them (their shape, offset to agree at the end bin); below the
+    lowest bin: with an ``antenna`` class and the lowest bin above LOW_SHAPE_EL_DEG, the link budget's elevation
+    shape for that class (an urban drive sees no low satellite in the line of sight), else a linear slope."""
     table = cn0_bins_monotone(st)
     if len(table) < 2:
         return None
@@ -154,7 +169,11 @@ def fit_cn0_table(st: SignalStats, references: list[SignalStats] = ()) -> dict |
     vals = pava(np.array([table[e] for e in els]), np.ones(len(els)), increasing=True)
     slope = (vals[1] - vals[0]) / (els[1] - els[0])
     slope = min(max(slope, 0.0), MAX_LOW_SLOPE_DB_PER_DEG)
-    if els[0] > 0:
+    if antenna is not None and els[0] > LOW_SHAPE_EL_DEG:
+        low = np.arange(0.0, els[0] - 1e-9, float(st.el_edges_deg[1] - st.el_edges_deg[0]))   # 0, 5, ... [deg]
+        shape = link_budget_shape_db(np.r_[low, els[0]], antenna, st.key[0], st.key[1:])
+        els, vals = np.r_[low, els], np.r_[vals[0] + shape[:-1] - shape[-1], vals]
+    elif els[0] > 0:
         els, vals = np.r_[0.0, els], np.r_[vals[0] - slope * els[0], vals]
     if els[-1] < 90:
         els, vals = np.r_[els, 90.0], np.r_[vals, vals[-1]]
@@ -308,8 +327,11 @@ def _median(values) -> float:
     return float(np.median(v)) if v.size else math.nan
 
 
-def fit_profile(stats: RecordingStats, header: dict, source_file: str, name: str | None = None) -> tuple[dict, list]:
-    """(profile dict in the YAML schema, notes): what could not be fitted and why, for the report."""
+def fit_profile(stats: RecordingStats, header: dict, source_file: str, name: str | None = None,
+                base_profile: str | None = None) -> tuple[dict, list]:
+    """(profile dict in the YAML schema, notes): what could not be fitted and why, for the report.
+    ``base_profile``: the built-in profile of the receiver's class (default: guessed from the RINEX header's
+    receiver type); its loops and front end are used, and its tracking thresholds where the recording gives none."""
     notes: list[str] = []
     signals: dict[str, list[str]] = {}
     for key, st in stats.signals.items():
@@ -318,18 +340,21 @@ def fit_profile(stats: RecordingStats, header: dict, source_file: str, name: str
     if not signals:
         raise ValueError(f"{source_file}: no pseudoranges of a signal the simulator knows: nothing to fit")
     n_bands = max(len({c[0] for c in codes}) for codes in signals.values())
-    traits_name = _traits_name(header.get("receiver_type", ""), n_bands)
+    traits_name = base_profile or _traits_name(header.get("receiver_type", ""), n_bands)
     base = filled_in(traits_name)
     loops = {f: base.get(f) for f in ("dll_bn_hz", "dll_spacing_chips", "dll_t_int_s", "frontend_bandwidth_hz")}
     bn_hz = float(loops["dll_bn_hz"])
     has_cn0 = any((st.cn0_n > 0).any() for st in stats.signals.values())
 
+    antenna = _antenna(header.get("antenna_type", "")) if header.get("antenna_type", "").strip() else \
+        base.get("antenna") or _antenna("")
     cn0_table = {}
     if has_cn0:
         for key, st in stats.signals.items():
             if key[1:] not in signals.get(key[0], []):
                 continue
-            t = fit_cn0_table(st, _references(stats, key, lambda s: (len(cn0_bins_monotone(s)), int(s.cn0_n.sum()))))
+            t = fit_cn0_table(st, _references(stats, key, lambda s: (len(cn0_bins_monotone(s)), int(s.cn0_n.sum()))),
+                              antenna)
             if t is None:
                 notes.append(f"{key}: fewer than two elevation bins with {MIN_BIN_SAMPLES} C/N0 samples: no C/N0 table")
             else:
@@ -377,8 +402,12 @@ def fit_profile(stats: RecordingStats, header: dict, source_file: str, name: str
         if np.isfinite(aided) and aided < tracking["tracking_cn0_dbhz"]:
             tracking["aided_cn0_dbhz"] = round(aided, 1)
     elif has_cn0:
+        base_tr = base.get("tracking") or {}
+        for f in ("acquisition_cn0_dbhz", "tracking_cn0_dbhz"):
+            if base_tr.get(f) is not None:
+                tracking[f] = float(base_tr[f])
         notes.append(f"fewer than {MIN_ARCS} rising or setting arcs (below {MAX_RISE_SET_EL_DEG:g} deg) in the span: "
-                     "no tracking thresholds")
+                     f"tracking thresholds of the {traits_name} profile")
     first = stats.lli_share("lli_first")
     if first["n"]:
         tracking["start"] = "cold" if first["bit0"] / first["n"] >= COLD_LLI_SHARE else "warm"
@@ -397,7 +426,7 @@ def fit_profile(stats: RecordingStats, header: dict, source_file: str, name: str
                         "that profile's"),
         "source": f"fitted by gnss-sim calibrate on {source_file}, span {t0} .. {t1} GPS",
         "signals": signals,
-        "antenna": _antenna(header.get("antenna_type", "")),
+        "antenna": antenna,
         "rinex": {"receiver_type": header.get("receiver_type", ""), "antenna_type": header.get("antenna_type", "")},
         "frontend_bandwidth_hz": float(loops["frontend_bandwidth_hz"]),
         "dll_bn_hz": bn_hz,
