@@ -18,10 +18,9 @@ Method: core/calibration/.
 from __future__ import annotations
 
 import re
-import sys
 from pathlib import Path
 
-from gnss_sim_ros2.commands import parse_triple
+from gnss_sim_ros2.commands import fail, parse_triple
 
 NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 
@@ -116,12 +115,8 @@ def run(args) -> int:
             raise
         folder.commit()
         report, prof_path = folder.final_path(report), folder.final_path(prof_path)
-    except ValueError as exc:
-        print(f"gnss-sim calibrate: error: {exc}", file=sys.stderr)
-        return 2
-    except OutputBusy as exc:
-        print(f"gnss-sim calibrate: error: {exc}", file=sys.stderr)
-        return 1
+    except (ValueError, OutputBusy) as exc:
+        return fail("calibrate", exc)
     t0, t1 = rec.span
     print(f"calibrated on {args.obs}: {len(rec.table.time)} epochs {t0} .. {t1} GPS, "
           f"{len(stats.signals)} signals")

@@ -18,10 +18,9 @@ real file's APPROX POSITION XYZ.
 """
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
-from gnss_sim_ros2.commands import parse_triple
+from gnss_sim_ros2.commands import fail, parse_triple
 
 
 def add_arguments(p):
@@ -60,12 +59,8 @@ def run(args) -> int:
             raise
         folder.commit()
         report = folder.final_path(report)
-    except ValueError as exc:
-        print(f"gnss-sim compare: error: {exc}", file=sys.stderr)
-        return 2
-    except OutputBusy as exc:
-        print(f"gnss-sim compare: error: {exc}", file=sys.stderr)
-        return 1
+    except (ValueError, OutputBusy) as exc:
+        return fail("compare", exc)
     code = cmp.kinds["code"]
     if code.available:
         parts = []

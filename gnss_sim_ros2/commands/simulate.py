@@ -11,7 +11,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from gnss_sim_ros2.commands import parse_triple
+from gnss_sim_ros2.commands import fail, parse_triple
 
 
 def add_arguments(p):
@@ -132,12 +132,8 @@ def run(args) -> int:
     try:
         setup = setup_from_args(args)
         res = run_simulation(setup)
-    except ValueError as exc:
-        print(f"gnss-sim simulate: error: {exc}", file=sys.stderr)
-        return 2
-    except OutputBusy as exc:
-        print(f"gnss-sim simulate: error: {exc}", file=sys.stderr)
-        return 1
+    except (ValueError, OutputBusy) as exc:
+        return fail("simulate", exc)
     import numpy as np
 
     print(f"epochs {res.epochs}, fixes {res.fixes} ({100.0 * res.fixes / max(res.epochs, 1):.1f} %), "

@@ -10,6 +10,7 @@ from pathlib import Path
 import yaml
 
 from gnss_sim_ros2 import graph
+from gnss_sim_ros2.commands import fail
 from gnss_sim_ros2.commands.run.isolation import OutputBusy, OutputFolder, OutputNotOurs, choose_domain_id
 from gnss_sim_ros2.commands.run.runner import Runner
 from gnss_sim_ros2.config_file import load_config
@@ -124,12 +125,8 @@ def run(args) -> int:
             domain, _domain_lock = choose_domain_id(avoid={int(user)} if user.isdigit() else set())
         else:
             domain = args.domain_id
-    except OutputBusy as exc:
-        print(f"gnss-sim run: error: {exc}", file=sys.stderr)
-        return 1
-    except OutputNotOurs as exc:
-        print(f"gnss-sim run: error: {exc}", file=sys.stderr)
-        return 2
+    except (OutputBusy, OutputNotOurs) as exc:
+        return fail("run", exc)
     os.environ["ROS_DOMAIN_ID"] = str(domain)   # this process and its node processes
     params_file = staging / "params.yaml"
     params_file.write_text(yaml.safe_dump({**cfg.ros_parameter_file_dict(), **rtk_sections, **robot_sections},
