@@ -36,6 +36,9 @@ def add_arguments(p):
     sc = p.add_mutually_exclusive_group()
     sc.add_argument("--world", metavar="SDF", help="Gazebo world for visibility")
     sc.add_argument("--mesh", metavar="FILE", help="mesh exported by export-world")
+    sc.add_argument("--sky-mask", metavar="FILE.csv",
+                    help="a measured sky mask (azimuth_deg,elevation_deg) as the scene of a static antenna "
+                         "(--position or --position-ecef): a satellite under it is blocked")
     from gnss_sim_ros2.core.scene.scene_report import ALLOW_PARTIAL_HELP
     p.add_argument("--allow-partial", action="store_true", help=ALLOW_PARTIAL_HELP)
     p.add_argument("--systems", help="systems, RINEX letters from GRECJI")
@@ -121,7 +124,39 @@ def setup_from_args(args):
         tr = Trajectory.static(parse_triple(args.position, "--position"), "geodetic", "option --position")
     elif args.trajectory:
         tr = Trajectory.from_csv(args.trajectory)
-    return setup_from_config(cfg, Path(args.out), tr, progress=not args.quiet, rtcm_path=args.rtcm)
+    setup = setup_from_config(cfg, Path(args.out), tr, progress=not args.quiet, rtcm_path=args.rtcm)
+    if getattr(args, "sky_mask", None):
+        setup = _with_sky_mask(setup, args)
+    return setup
+
+
+def _with_sky_mask(setup, args):
+    """The setup with the sky mask ``--sky-mask`` as its scene (core/visibility/sky_mask.py): a static geodetic
+    or ECEF antenna, no world or mesh, no model a mask cannot give (reflections, soft edges)."""
+    import dataclasses
+
+    import numpy as np
+
+    from gnss_sim_ros2.core.frames import geodetic_to_ecef
+    from gnss_sim_ros2.core.simulation import visibility_options
+    from gnss_sim_ros2.core.visibility.sky_mask import SkyMaskScene, read_sky_mask
+
+    tr = setup.trajectory
+    if not (args.position or args.position_ecef) or not tr.is_static or tr.frame == "world":
+        raise ValueError("--sky-mask: a sky mask is measured at one point: give a static antenna with --position "
+                         "LAT,LON,H or --position-ecef X,Y,Z (no --trajectory)")
+    world, mesh, _ = setup.scene_files()
+    if world or mesh:
+        raise ValueError(f"--sky-mask is the scene, but the configuration {args.config} also sets "
+                         f"{'world_file ' + world if world else 'mesh_file ' + mesh}: give one of them")
+    opt = visibility_options(setup)
+    if opt.multipath != "off" or opt.fresnel_rays > 0:
+        raise ValueError(f"--sky-mask: a sky mask has no surfaces to reflect from or diffract over, but preset "
+                         f"{setup.preset!r} / the configuration set multipath {opt.multipath!r} and fresnel_rays "
+                         f"{opt.fresnel_rays}: use --preset fast or balanced, or multipath: off and fresnel_rays: 0")
+    mask = read_sky_mask(args.sky_mask)
+    ecef = tr.pos[0] if tr.frame == "ecef" else np.array(geodetic_to_ecef(*tr.pos[0]))
+    return dataclasses.replace(setup, scene=SkyMaskScene.at_ecef(mask, ecef))
 
 
 def run(args) -> int:

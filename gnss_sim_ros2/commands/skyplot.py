@@ -2,6 +2,7 @@
 
     gnss-sim skyplot (--world SDF | --mesh FILE) --at E,N,U --time ISO8601 (--nav FILE ... | --synthetic)
                      [--mask-deg D] --csv FILE [--png FILE [--skyline-csv FILE]]
+                     [--sky-mask FILE [--mask-report FILE] [--sector-deg D]]
 
 ``--at`` is in the world frame (Gazebo world, ENU at the origin when heading is 0), metres.  The CSV
 has one row ``sv,az_deg,el_deg,state,attenuation_db`` for each satellite at or above the horizon and
@@ -14,6 +15,13 @@ sky cells the casts find blocked (grey) or in foliage (green), and the scene's s
 on the scene).  The skyline goes beside it as CSV (``--skyline-csv``, default ``skyline.csv`` in the PNG's
 folder): ``azimuth_deg,elevation_deg,foliage_elevation_deg``, one row per degree of azimuth, to compare with
 a measured sky mask.
+
+``--sky-mask FILE`` (azimuth_deg,elevation_deg; core/visibility/sky_mask.py) compares a measured mask with that
+skyline at ``--at``: ``--mask-report`` (default ``sky_mask_comparison.csv`` beside ``--csv``) has one row per
+azimuth sector (``--sector-deg``, 30 by default) ``sector,az_from_deg,az_to_deg,mean_diff_deg,rms_diff_deg,
+miss_deg,miss_az_deg,r`` with difference = model - mask (> 0: the model's skyline is higher) and miss the
+difference of largest magnitude in the sector, then a row ``all`` with the Pearson correlation r over every
+azimuth; the PNG draws the mask as a dashed magenta line.
 """
 from __future__ import annotations
 
@@ -46,6 +54,14 @@ def add_arguments(parser):
     parser.add_argument("--skyline-csv", metavar="FILE",
                         help="the scene's skyline per degree of azimuth as CSV (default with --png: skyline.csv in "
                              "the PNG's folder)")
+    parser.add_argument("--sky-mask", metavar="FILE.csv",
+                        help="a measured sky mask at --at (azimuth_deg,elevation_deg) compared with the scene's "
+                             "skyline: per sector difference, correlation r, largest misses (--mask-report); drawn "
+                             "on the PNG")
+    parser.add_argument("--mask-report", metavar="FILE",
+                        help="the comparison with --sky-mask as CSV (default: sky_mask_comparison.csv beside --csv)")
+    parser.add_argument("--sector-deg", type=float, default=30.0,
+                        help="azimuth sector of the --sky-mask comparison [deg] (default 30)")
 
 
 def _parse_at(text: str) -> np.ndarray:
@@ -78,8 +94,10 @@ def run(args) -> int:
     try:
         # an output file is never one of the inputs (core/output_folder.py)
         check_outputs_not_inputs([("--csv", args.csv), ("--png", args.png),
-                                  ("--skyline-csv", getattr(args, "skyline_csv", None))],
-                                 inputs=[args.world, args.mesh, args.materials, *(args.nav or ())])
+                                  ("--skyline-csv", getattr(args, "skyline_csv", None)),
+                                  ("--mask-report", _mask_report_path(args))],
+                                 inputs=[args.world, args.mesh, args.materials, *(args.nav or ()),
+                                         getattr(args, "sky_mask", None)])
         return _run(args)
     except ValueError as exc:
         print(f"gnss-sim skyplot: error: {exc}", file=sys.stderr)
@@ -101,6 +119,12 @@ def _run(args) -> int:
         raise ValueError(f"option --fresnel-rays is {fresnel_rays}: a number of rays >= 0 is needed (0: off)")
     mask_deg = param("visibility", "elevation_mask_deg").check(args.mask_deg, "option --mask-deg")
     t = GnssTime.from_iso(args.time, scale=args.time_scale)
+    sky_mask = None
+    if getattr(args, "sky_mask", None):
+        from gnss_sim_ros2.core.visibility.sky_mask import read_sky_mask, sector_count
+
+        sector_count(args.sector_deg, "option --sector-deg")
+        sky_mask = read_sky_mask(args.sky_mask)     # a bad mask is refused before the scene is loaded
     # the world as every front end loads it (simulate, run, the visibility node): strict unless --allow-partial
     scene = load_scene(args.world or "", args.mesh or "", args.materials or "",
                        VisibilityOptions(strict_world=strict_world(args)))
@@ -127,6 +151,9 @@ def _run(args) -> int:
     print(f"{args.csv}: {len(order)} satellites above {mask:g} deg: "
           + ", ".join(f"{v} {k}" for k, v in counts.items()))
     skyline_csv = args.skyline_csv or (Path(args.png).parent / "skyline.csv" if args.png else None)
+    comparison = None
+    if sky_mask is not None:
+        comparison = _compare_mask(args, scene, at, sky_mask)
     if skyline_csv is not None:
         horizon = scene.horizon_profile(at, az_step_deg=SKYLINE_STEP_DEG)
         foliage = scene.horizon_profile(at, az_step_deg=SKYLINE_STEP_DEG, which="foliage") \
@@ -144,13 +171,46 @@ def _run(args) -> int:
                      [names[i] for i in up], sky=scene.sky_grid(at), horizon=horizon,
                      foliage_horizon=foliage if scene.has_foliage else None, mask_deg=mask or None,
                      title=f"{Path(args.world or args.mesh).name} at E,N,U = {args.at} m, "
-                           f"{args.time} {args.time_scale}")
+                           f"{args.time} {args.time_scale}"
+                           + (f"\nmeasured mask {Path(args.sky_mask).name}: r = {comparison.r:.2f}, "
+                              f"RMS {comparison.rms_deg:.1f} deg" if comparison is not None else ""),
+                     sky_mask=None if sky_mask is None else (MASK_AZ_DEG, sky_mask.elevation_at(MASK_AZ_DEG)))
         print(f"{args.png}: sky plot")
     return 0
 
 
+def _mask_report_path(args):
+    if not getattr(args, "sky_mask", None):
+        return None
+    return args.mask_report or str(Path(args.csv).parent / "sky_mask_comparison.csv")
+
+
+def _compare_mask(args, scene, at, sky_mask):
+    """The scene's skyline at ``at`` against the measured mask: the report CSV and one summary line."""
+    from gnss_sim_ros2.core.visibility.sky_mask import compare_skylines
+
+    az, el = scene.horizon_profile(at, az_step_deg=SKYLINE_STEP_DEG)
+    cmp = compare_skylines(az, el, sky_mask, sector_deg=args.sector_deg)
+    path = _mask_report_path(args)
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["sector", "az_from_deg", "az_to_deg", "mean_diff_deg", "rms_diff_deg", "miss_deg", "miss_az_deg",
+                    "r"])
+        for k, (lo, hi, mean, rms, miss, miss_az) in enumerate(cmp.sectors):
+            w.writerow([k, f"{lo:g}", f"{hi:g}", f"{mean:.2f}", f"{rms:.2f}", f"{miss:.2f}", f"{miss_az:.1f}", ""])
+        worst = max(cmp.sectors, key=lambda s_: abs(s_[4]))
+        w.writerow(["all", "0", "360", f"{cmp.mean_deg:.2f}", f"{cmp.rms_deg:.2f}", f"{worst[4]:.2f}",
+                    f"{worst[5]:.1f}", f"{cmp.r:.3f}"])
+    misses = ", ".join(f"{m:+.1f} deg at {a:.0f}" for _, _, _, _, m, a in cmp.largest_misses(3))
+    print(f"{path}: model skyline - measured mask {Path(args.sky_mask).name}: r = {cmp.r:.2f}, RMS "
+          f"{cmp.rms_deg:.1f} deg, mean {cmp.mean_deg:+.1f} deg; largest misses {misses}")
+    return cmp
+
+
 #: azimuth step of the skyline [deg]
 SKYLINE_STEP_DEG = 1.0
+#: azimuths at which a measured mask is drawn (as interpolated, periodic)
+MASK_AZ_DEG = np.arange(0.0, 360.0, 0.5)
 
 
 def write_skyline_csv(path, az_deg, el_deg, foliage_el_deg) -> None:

@@ -27,14 +27,16 @@ BELOW_MASK_COLOR = "0.3"
 
 
 def plot_skyplot(png_path, sv, az_deg, el_deg, state, horizon=None, foliage_horizon=None, mask_deg=None,
-                 title: str | None = None, sky=None) -> dict:
+                 title: str | None = None, sky=None, sky_mask=None) -> dict:
     """Write a sky plot.  ``state``: names ("visible", "blocked", "attenuated", "reflected", "below_mask") or
     STATE_* codes; a satellite under ``mask_deg`` is drawn as below the mask whatever its state.
 
     ``horizon`` / ``foliage_horizon``: (az_deg, el_deg) skyline arrays, e.g. from ``Scene.horizon_profile``
     (outlined; shaded below when there is no ``sky``); ``sky``: (az_edges_deg, el_edges_deg, opaque, foliage)
-    from ``Scene.sky_grid`` (cells shaded).  Returns the figure's artists: {"satellites": {sv: (drawn state,
-    Line2D)}, "skyline": Line2D or None, "foliage": Line2D or None, "legend": [labels]} (the figure is closed).
+    from ``Scene.sky_grid`` (cells shaded); ``sky_mask``: (az_deg, el_deg) of a measured sky mask
+    (core/visibility/sky_mask.py), a dashed magenta line joined across north.  Returns the figure's artists:
+    {"satellites": {sv: (drawn state, Line2D)}, "skyline": Line2D or None, "foliage": Line2D or None, "sky_mask":
+    Line2D or None, "legend": [labels]} (the figure is closed).
     """
     from matplotlib.lines import Line2D
 
@@ -86,12 +88,17 @@ def plot_skyplot(png_path, sv, az_deg, el_deg, state, horizon=None, foliage_hori
                 ax.pcolormesh(th, r, np.ma.masked_where(~cells.astype(bool), np.ones(cells.shape)),
                               cmap=ListedColormap([color]), shading="flat", lw=0, edgecolors="none",
                               antialiased=False, zorder=0.5)     # under the elevation grid
-    out = {"satellites": {}, "skyline": None, "foliage": None, "legend": []}
+    out = {"satellites": {}, "skyline": None, "foliage": None, "sky_mask": None, "legend": []}
     # the skylines as lines over the cells (the scene's edge, the tree's outline), shaded when there are no cells
     if foliage_horizon is not None:
         out["foliage"] = outline(foliage_horizon, "#2e8b57", 0.25, "foliage", sky is None)
     if horizon is not None:
         out["skyline"] = outline(horizon, "#404040", 0.45, "buildings", sky is None)
+    if sky_mask is not None:
+        maz, mel = (np.asarray(x, float) for x in sky_mask)
+        th = np.radians(np.append(maz, maz[0] + 360.0))
+        out["sky_mask"] = ax.plot(th, 90.0 - np.clip(np.append(mel, mel[0]), 0.0, 90.0), color="#d000d0", lw=1.3,
+                                  ls="--")[0]
     if mask_deg:
         th = np.linspace(0, 2 * np.pi, 361)
         ax.plot(th, np.full_like(th, 90.0 - mask_deg), ls="--", color="k", lw=0.7, label=f"mask {mask_deg:g}°")
@@ -125,6 +132,8 @@ def plot_skyplot(png_path, sv, az_deg, el_deg, state, horizon=None, foliage_hori
         handles.append(Line2D([], [], color=out["skyline"].get_color(), label="skyline"))
     if out["foliage"] is not None:
         handles.append(Line2D([], [], color=out["foliage"].get_color(), label="foliage"))
+    if out["sky_mask"] is not None:
+        handles.append(Line2D([], [], color=out["sky_mask"].get_color(), ls="--", label="measured mask"))
     leg = ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.04), ncol=5, fontsize=8,
                     frameon=False)
     out["legend"] = [t.get_text() for t in leg.get_texts()]
