@@ -62,6 +62,7 @@ from ..ephemeris.broadcast import BroadcastEphemeris
 from ..receiver.outputs import write_navigation
 from ..rinex.header import read_obs_header
 from ..rinex.obs_table import ObsTable, match_epochs
+from .canyon import Canyon, canyon_split
 from .pairing import SignalPair, pair_signals
 from .rtklib import rtklib_solutions
 from .sources import load_observations
@@ -109,6 +110,11 @@ class Comparison:
     signal_stats_sim: RecordingStats | None = None
     signal_stats_real: RecordingStats | None = None
     signals: dict | None = None
+    #: the real file's own truth (E, 3) when it differs from the simulated one's (``real_truth_csv``); else None
+    truth_real_ecef_m: np.ndarray | None = None
+    truth_real_label: str = ""
+    #: the line-of-sight / NLOS split by a scene (core/comparison/canyon.py; None without a scene)
+    canyon: Canyon | None = None
 
     # ------------------------------------------------------------------ summaries
     def sys_of_col(self) -> np.ndarray:
@@ -158,14 +164,37 @@ class Comparison:
         return {"jaccard": jac, "per_sv": per_sv, "only_sim_svs": never_real, "only_real_svs": never_sim,
                 "n_both": int(both.sum()), "n_only_sim": int(only_s.sum()), "n_only_real": int(only_r.sum())}
 
+    def solved_epochs(self) -> dict:
+        """Epochs each side solved (and has a truth, where one is given) and those both did."""
+        if self.sol_sim is None or self.sol_real is None:
+            return {}
+        ok = {}
+        for name, sol, tr in (("sim", self.sol_sim, self.truth_ecef_m), ("real", self.sol_real, self.real_truth())):
+            o = np.all(np.isfinite(sol.pos_ecef_m), axis=1)
+            ok[name] = o & np.all(np.isfinite(tr), axis=1) if tr is not None else o
+        return {"sim": int(ok["sim"].sum()), "real": int(ok["real"].sum()), "both": int((ok["sim"] & ok["real"]).sum()),
+                "mask": ok["sim"] & ok["real"]}
+
+    def real_truth(self) -> np.ndarray | None:
+        """The real file's truth: its own (``real_truth_csv``) or the common one."""
+        return self.truth_real_ecef_m if self.truth_real_ecef_m is not None else self.truth_ecef_m
+
     def positions(self) -> dict:
+        """Position statistics on the epochs both sides solved (:meth:`solved_epochs`), each against its own truth."""
         out = {}
         if self.sol_sim is None or self.sol_real is None:
             return out
+        both = self.solved_epochs()["mask"]
+
+        def common(pos):
+            p = np.array(pos, dtype=float)
+            p[~both] = np.nan
+            return p
+
         if self.truth_ecef_m is not None:
-            out["sim_vs_truth"] = position_stats(enu_errors_m(self.sol_sim.pos_ecef_m, self.truth_ecef_m))
-            out["real_vs_truth"] = position_stats(enu_errors_m(self.sol_real.pos_ecef_m, self.truth_ecef_m))
-        out["sim_vs_real"] = position_stats(enu_errors_m(self.sol_sim.pos_ecef_m, self.sol_real.pos_ecef_m))
+            out["sim_vs_truth"] = position_stats(enu_errors_m(common(self.sol_sim.pos_ecef_m), self.truth_ecef_m))
+            out["real_vs_truth"] = position_stats(enu_errors_m(common(self.sol_real.pos_ecef_m), self.real_truth()))
+        out["sim_vs_real"] = position_stats(enu_errors_m(common(self.sol_sim.pos_ecef_m), self.sol_real.pos_ecef_m))
         return out
 
 
@@ -251,11 +280,16 @@ def _signal_statistics(cmp: Comparison, i_sim, i_real) -> None:
 
 
 def compare(sim_path, real_path, nav_paths=None, truth_ecef_m=None, truth_csv=None, mask_deg: float = 0.0,
-            solver: str = "ours", restrict_real_to_sim_span: bool = True, workdir=None) -> Comparison:
+            solver: str = "ours", restrict_real_to_sim_span: bool = True, workdir=None, *, real_truth_csv=None,
+            scene=None, scene_name: str = "", ground_height_m: float | None = None) -> Comparison:
     """Compare two observation sources (RINEX or bag).  ``nav_paths``: broadcast navigation files for
     elevations and positions (none: no positions, no elevations); ``truth_ecef_m`` (3,) or ``truth_csv``
-    (default truth: the real file's APPROX POSITION, else the simulated one's); ``mask_deg`` applies to
-    the visibility sets where an elevation is known; ``solver`` "ours" | "rtklib" (RINEX inputs only)."""
+    (default truth: the real file's APPROX POSITION, else the simulated one's); ``real_truth_csv``: the real
+    file's own truth when the simulation was made on another path; ``mask_deg`` applies to
+    the visibility sets where an elevation is known; ``solver`` "ours" | "rtklib" (RINEX inputs only);
+    ``scene`` (a loaded Scene, ``scene_name`` its option and file): the line-of-sight / NLOS split
+    (core/comparison/canyon.py; needs ``nav_paths``), ``ground_height_m`` places the truth that high above the
+    scene's ground."""
     if solver not in ("ours", "rtklib"):
         raise ValueError(f"solver {solver!r}: expected 'ours' or 'rtklib'")
     if truth_ecef_m is not None and truth_csv is not None:
@@ -380,6 +414,18 @@ def compare(sim_path, real_path, nav_paths=None, truth_ecef_m=None, truth_csv=No
                 low = np.isfinite(cmp.el_deg) & (cmp.el_deg < mask_deg)
                 cmp.seen_sim = cmp.seen_sim & ~low
                 cmp.seen_real = cmp.seen_real & ~low
+    if real_truth_csv is not None:
+        cmp.truth_real_ecef_m = truth_from_csv(real_truth_csv, times)
+        cmp.truth_real_label = f"CSV {real_truth_csv}"
+    if scene is not None:
+        if not nav_paths or not ref:
+            raise ValueError(f"{scene_name or 'the scene'}: the line-of-sight split needs --nav and a signal with "
+                             "pseudoranges on both sides")
+        if cmp.truth_ecef_m is None:
+            raise ValueError(f"{scene_name or 'the scene'}: the line-of-sight split needs a truth (--truth, "
+                             "--truth-csv or an APPROX POSITION XYZ)")
+        cmp.canyon = canyon_split(sim_path, real_path, scene, scene_name, eph, times, cmp.truth_ecef_m,
+                                  cmp.real_truth(), "".join(ref), code_sim, code_real, mask_deg, ground_height_m)
     if cmp.el_deg is not None:
         _signal_statistics(cmp, i_sim, i_real)
     cmp.warnings = _input_warnings(cmp, sim_path, real_path)

@@ -85,10 +85,17 @@ def load_drive(truth_csv, scene, antenna_height_m: float = 1.8, offset_m=(0.0, 0
     truth = np.array(geodetic_to_ecef(a[:, 2], a[:, 3], a[:, 4])).T.reshape(-1, 3)
     world = scene.spherical.ecef_to_world(truth)
     world[:, :2] += np.asarray(offset_m, dtype=float).reshape(2)
-    top = np.column_stack([world[:, :2], np.full(len(world), 1000.0)])
-    ground = 1000.0 - scene.rays.hit_distance(top, np.tile([0.0, 0.0, -1.0], (len(top), 1)))
-    world = np.column_stack([world[:, :2], ground + antenna_height_m])
+    world, ground = place_on_ground(scene, world[:, :2], antenna_height_m)
     return Drive(t, truth, world, scene.spherical.world_to_ecef(world), ground)
+
+
+def place_on_ground(scene, xy_world_m, antenna_height_m: float):
+    """(world (N, 3), ground_z (N,)): points (N, 2) of the world frame put ``antenna_height_m`` above the scene's
+    ground under them (a downward cast from 1000 m: the model's vertical datum is not the ellipsoid)."""
+    xy = np.asarray(xy_world_m, float).reshape(-1, 2)
+    top = np.column_stack([xy, np.full(len(xy), 1000.0)])
+    ground = 1000.0 - scene.rays.hit_distance(top, np.tile([0.0, 0.0, -1.0], (len(top), 1)))
+    return np.column_stack([xy, ground + antenna_height_m]), ground
 
 
 def _gnss_times(times_np) -> GnssTime:
@@ -107,12 +114,17 @@ class FileView:
     cn0_dbhz: np.ndarray         # (K, S)
 
 
+#: the signal of each system whose pseudorange and C/N0 :func:`file_view` reads (the Hong Kong drive's u-blox M8T)
+VIEW_CODES = {"G": "1C", "C": "2I", "E": "1C", "R": "1C", "J": "1C"}
+
+
 def file_view(obs_path, drive: Drive, truth_ecef_m, provider, scene, systems: str = "GC",
-              mask_deg: float = 15.0) -> FileView:
-    """Tracked sets, model states and residuals of one RINEX observation file (module docstring)."""
+              mask_deg: float = 15.0, codes: dict | None = None) -> FileView:
+    """Tracked sets, model states and residuals of one RINEX observation file (module docstring); ``codes``:
+    system -> band + attribute read (default :data:`VIEW_CODES`)."""
     tab = load_observations(obs_path)
     i_d, i_f = match_epochs(drive.times_np, tab.time, 50_000_000)
-    code = {"G": "1C", "C": "2I", "E": "1C", "R": "1C", "J": "1C"}
+    code = {**VIEW_CODES, **(codes or {})}
     svs = np.array([s for s in tab.sv if s[0] in systems])
     kk, ss = len(drive.t), len(svs)
     pr = np.full((kk, ss), np.nan)

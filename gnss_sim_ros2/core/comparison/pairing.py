@@ -62,3 +62,15 @@ def pair_signals(sim: ObsTable, real: ObsTable, systems: str) -> list[SignalPair
                 used.add(cands[0])
         pairs += [SignalPair(s, c, match[c]) for c in a_sim if c in match]
     return pairs
+
+
+def unpaired_signals(sim: ObsTable, real: ObsTable, systems: str, pairs: list[SignalPair]) -> dict:
+    """Signals (system, band + attribute) of the compared ``systems`` that only one side has, i.e. left out of
+    ``pairs``: {"sim": [...], "real": [...]}."""
+    out = {"sim": [], "real": []}
+    for s in systems:
+        used_s = {p.sim_code for p in pairs if p.system == s}
+        used_r = {p.real_code for p in pairs if p.system == s}
+        out["sim"] += [(s, c) for c in _attributes(sim, s) if c not in used_s]
+        out["real"] += [(s, c) for c in _attributes(real, s) if c not in used_r]
+    return out

@@ -8,8 +8,10 @@ from pathlib import Path
 import numpy as np
 
 from ..calibration.signal_compare import summary_lines
+from .canyon_report import canyon_lines
 from .compare import Comparison
-from .statistics import DESCRIPTION, GROSS_LIMITS, UNITS, enu_errors_m
+from .pairing import unpaired_signals
+from .statistics import DESCRIPTION, GROSS_LIMITS, TAIL_THRESHOLDS_M, UNITS, enu_errors_m
 
 #: the per-signal statistics of both sides and their comparison, beside report.md
 SIGNALS_JSON = "signals.json"
@@ -146,10 +148,17 @@ def write_report(cmp: Comparison, out_dir) -> Path:
           f"only simulated {cmp.epochs_only_sim}, only real {cmp.epochs_only_real} (real read over the simulated "
           f"span)",
           f"- systems compared: {cmp.systems or '-'}; only simulated: {cmp.systems_only_sim or '-'}; "
-          f"only real: {cmp.systems_only_real or '-'}", ""]
+          f"only real: {cmp.systems_only_real or '-'}",
+          f"- elevation mask given: {cmp.mask_deg:g} deg" + ("" if cmp.el_deg is not None else
+                                                            " (not applied: no elevations without --nav)"), ""]
     L += [f"**Warning**: {w}" for w in cmp.warnings] + ([""] if cmp.warnings else [])
     L += ["## Signal pairs", ""]
     L += _md_table(["system", "simulated", "real"], [[p.system, p.sim_code, p.real_code] for p in cmp.pairs])
+    one_sided = unpaired_signals(cmp.sim, cmp.real, cmp.systems, cmp.pairs)
+    for side, lab in (("sim", "simulated"), ("real", "real")):
+        L.append(f"- Signals only the {lab} file has (not compared): "
+                 + (", ".join(f"{s} {c}" for s, c in one_sided[side]) or "none"))
+    L.append("")
     L += ["## Method", ""]
     for name, kr in cmp.kinds.items():
         L.append(f"- **{name}** [{UNITS[name]}]: {DESCRIPTION[name]}."
@@ -167,9 +176,11 @@ def write_report(cmp: Comparison, out_dir) -> Path:
     if cmp.mask_deg > 0:
         L.append(f"- Tracked-satellite sets: above {cmp.mask_deg:g} deg where the broadcast ephemeris gives an "
                  "elevation; satellites without a healthy record keep every epoch.")
-    L.append("- Statistics leave out gross errors (|residual| above "
+    L.append("- Count, mean, RMS and std are robust statistics: they leave out gross errors (|residual| above "
              + ", ".join(f"{k_} {v:g} {UNITS[k_]}" for k_, v in GROSS_LIMITS.items() if math.isfinite(v))
-             + "), counted in column 'gross'.")
+             + "), counted in column 'gross'; 'RMS all' and the 99th percentile of |residual| keep every value, "
+             "and the code tails table gives the shares above " + "/".join(f"{t:g}" for t in TAIL_THRESHOLDS_M)
+             + " m (an NLOS range is never hidden).")
     L.append("")
 
     L += ["## Differences per system and signal", ""]
@@ -184,12 +195,25 @@ def write_report(cmp: Comparison, out_dir) -> Path:
                     continue
                 st = cmp.stats(name, p)
                 rows.append([name, p.label, st["n"], st["n_gross"], _f(st["mean"]), _f(st["rms"]), _f(st["std"]),
-                             UNITS[name]])
+                             _f(st["tails"]["rms"]), _f(st["tails"]["p99_abs"]), UNITS[name]])
             st = cmp.system_stats(name, s)
             if st["n"] or st["n_gross"]:
                 rows.append([name, f"**{s} all**", st["n"], st["n_gross"], _f(st["mean"]), _f(st["rms"]),
-                             _f(st["std"]), UNITS[name]])
-    L += _md_table(["kind", "signal", "count", "gross", "mean", "RMS", "std", "unit"], rows)
+                             _f(st["std"]), _f(st["tails"]["rms"]), _f(st["tails"]["p99_abs"]), UNITS[name]])
+    L += _md_table(["kind", "signal", "count", "gross", "mean", "RMS", "std", "RMS all", "p99 abs", "unit"], rows)
+    if code.available:
+        rows = []
+        for s in cmp.systems:
+            for p in [q for q in cmp.pairs if q.system == s and q in code.residuals] + [None]:
+                t = (cmp.stats("code", p) if p is not None else cmp.system_stats("code", s))["tails"]
+                if t["n"]:
+                    rows.append([p.label if p is not None else f"**{s} all**", t["n"], _f(t["p95_abs"]),
+                                 _f(t["p99_abs"]), _f(t["max_abs"])]
+                                + [f"{100.0 * t[f'share_above_{x:g}']:.2f} %" for x in TAIL_THRESHOLDS_M])
+        if rows:
+            L += ["Code tails (every residual, none left out):", ""]
+            L += _md_table(["signal", "n", "p95 abs [m]", "p99 abs [m]", "max abs [m]"]
+                           + [f"> {x:g} m" for x in TAIL_THRESHOLDS_M], rows)
 
     L += ["## Differences per satellite", ""]
     for s in cmp.systems:
@@ -246,9 +270,13 @@ def write_report(cmp: Comparison, out_dir) -> Path:
     if cmp.sol_sim is None:
         L += ["No position solutions (give broadcast navigation files with --nav).", ""]
     else:
+        sol = cmp.solved_epochs()
         L.append(f"Single point solutions of both files by {cmp.sol_sim.solver} (broadcast ephemeris, Klobuchar "
-                 "ionosphere, Saastamoinen troposphere, 10 deg mask) over the common epochs. "
-                 + (f"Truth: {cmp.truth_label}." if cmp.truth_label else "No truth."))
+                 "ionosphere, Saastamoinen troposphere, 10 deg mask), compared on the "
+                 f"**{sol['both']} epochs both solved** (of {len(cmp.time)} common epochs; the simulated file solved "
+                 f"{sol['sim']}, the real {sol['real']}). "
+                 + (f"Truth: {cmp.truth_label}." if cmp.truth_label else "No truth.")
+                 + (f" The real file's own truth: {cmp.truth_real_label}." if cmp.truth_real_label else ""))
         if cmp.position_note:
             L.append(cmp.position_note)
         L.append("")
@@ -261,6 +289,8 @@ def write_report(cmp: Comparison, out_dir) -> Path:
                 rows.append([lab.replace("_", " "), 0, "-", "-", "-", "-", "-", "-"])
         L += _md_table(["solutions", "epochs", "mean E [m]", "mean N [m]", "mean U [m]", "RMS horizontal [m]",
                         "RMS vertical [m]", "95 % horizontal [m]"], rows)
+
+    L += canyon_lines(cmp, out_dir)
 
     L += ["## Figures", ""]
     captions = {"code": "Pseudorange difference per satellite", "cn0": "C/N0 against elevation",

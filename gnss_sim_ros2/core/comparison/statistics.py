@@ -23,8 +23,11 @@ DESCRIPTION = {
     "doppler": "range rate from Doppler (-lambda D), sim - real, receiver clock drift removed",
     "cn0": "C/N0 (S observations), sim - real, nothing removed",
 }
-#: residuals beyond these count as gross errors (left out of the statistics, counted)
+#: residuals beyond these count as gross errors: left out of the robust statistics (count, mean, RMS, std), counted;
+#: the tails (:func:`tails`, nothing left out) are reported beside them, so that an NLOS range is never hidden
 GROSS_LIMITS = {"code": 30.0, "phase": 5.0, "doppler": 10.0, "cn0": math.inf}
+#: |residual| thresholds whose exceedance shares are reported [unit of the kind; m for code]
+TAIL_THRESHOLDS_M = (10.0, 30.0, 100.0)
 
 
 @dataclass
@@ -41,15 +44,36 @@ class KindResult:
 
 
 def summary_stats(x: np.ndarray, gross: float) -> dict:
+    """Robust statistics of the finite ``x`` within ``gross`` (count, mean, RMS, std, max) and the number beyond it;
+    ``tails``: :func:`tails` of every finite value (what the robust ones leave out)."""
     x = np.asarray(x, dtype=float).ravel()
     x = x[np.isfinite(x)]
     bad = np.abs(x) > gross
     g = x[~bad]
     if g.size == 0:
         return {"n": 0, "n_gross": int(bad.sum()), "mean": math.nan, "rms": math.nan, "std": math.nan,
-                "max_abs": math.nan}
+                "max_abs": math.nan, "tails": tails(x)}
     return {"n": int(g.size), "n_gross": int(bad.sum()), "mean": float(g.mean()),
-            "rms": float(np.sqrt(np.mean(g**2))), "std": float(g.std()), "max_abs": float(np.abs(g).max())}
+            "rms": float(np.sqrt(np.mean(g**2))), "std": float(g.std()), "max_abs": float(np.abs(g).max()),
+            "tails": tails(x)}
+
+
+def tails(x) -> dict:
+    """Count, RMS, mean, shares of |x| above each of :data:`TAIL_THRESHOLDS_M`, 95th / 99th percentile and maximum
+    of |x| over every finite value (nothing excluded)."""
+    x = np.asarray(x, dtype=float).ravel()
+    x = x[np.isfinite(x)]
+    out = {"n": int(x.size)}
+    if not x.size:
+        out.update({"mean": math.nan, "rms": math.nan, "p95_abs": math.nan, "p99_abs": math.nan,
+                    "max_abs": math.nan})
+        out.update({f"share_above_{t:g}": math.nan for t in TAIL_THRESHOLDS_M})
+        return out
+    a = np.abs(x)
+    out.update({"mean": float(x.mean()), "rms": float(np.sqrt(np.mean(x**2))), "p95_abs": float(np.percentile(a, 95)),
+                "p99_abs": float(np.percentile(a, 99)), "max_abs": float(a.max())})
+    out.update({f"share_above_{t:g}": float(np.mean(a > t)) for t in TAIL_THRESHOLDS_M})
+    return out
 
 
 def remove_common_offsets(diffs: dict[SignalPair, np.ndarray], sys_of_col: np.ndarray, min_sats: int = 1):
