@@ -144,8 +144,9 @@ def canyon_lines(cmp, out_dir) -> list[str]:
                         + [_pct(t[f"share_above_{x:g}"]) for x in TAIL_THRESHOLDS_M])
     if rows:
         L += ["Code differences sim - real (clock removed), where both track: line of sight at both antennas or "
-              f"blocked at either; 'RMS within' leaves out |d| > {GROSS_LIMITS['code']:g} m, 'RMS all' does not:", ""]
-        L += _table(["signal", "class", "n", f"> {GROSS_LIMITS['code']:g} m", "RMS within [m]", "RMS all [m]",
+              f"blocked at either; 'RMS within' leaves out the 'gross' |d| > {GROSS_LIMITS['code']:g} m, 'RMS all' "
+              "does not:", ""]
+        L += _table(["signal", "class", "n", "gross", "RMS within [m]", "RMS all [m]",
                      "p99 abs [m]"] + [f"> {t:g} m" for t in TAIL_THRESHOLDS_M], rows)
     fig = write_residual_figure(cmp, out_dir)
     if fig is not None:
