@@ -259,3 +259,16 @@ def test_simulate_bad_mask_row_rc2(tmp_path, capsys):
     mask = _write(tmp_path / "m.csv", "azimuth_deg,elevation_deg\n0,20\n400,3\n")
     assert main(["simulate", "--sky-mask", str(mask), "--position", HK, "--out", str(tmp_path / "o"), "--quiet"]) == 2
     assert f"{mask}:3: azimuth_deg 400" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("mask_text, extra, words", [
+    ("azimuth_deg,elevation_deg\n0,20\n10,91\n", [], [":3: elevation_deg 91"]),
+    ("azimuth_deg,elevation_deg\n0,20\n", ["--sector-deg", "7"], ["option --sector-deg 7.0"]),
+])
+def test_skyplot_bad_mask_or_sector_rc2(tmp_path, capsys, mask_text, extra, words):
+    mask = _write(tmp_path / "m.csv", mask_text)
+    rc = main(["skyplot", "--world", str(_wall_world(tmp_path)), "--at", "0,0,1.5", "--time", "2025-06-01T10:00:00",
+               "--synthetic", "--csv", str(tmp_path / "sky.csv"), "--sky-mask", str(mask), *extra])
+    err = capsys.readouterr().err
+    assert rc == 2 and all(w in err for w in words), err
+    assert not (tmp_path / "sky.csv").exists() and not (tmp_path / "sky_mask_comparison.csv").exists()
