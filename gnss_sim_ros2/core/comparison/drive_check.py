@@ -42,6 +42,7 @@ from ..trajectory import Trajectory
 from ..visibility import VisibilityOptions
 from ..visibility.line_of_sight import line_of_sight
 from ..vocabulary import VisibilityState
+from .registration import fit_offset, sight_epochs
 from .rtklib import rtklib_solutions
 from .sources import load_observations
 
@@ -237,47 +238,13 @@ def set_metrics(sim: FileView, real: FileView) -> dict:
 def model_offset_m(drive: Drive, scene, provider, real: FileView, *, strong_cn0_dbhz: float = 38.0,
                    mask_deg: float = 15.0, span_m: float = 6.0, step_m: float = 2.0, every: int = 1):
     """(east, north) [m] to add to the antenna's placement so that the model agrees best with the real receiver's
-    line of sight: the georeference error of the model relative to the truth path (OpenStreetMap footprints
-    traced on imagery are off by metres).  Criterion, from the real file only (never the simulated one): the
-    share of the real receiver's strong signals (C/N0 >= ``strong_cn0_dbhz``: a line of sight) that the model
-    blocks, plus the share of the satellites above the mask it does not track that the model leaves in the
-    line of sight; minimised on a grid of ``step_m`` within +-``span_m``, then of step_m / 4 within +-step_m
-    around the best, on every ``every``-th epoch.  Returns (offset (2,), criterion at 0, criterion at it)."""
-    col = {s: j for j, s in enumerate(real.sv)}
-    epochs = []
-    for d in range(0, len(drive.t), max(1, int(every))):
-        st = provider.states(drive.t[d], systems="".join(sorted({s[0] for s in real.sv})))
-        if len(st) == 0:
-            continue
-        j = np.array([col.get(s, -1) for s in st.sv])
-        tracked = np.where(j >= 0, real.tracked[d, np.maximum(j, 0)], False)
-        cn0 = np.where(j >= 0, real.cn0_dbhz[d, np.maximum(j, 0)], np.nan)
-        epochs.append((d, st.pos_ecef_m, tracked, np.nan_to_num(cn0) >= strong_cn0_dbhz))
-
-    def criterion(off):
-        strong_blk = strong_n = lost_los = lost_n = 0
-        for d, sat, tracked, strong in epochs:
-            a = drive.antenna_world_m[d] + np.array([off[0], off[1], 0.0])
-            clear, v = line_of_sight(scene, a, sat, mask_deg)
-            above = v.el_deg >= mask_deg
-            blk = above & ~clear
-            s_ = tracked & strong & above
-            lost = ~tracked & above
-            strong_blk += int(np.sum(blk & s_))
-            strong_n += int(s_.sum())
-            lost_los += int(np.sum(~blk & lost))
-            lost_n += int(lost.sum())
-        return strong_blk / max(strong_n, 1) + lost_los / max(lost_n, 1)
-
-    def search(centre, half, step):
-        ax = np.arange(-half, half + step / 2, step)
-        grid = [(centre[0] + x, centre[1] + y) for x in ax for y in ax]
-        vals = [criterion(g) for g in grid]
-        return np.array(grid[int(np.argmin(vals))]), float(min(vals))
-
-    best, _ = search((0.0, 0.0), span_m, step_m)
-    best, val = search(best, step_m, step_m / 4)
-    return best, criterion((0.0, 0.0)), val
+    line of sight (its georeference error: core/comparison/registration.py, which also gives the uncertainty),
+    on every ``every``-th epoch.  Returns (offset (2,), criterion at 0, criterion at it)."""
+    sight = sight_epochs(drive.t, drive.antenna_world_m, provider, real.sv, real.tracked, real.cn0_dbhz,
+                         strong_cn0_dbhz=strong_cn0_dbhz, every=every)
+    reg = fit_offset(scene, sight, mask_deg=mask_deg, span_m=span_m, step_m=step_m, n_bootstrap=0,
+                     strong_cn0_dbhz=strong_cn0_dbhz)
+    return np.array(reg.offset_en_m), reg.criterion_zero, reg.criterion_best
 
 
 def write_trajectory_csv(drive: Drive, path) -> Path:

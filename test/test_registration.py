@@ -1,0 +1,112 @@
+"""Registration (issue 27): a scene's georeference error estimated from a real recording, with its uncertainty
+(core/comparison/registration.py, ``gnss-sim compare --fit-offset``).
+
+The synthetic "real" receiver tracks what the SHIFTED scene leaves in its line of sight (the model's walls are
+where the recording's surroundings are, moved by the georeference error), with a share of its labels flipped at
+random (what a model lacks); the fit on the unshifted scene must find the shift (as the antenna's offset in the
+model: minus the walls' shift) within its reported uncertainty.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from multipath_scenes import _box
+
+from gnss_sim_ros2.core.comparison.registration import SightEpochs, fit_offset, registration_markdown
+from gnss_sim_ros2.core.scene.georeference import SphericalCoordinates
+from gnss_sim_ros2.core.scene.materials import MaterialTable
+from gnss_sim_ros2.core.scene.visibility import Scene
+from gnss_sim_ros2.core.scene.world_mesh import WorldMesh
+from gnss_sim_ros2.core.visibility.line_of_sight import line_of_sight
+
+MASK_DEG = 10.0
+ORIGIN = SphericalCoordinates(22.2982, 114.1788, 0.0)
+
+
+def _street(shift_en_m=(0.0, 0.0)) -> Scene:
+    """A street along north (walls at x = -7 (25 m high) and x = +7 (15 m)) closed by two cross blocks at
+    y = +-28 (20 m), moved by ``shift_en_m`` [m] in the world frame."""
+    parts = [_box(-8, -6, -200, 200, 0, 25), _box(6, 8, -200, 200, 0, 15),
+             _box(-40, 40, 27, 32, 0, 20), _box(-40, 40, -32, -27, 0, 20)]
+    verts, tris, n = [], [], 0
+    for v, f in parts:
+        tris.append(f + n)
+        verts.append(v)
+        n += len(v)
+    v = np.vstack(verts) + np.array([shift_en_m[0], shift_en_m[1], 0.0])
+    world = WorldMesh(v, np.vstack(tris), np.zeros(sum(len(t) for t in tris), np.int16), MaterialTable())
+    return Scene(dataclasses.replace(world, spherical_coordinates=ORIGIN))
+
+
+def _recording(shift_en_m, n_epochs=40, n_sats=30, flip=0.05, seed=1):
+    """(model scene, SightEpochs): the antenna along the street's axis (y -22 .. +22 m, 1.5 m high), random
+    satellites, tracked = in the line of sight of the shifted scene, ``flip`` of the labels flipped."""
+    rng = np.random.default_rng(seed)
+    model, real = _street(), _street(shift_en_m)
+    ant = np.column_stack([np.zeros(n_epochs), np.linspace(-22, 22, n_epochs), np.full(n_epochs, 1.5)])
+    sats, trk = [], []
+    for a in ant:
+        az = rng.uniform(0, 2 * np.pi, n_sats)
+        el = np.arcsin(rng.uniform(np.sin(np.radians(MASK_DEG + 1)), 1.0, n_sats))
+        d = np.column_stack([np.cos(el) * np.sin(az), np.cos(el) * np.cos(az), np.sin(el)])
+        sat = model.spherical.world_to_ecef(a + 2.0e7 * d)
+        los, _ = line_of_sight(real, a, sat, MASK_DEG)
+        los ^= rng.random(n_sats) < flip
+        sats.append(sat)
+        trk.append(los)
+    return model, SightEpochs(np.arange(n_epochs), ant, sats, trk, [t.copy() for t in trk])
+
+
+@pytest.mark.parametrize("shift", [(-3.0, 2.5), (2.0, -4.0)])
+def test_a_known_shift_is_recovered_within_its_uncertainty(shift):
+    model, sight = _recording(shift)
+    reg = fit_offset(model, sight, mask_deg=MASK_DEG, n_bootstrap=100)
+    # the recording's walls are the model's moved by +shift: seen from them, the antenna sits at -shift in the model
+    err = np.add(reg.offset_en_m, shift)
+    assert np.all(np.abs(err) <= 3.0 * np.array(reg.sigma_en_m)), (reg, err)
+    assert max(reg.sigma_en_m) < 1.5             # the data pin it down: not an uncertainty that covers anything
+    assert reg.criterion_best < reg.criterion_zero - 0.1
+    assert reg.epochs == 40 and reg.sat_epochs == reg.strong_sat_epochs + reg.untracked_sat_epochs
+    assert not reg.at_edge
+
+
+def test_no_shift_gives_about_zero():
+    model, sight = _recording((0.0, 0.0))
+    reg = fit_offset(model, sight, mask_deg=MASK_DEG, n_bootstrap=100)
+    assert np.all(np.abs(reg.offset_en_m) <= 3.0 * np.array(reg.sigma_en_m)), reg
+    assert reg.offset_m <= 1.0
+    assert reg.criterion_best <= reg.criterion_zero
+
+
+def test_a_shift_beyond_the_search_is_flagged_not_hidden():
+    model, sight = _recording((9.0, 0.0))
+    reg = fit_offset(model, sight, mask_deg=MASK_DEG, span_m=4.0, n_bootstrap=20)
+    assert reg.at_edge
+    assert "border of the search" in registration_markdown(reg, "--mesh x", "hint")
+
+
+def test_the_report_section_says_it_is_not_applied():
+    model, sight = _recording((-3.0, 2.5), n_epochs=10)
+    reg = fit_offset(model, sight, mask_deg=MASK_DEG, n_bootstrap=20)
+    md = registration_markdown(reg, "--mesh city.ply", "move the model")
+    assert md.startswith("## Registration") and "not applied" in md and "+-" in md
+
+
+def _cli(*argv):
+    from gnss_sim_ros2 import cli
+
+    return cli.main(["compare", *argv])
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--fit-offset"], "needs the scene"),
+    (["--fit-offset", "--mesh", "m.ply"], "needs --nav"),
+    (["--antenna-height-m", "1.8"], "only used with --world / --mesh"),
+])
+def test_bad_fit_offset_options_are_one_line_rc_2(tmp_path, capsys, extra, message):
+    rc = _cli("--sim", str(tmp_path / "s.obs"), "--real", str(tmp_path / "r.obs"), "--out", str(tmp_path / "o"),
+              *extra)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and message in err[0], err
