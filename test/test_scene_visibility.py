@@ -337,3 +337,21 @@ def test_skyplot_command_synthetic(tmp_path):
     rows = list(csv.DictReader(out_csv.open()))
     assert len(rows) >= 4
     assert all(float(r["el_deg"]) >= 10.0 and r["state"] in {"visible", "blocked", "attenuated"} for r in rows)
+
+
+def test_horizon_profile_of_an_antenna_closed_in_on_every_side():
+    """An antenna inside a closed box (e.g. placed under a city model's ground): every azimuth is blocked up to the
+    zenith, nothing is left to refine, and the profile says 90 deg everywhere; the foliage profile of a scene
+    without foliage has nothing to refine either and is 0 everywhere (it failed reshaping an empty cast)."""
+    from multipath_scenes import _box
+
+    from gnss_sim_ros2.core.scene.materials import MaterialTable
+    from gnss_sim_ros2.core.scene.visibility import Scene
+    from gnss_sim_ros2.core.scene.world_mesh import WorldMesh
+
+    v, f = _box(-5.0, 5.0, -5.0, 5.0, -5.0, 5.0)
+    scene = Scene(WorldMesh(v, f, np.zeros(len(f), np.int16), MaterialTable()))
+    az, el = scene.horizon_profile(np.zeros(3), az_step_deg=10.0)
+    assert len(az) == 36 and np.all(el == 90.0)
+    _, el_foliage = scene.horizon_profile(np.zeros(3), az_step_deg=10.0, which="foliage")
+    assert np.all(el_foliage == 0.0)

@@ -441,7 +441,7 @@ class Scene:
         out = np.where(any_b, lo, 0.0)
         ref = any_b & (top < len(els) - 1)
         lo, hi = lo[ref], hi[ref]
-        for _ in range(iterations):
+        for _ in range(iterations if ref.any() else 0):     # nothing to refine: every azimuth clear or closed
             mid = 0.5 * (lo + hi)
             b = hit(az[ref], mid)
             lo = np.where(b, mid, lo)
