@@ -110,3 +110,53 @@ def test_bad_fit_offset_options_are_one_line_rc_2(tmp_path, capsys, extra, messa
               *extra)
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1 and message in err[0], err
+
+
+@pytest.mark.slow
+def test_compare_fit_offset_finds_the_shift_of_a_simulated_recording(tmp_path):
+    """End to end: ``gnss-sim simulate`` walks the street of a model moved by SHIFT (the recording's surroundings),
+    ``gnss-sim compare --mesh <unmoved model> --fit-offset`` reports the antenna's offset -SHIFT within its
+    uncertainty, in report.md and registration.json, and applies it to nothing."""
+    import json
+
+    from gnss_sim_ros2.core.scene.mesh_io import write_scene
+    from gnss_sim_ros2.core.time import GnssTime
+
+    shift = (2.0, -2.5)
+    meshes = {}
+    for name, s in (("model", (0.0, 0.0)), ("recording", shift)):
+        meshes[name] = tmp_path / f"{name}.ply"
+        write_scene(meshes[name], _street(s).world)
+    t_s = np.arange(0.0, 121.0, 1.0)
+    world = np.column_stack([np.zeros_like(t_s), np.linspace(-22, 22, len(t_s)), np.full(len(t_s), 1.5)])
+    traj = tmp_path / "walk.csv"
+    traj.write_text("t_s,e_m,n_m,u_m\n" + "".join(f"{t:g},{p[0]:g},{p[1]:g},{p[2]:g}\n" for t, p in zip(t_s, world)))
+    start = "2019-04-28T05:00:00"
+    rc = _cli_any("simulate", "--synthetic", "--start", start, "--duration", "120", "--interval", "1",
+                  "--systems", "GEC", "--seed", "3", "--mask-deg", str(MASK_DEG), "--mesh", str(meshes["recording"]),
+                  "--trajectory", str(traj), "--out", str(tmp_path / "sim"), "--quiet")
+    assert rc == 0
+    obs = next((tmp_path / "sim").glob("*_MO.rnx"))
+    nav = next((tmp_path / "sim").glob("*_MN.rnx"))
+    ecef = _street().spherical.world_to_ecef(world)
+    t0 = GnssTime.from_iso(start, scale="GPS")
+    truth = tmp_path / "truth.csv"
+    truth.write_text("time,x_m,y_m,z_m\n" + "".join(f"{(t0 + float(t)).isoformat('GPS', 3)},{p[0]:.4f},{p[1]:.4f},"
+                                                      f"{p[2]:.4f}\n" for t, p in zip(t_s, ecef)))
+    rc = _cli("--sim", str(obs), "--real", str(obs), "--nav", str(nav), "--truth-csv", str(truth),
+              "--mesh", str(meshes["model"]), "--mask-deg", str(MASK_DEG), "--fit-offset", "--out", str(tmp_path / "c"))
+    assert rc == 0
+    reg = json.loads((tmp_path / "c" / "registration.json").read_text())
+    err = np.add(reg["offset_en_m"], shift)
+    print(f"registration of a {shift} m shift: {reg['offset_en_m']} +- {reg['sigma_en_m']} m "
+          f"({reg['sat_epochs']} satellite-epochs, {reg['wall_s']:.1f} s)")
+    assert np.all(np.abs(err) <= 3.0 * np.array(reg["sigma_en_m"])), reg
+    assert max(reg["sigma_en_m"]) < 1.5 and reg["applied"] is False
+    assert reg["criterion_best"] < reg["criterion_zero"]
+    assert "## Registration" in (tmp_path / "c" / "report.md").read_text()
+
+
+def _cli_any(*argv):
+    from gnss_sim_ros2 import cli
+
+    return cli.main(list(argv))
