@@ -232,7 +232,7 @@ def registration_markdown(reg: Registration, scene_name: str, apply_hint: str) -
         f"{reg.untracked_sat_epochs} untracked)",
         f"- search: grid of {reg.step_m:g} m within +-{reg.span_m:g} m, then {reg.step_m / 4:g} m around the best; "
         f"uncertainty: moving-block bootstrap over epochs ({reg.n_bootstrap} resamples, blocks of "
-        f"{reg.block_epochs} epochs) with the grid's quantisation",
+        f"{reg.block_epochs} epochs), plus the spread of a flat minimum and the grid's quantisation",
     ]
     if reg.at_edge:
         lines.append(f"- **the estimate is on the border of the search (+-{reg.span_m:g} m)**: the error may be "
