@@ -45,6 +45,10 @@ def add_arguments(p):
                         "--truth-csv; default: the one truth of both)")
     p.add_argument("--mask-deg", type=float, default=0.0,
                    help="elevation mask of the tracked-satellite comparison [deg] (needs --nav; default 0)")
+    p.add_argument("--epoch-tol-ms", type=float, metavar="MS",
+                   help="match the two files' epochs within MS milliseconds (default 1; a receiver whose time tags "
+                        "wander, e.g. a u-blox's +-3 ms, needs more; its code differences then carry range rate x tag "
+                        "difference, up to 0.8 m per ms)")
     p.add_argument("--solver", choices=("ours", "rtklib"), default="ours",
                    help="position solver: gnss_sim solve_pvt (default) or RTKLIB rnx2rtkp (RINEX inputs)")
     sc = p.add_mutually_exclusive_group()
@@ -145,6 +149,7 @@ def run(args) -> int:
             cmp = compare(args.sim, args.real, nav_paths=args.nav, truth_ecef_m=truth, truth_csv=args.truth_csv,
                           mask_deg=args.mask_deg, solver=args.solver, workdir=staging,
                           real_truth_csv=getattr(args, "real_truth_csv", None), scene=scene, scene_name=scene_name,
+                          epoch_tol_ms=getattr(args, "epoch_tol_ms", None),
                           ground_height_m=args.antenna_height_m)
             report = write_report(cmp, staging)
             if args.fit_offset:

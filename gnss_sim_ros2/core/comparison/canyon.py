@@ -120,6 +120,17 @@ class Canyon:
         out["los_above_10m_ratio"] = _ratio(s10, r10)
         return out
 
+    def selection(self, name: str, cls: str, svs) -> np.ndarray:
+        """(E, len(svs)) bool: the satellite-epochs file ``name`` tracks in class ``cls`` ("los" | "nlos")."""
+        v = getattr(self, name)
+        col = {s: j for j, s in enumerate(self.sv.tolist())}
+        out = np.zeros((self.above.shape[0], len(svs)), bool)
+        for i, s in enumerate(np.asarray(svs).tolist()):
+            j = col.get(s)
+            if j is not None:
+                out[:, i] = v.tracked[:, j] & (v.blocked[:, j] == (cls == "nlos"))
+        return out
+
     def residuals(self, name: str, cls: str) -> np.ndarray:
         """The finite residuals of file ``name`` ("sim" | "real") of class ``cls`` ("los" | "nlos")."""
         v = getattr(self, name)

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..calibration.signal_compare import summary_lines
 from .canyon import LOS_TAIL_M
 from .statistics import GROSS_LIMITS, TAIL_THRESHOLDS_M, summary_stats
 
@@ -52,6 +53,7 @@ def urban_figures(cmp) -> dict:
     """The JSON of the section: the canyon metrics, the split code differences and the SPP ratio."""
     m = cmp.canyon.metrics()
     m["code_differences"] = split_code_stats(cmp)
+    m["signals_split"] = cmp.signals_split
     pos = cmp.positions()
     s, r = pos.get("sim_vs_truth", {}), pos.get("real_vs_truth", {})
     m["spp_h_rms_m_sim"] = s.get("rms_h_m", math.nan)
@@ -148,6 +150,9 @@ def canyon_lines(cmp, out_dir) -> list[str]:
               "does not:", ""]
         L += _table(["signal", "class", "n", "gross", "RMS within [m]", "RMS all [m]",
                      "p99 abs [m]"] + [f"> {t:g} m" for t in TAIL_THRESHOLDS_M], rows)
+    for cls, title in (("los", "line of sight"), ("nlos", "NLOS")):
+        if cmp.signals_split.get(cls) is not None:
+            L += [f"### Per-signal statistics, {title} only", ""] + summary_lines(cmp.signals_split[cls])
     fig = write_residual_figure(cmp, out_dir)
     if fig is not None:
         L += [f"![Code residuals, line of sight and NLOS]({fig.name})", ""]

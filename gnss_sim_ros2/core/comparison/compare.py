@@ -61,7 +61,7 @@ from ..calibration.signal_stats import RecordingStats, signal_statistics
 from ..ephemeris.broadcast import BroadcastEphemeris
 from ..receiver.outputs import write_navigation
 from ..rinex.header import read_obs_header
-from ..rinex.obs_table import ObsTable, match_epochs
+from ..rinex.obs_table import EPOCH_MATCH_NS, ObsTable, match_epochs
 from .canyon import Canyon, canyon_split
 from .pairing import SignalPair, pair_signals
 from .rtklib import rtklib_solutions
@@ -115,6 +115,10 @@ class Comparison:
     truth_real_label: str = ""
     #: the line-of-sight / NLOS split by a scene (core/comparison/canyon.py; None without a scene)
     canyon: Canyon | None = None
+    epoch_tol_ms: float = 1.0            #: epochs matched within this [ms]
+    max_tag_difference_ms: float = 0.0   #: largest time-tag difference of the matched epochs [ms]
+    #: :attr:`signals` over the line-of-sight ("los") and the NLOS ("nlos") satellite-epochs (with a scene)
+    signals_split: dict = field(default_factory=dict)
 
     # ------------------------------------------------------------------ summaries
     def sys_of_col(self) -> np.ndarray:
@@ -277,11 +281,26 @@ def _signal_statistics(cmp: Comparison, i_sim, i_real) -> None:
         out.append(signal_statistics(tab.subset(epochs=idx), el, mask_deg=cmp.mask_deg, bin_deg=10.0))
     cmp.signal_stats_sim, cmp.signal_stats_real = out
     cmp.signals = compare_statistics(*out, [(p.system, p.sim_code, p.real_code) for p in cmp.pairs])
+    if cmp.canyon is not None:      # the same, line of sight and NLOS apart (each file's own classification)
+        for cls in ("los", "nlos"):
+            side = []
+            for tab, idx, name in ((cmp.sim, i_sim, "sim"), (cmp.real, i_real, "real")):
+                sel = cmp.canyon.selection(name, cls, tab.sv)
+                el = np.full((len(idx), len(tab.sv)), np.nan)
+                col = {s: j for j, s in enumerate(cmp.sv.tolist())}
+                for j, s in enumerate(tab.sv.tolist()):
+                    if s in col:
+                        el[:, j] = cmp.el_deg[:, col[s]]
+                side.append(signal_statistics(tab.subset(epochs=idx), el, mask_deg=cmp.mask_deg, bin_deg=10.0,
+                                              los=sel, scene=cmp.canyon.scene))
+            cmp.signals_split[cls] = compare_statistics(*side, [(p.system, p.sim_code, p.real_code)
+                                                                for p in cmp.pairs])
 
 
 def compare(sim_path, real_path, nav_paths=None, truth_ecef_m=None, truth_csv=None, mask_deg: float = 0.0,
             solver: str = "ours", restrict_real_to_sim_span: bool = True, workdir=None, *, real_truth_csv=None,
-            scene=None, scene_name: str = "", ground_height_m: float | None = None) -> Comparison:
+            scene=None, scene_name: str = "", ground_height_m: float | None = None,
+            epoch_tol_ms: float | None = None) -> Comparison:
     """Compare two observation sources (RINEX or bag).  ``nav_paths``: broadcast navigation files for
     elevations and positions (none: no positions, no elevations); ``truth_ecef_m`` (3,) or ``truth_csv``
     (default truth: the real file's APPROX POSITION, else the simulated one's); ``real_truth_csv``: the real
@@ -289,7 +308,9 @@ def compare(sim_path, real_path, nav_paths=None, truth_ecef_m=None, truth_csv=No
     the visibility sets where an elevation is known; ``solver`` "ours" | "rtklib" (RINEX inputs only);
     ``scene`` (a loaded Scene, ``scene_name`` its option and file): the line-of-sight / NLOS split
     (core/comparison/canyon.py; needs ``nav_paths``), ``ground_height_m`` places the truth that high above the
-    scene's ground."""
+    scene's ground; ``epoch_tol_ms``: epochs of the two files matched within this [ms] (default 1 ms; a receiver
+    whose time tags wander by milliseconds, like the Hong Kong u-blox's +-3 ms, needs more: its code differences then
+    carry range rate x tag difference, reported)."""
     if solver not in ("ours", "rtklib"):
         raise ValueError(f"solver {solver!r}: expected 'ours' or 'rtklib'")
     if truth_ecef_m is not None and truth_csv is not None:
@@ -303,7 +324,10 @@ def compare(sim_path, real_path, nav_paths=None, truth_ecef_m=None, truth_csv=No
     if not len(real.time):
         raise ValueError(f"{real_path}: no observation epochs"
                          + (" within the simulated span" if restrict_real_to_sim_span else ""))
-    i_sim, i_real = match_epochs(sim.time, real.time)
+    if epoch_tol_ms is not None and not 0.0 < epoch_tol_ms <= 500.0:
+        raise ValueError(f"epoch tolerance {epoch_tol_ms!r} ms: must be in (0, 500]")
+    tol_ns = EPOCH_MATCH_NS if epoch_tol_ms is None else int(round(epoch_tol_ms * 1e6))
+    i_sim, i_real = match_epochs(sim.time, real.time, tol_ns)
     if not len(i_sim):
         raise ValueError(f"{sim_path} ({sim.time[0]} .. {sim.time[-1]}) and {real_path} "
                          f"({real.time[0]} .. {real.time[-1]}) have no common epoch")
@@ -358,10 +382,12 @@ def compare(sim_path, real_path, nav_paths=None, truth_ecef_m=None, truth_csv=No
         truth = np.tile(sim.approx_pos_ecef_m, (len(times), 1))
         truth_label = "simulated file header APPROX POSITION XYZ"
 
+    tag_ms = np.abs((real.time[i_real] - times).astype("timedelta64[ns]").astype(np.int64)) / 1e6
     cmp = Comparison(sim, real, times, svs, systems, "".join(s for s in sys_s if s not in sys_r),
                      "".join(s for s in sys_r if s not in sys_s), len(sim.time) - len(i_sim),
                      len(real.time) - len(i_real), pairs, kinds, seen_sim, seen_real, None, mask_deg,
                      truth_ecef_m=truth, truth_label=truth_label)
+    cmp.epoch_tol_ms, cmp.max_tag_difference_ms = tol_ns / 1e6, float(tag_ms.max())
     # raw C/N0 for the figure
     for p in pairs:
         for tab, idx, dst, code in ((sim, i_sim, cmp.sim_cn0, p.sim_code), (real, i_real, cmp.real_cn0, p.real_code)):

@@ -149,6 +149,10 @@ def write_report(cmp: Comparison, out_dir) -> Path:
           f"span)",
           f"- systems compared: {cmp.systems or '-'}; only simulated: {cmp.systems_only_sim or '-'}; "
           f"only real: {cmp.systems_only_real or '-'}",
+          f"- epochs matched within {cmp.epoch_tol_ms:g} ms (largest time-tag difference "
+          f"{cmp.max_tag_difference_ms:.3f} ms"
+          + ("; the code differences carry range rate x tag difference, up to 0.8 m per ms)"
+             if cmp.max_tag_difference_ms > 0.01 else ")"),
           f"- elevation mask given: {cmp.mask_deg:g} deg" + ("" if cmp.el_deg is not None else
                                                             " (not applied: no elevations without --nav)"), ""]
     L += [f"**Warning**: {w}" for w in cmp.warnings] + ([""] if cmp.warnings else [])
