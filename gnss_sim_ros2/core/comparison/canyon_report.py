@@ -152,7 +152,9 @@ def canyon_lines(cmp, out_dir) -> list[str]:
                      "p99 abs [m]"] + [f"> {t:g} m" for t in TAIL_THRESHOLDS_M], rows)
     for cls, title in (("los", "line of sight"), ("nlos", "NLOS")):
         if cmp.signals_split.get(cls) is not None:
-            L += [f"### Per-signal statistics, {title} only", ""] + summary_lines(cmp.signals_split[cls])
+            L += [f"### Per-signal statistics, {title} only", "",
+                  "(The tracked triples and their Jaccard count every satellite-epoch; the selection applies to "
+                  "the C/N0 per elevation bin and the code noise.)", ""] + summary_lines(cmp.signals_split[cls])
     fig = write_residual_figure(cmp, out_dir)
     if fig is not None:
         L += [f"![Code residuals, line of sight and NLOS]({fig.name})", ""]

@@ -270,31 +270,29 @@ def _kind_diffs(c: str, sim: ObsTable, real: ObsTable, pairs, svs, i_sim, i_real
 
 def _signal_statistics(cmp: Comparison, i_sim, i_real) -> None:
     """Per-signal statistics of both files over the common epochs (10-degree bins, the comparison's mask) and
-    their comparison (core/calibration/signal_compare.py)."""
-    out = []
-    for tab, idx in ((cmp.sim, i_sim), (cmp.real, i_real)):
-        col = {s: j for j, s in enumerate(cmp.sv.tolist())}
+    their comparison (core/calibration/signal_compare.py); with a scene also over the line-of-sight and the NLOS
+    satellite-epochs of each file (:attr:`Comparison.signals_split`).  The real file's matched epochs carry the
+    simulated time labels (epochs matched within ``epoch_tol_ms`` are one epoch)."""
+    col = {s: j for j, s in enumerate(cmp.sv.tolist())}
+    sides = []
+    for tab, idx, name in ((cmp.sim, i_sim, "sim"), (cmp.real, i_real, "real")):
         el = np.full((len(idx), len(tab.sv)), np.nan)
         for j, s in enumerate(tab.sv.tolist()):
             if s in col:
                 el[:, j] = cmp.el_deg[:, col[s]]
-        out.append(signal_statistics(tab.subset(epochs=idx), el, mask_deg=cmp.mask_deg, bin_deg=10.0))
+        sub = tab.subset(epochs=idx)
+        sub.time = cmp.time
+        sides.append((sub, el, name))
+    pairs = [(p.system, p.sim_code, p.real_code) for p in cmp.pairs]
+    out = [signal_statistics(sub, el, mask_deg=cmp.mask_deg, bin_deg=10.0) for sub, el, _ in sides]
     cmp.signal_stats_sim, cmp.signal_stats_real = out
-    cmp.signals = compare_statistics(*out, [(p.system, p.sim_code, p.real_code) for p in cmp.pairs])
-    if cmp.canyon is not None:      # the same, line of sight and NLOS apart (each file's own classification)
+    cmp.signals = compare_statistics(*out, pairs)
+    if cmp.canyon is not None:
         for cls in ("los", "nlos"):
-            side = []
-            for tab, idx, name in ((cmp.sim, i_sim, "sim"), (cmp.real, i_real, "real")):
-                sel = cmp.canyon.selection(name, cls, tab.sv)
-                el = np.full((len(idx), len(tab.sv)), np.nan)
-                col = {s: j for j, s in enumerate(cmp.sv.tolist())}
-                for j, s in enumerate(tab.sv.tolist()):
-                    if s in col:
-                        el[:, j] = cmp.el_deg[:, col[s]]
-                side.append(signal_statistics(tab.subset(epochs=idx), el, mask_deg=cmp.mask_deg, bin_deg=10.0,
-                                              los=sel, scene=cmp.canyon.scene))
-            cmp.signals_split[cls] = compare_statistics(*side, [(p.system, p.sim_code, p.real_code)
-                                                                for p in cmp.pairs])
+            st = [signal_statistics(sub, el, mask_deg=cmp.mask_deg, bin_deg=10.0,
+                                    los=cmp.canyon.selection(name, cls, sub.sv), scene=cmp.canyon.scene)
+                  for sub, el, name in sides]
+            cmp.signals_split[cls] = compare_statistics(*st, pairs)
 
 
 def compare(sim_path, real_path, nav_paths=None, truth_ecef_m=None, truth_csv=None, mask_deg: float = 0.0,
