@@ -15,19 +15,8 @@ from .statistics import GROSS_LIMITS, TAIL_THRESHOLDS_M, summary_stats
 URBAN_JSON = "urban.json"
 
 
-def _f(v, digits=3) -> str:
-    if v is None or (isinstance(v, float) and not math.isfinite(v)):
-        return "-"
-    return f"{v:.{digits}f}"
-
-
 def _pct(v) -> str:
     return "-" if v is None or not math.isfinite(v) else f"{100.0 * v:.1f} %"
-
-
-def _table(header, rows) -> list[str]:
-    out = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
-    return out + ["| " + " | ".join(str(c) for c in r) + " |" for r in rows] + [""]
 
 
 def split_code_stats(cmp) -> dict:
@@ -104,6 +93,9 @@ def canyon_lines(cmp, out_dir) -> list[str]:
     """The report section; writes ``urban.json`` and the residual figure into ``out_dir``."""
     if cmp.canyon is None:
         return []
+    from .report import _f  # one number format and table for the whole report
+    from .report import _md_table as _table
+
     m = urban_figures(cmp)
     (Path(out_dir) / URBAN_JSON).write_text(json.dumps(_json_safe(m), indent=1))
     a = m["agreement"]
