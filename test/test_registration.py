@@ -72,6 +72,19 @@ def test_a_known_shift_is_recovered_within_its_uncertainty(shift):
     assert not reg.at_edge
 
 
+def test_without_resampling_the_estimate_is_the_same_and_only_its_own_spread_remains():
+    """n_bootstrap=0 (drive_check.model_offset_m asks for no replicates): the same estimate as with resampling, an
+    uncertainty from the flat minimum and the grid alone, no replicate correlation (it failed reshaping an empty
+    resample)."""
+    model, sight = _recording((-3.0, 2.5))
+    with_boot = fit_offset(model, sight, mask_deg=MASK_DEG, n_bootstrap=20)
+    plain = fit_offset(model, sight, mask_deg=MASK_DEG, n_bootstrap=0)
+    assert plain.offset_en_m == with_boot.offset_en_m
+    assert plain.criterion_best == with_boot.criterion_best
+    assert np.all(np.array(plain.sigma_en_m) <= np.array(with_boot.sigma_en_m)) and plain.sigma_en_m[0] > 0
+    assert plain.corr_en == 0.0
+
+
 def test_no_shift_gives_about_zero():
     model, sight = _recording((0.0, 0.0))
     reg = fit_offset(model, sight, mask_deg=MASK_DEG, n_bootstrap=100)

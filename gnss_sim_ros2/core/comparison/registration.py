@@ -149,6 +149,8 @@ def _criterion(counts: np.ndarray, weights=None) -> np.ndarray:
 
 def _block_weights(n_epochs: int, block: int, n_boot: int, rng) -> np.ndarray:
     """(n_boot, n_epochs) counts of each epoch in moving-block bootstrap resamples (Kuensch 1989)."""
+    if n_boot <= 0:                        # no resampling (drive_check.model_offset_m): no replicate
+        return np.zeros((0, n_epochs))
     block = max(1, min(block, n_epochs))
     n_blocks = int(np.ceil(n_epochs / block))
     starts = rng.integers(0, n_epochs - block + 1, size=(n_boot, n_blocks))
