@@ -9,6 +9,8 @@ import numpy as np
 
 from ..calibration.signal_compare import summary_lines
 from .canyon import LOS_TAIL_M
+from .markdown import fmt as _f  # one number format and table for the whole report
+from .markdown import md_table as _table
 from .statistics import GROSS_LIMITS, TAIL_THRESHOLDS_M, summary_stats
 
 #: the canyon figures beside report.md (signals.json stays as issue 26 wrote it)
@@ -93,8 +95,6 @@ def canyon_lines(cmp, out_dir) -> list[str]:
     """The report section; writes ``urban.json`` and the residual figure into ``out_dir``."""
     if cmp.canyon is None:
         return []
-    from .report import _f  # one number format and table for the whole report
-    from .report import _md_table as _table
 
     m = urban_figures(cmp)
     (Path(out_dir) / URBAN_JSON).write_text(json.dumps(_json_safe(m), indent=1))

@@ -10,23 +10,13 @@ import numpy as np
 from ..calibration.signal_compare import summary_lines
 from .canyon_report import canyon_lines
 from .compare import Comparison
+from .markdown import fmt as _f
+from .markdown import md_table as _md_table
 from .pairing import unpaired_signals
 from .statistics import DESCRIPTION, GROSS_LIMITS, TAIL_THRESHOLDS_M, UNITS, enu_errors_m
 
 #: the per-signal statistics of both sides and their comparison, beside report.md
 SIGNALS_JSON = "signals.json"
-
-
-def _f(v, digits=3) -> str:
-    if v is None or (isinstance(v, float) and not math.isfinite(v)):
-        return "-"
-    return f"{0.0 if abs(v) < 0.5 * 10.0**-digits else v:.{digits}f}"
-
-
-def _md_table(header: list[str], rows: list[list]) -> list[str]:
-    out = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
-    out += ["| " + " | ".join(str(c) for c in r) + " |" for r in rows]
-    return out + [""]
 
 
 def write_figures(cmp: Comparison, out_dir) -> dict[str, Path]:
