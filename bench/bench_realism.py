@@ -26,7 +26,6 @@ from __future__ import annotations
 import argparse
 import gzip
 import json
-import math
 import shutil
 import subprocess
 import sys
@@ -36,6 +35,10 @@ from pathlib import Path
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
+if str(REPO) not in sys.path:
+    sys.path.insert(0, str(REPO))
+from gnss_sim_ros2.core.frames import ecef_to_enu, ecef_to_geodetic, enu_to_ecef  # noqa: E402
+
 SHARED = REPO.parent / "shared" / "data"
 GNSS_SIM = [sys.executable, "-m", "gnss_sim_ros2.cli"]
 ESBC = SHARED / "esbc-2020-177-polarx5"
@@ -98,21 +101,12 @@ def ppp_reference(files, out: Path, ts=None, te=None) -> np.ndarray:
     return sol[-1, :3]
 
 
-def enu_rows(d_ecef: np.ndarray, ref: np.ndarray) -> np.ndarray:
-    lat = math.atan2(ref[2], math.hypot(ref[0], ref[1]))
-    lon = math.atan2(ref[1], ref[0])
-    r = np.array([[-math.sin(lon), math.cos(lon), 0.0],
-                  [-math.sin(lat) * math.cos(lon), -math.sin(lat) * math.sin(lon), math.cos(lat)],
-                  [math.cos(lat) * math.cos(lon), math.cos(lat) * math.sin(lon), math.sin(lat)]])
-    return d_ecef @ r.T
-
-
 def spp_rms(obs, nav, ref, systems: str, out: Path, ts=None, te=None) -> tuple[float, float]:
     """RTKLIB single point: (horizontal RMS, vertical RMS) [m] against ``ref``."""
     conf = (f"pos1-posmode=single\npos1-elmask=10\npos1-navsys={NAVSYS[systems]}\npos1-ionoopt=brdc\n"
             "pos1-tropopt=saas\nout-solformat=xyz\n")
     sol = _rtklib_pos(conf, out, [obs, nav], ts, te)
-    enu = enu_rows(sol[:, :3] - ref, ref)
+    enu = ecef_to_enu(sol[:, :3], *ecef_to_geodetic(*ref))
     return float(np.sqrt(np.mean(enu[:, 0] ** 2 + enu[:, 1] ** 2))), float(np.sqrt(np.mean(enu[:, 2] ** 2)))
 
 
@@ -165,7 +159,7 @@ def signal_figures(cmp: dict) -> dict:
 
 def rtk_l1(work: Path, nav, base, start: str, profile, duration_s: float = 3600) -> dict:
     """GPS L1 RTK of a rover 1 m east of the base (both simulated, one world: same world seed)."""
-    rover = base + enu_rows(np.eye(3), base).T @ np.array([1.0, 0.0, 0.0])   # ENU east -> ECEF
+    rover = enu_to_ecef(np.array([1.0, 0.0, 0.0]), *ecef_to_geodetic(*base))    # 1 m east
     b = simulate(work / "rtk_base", nav, base, start, duration_s, profile, seed=11, systems="G", marker="BASE")
     r = simulate(work / "rtk_rover", nav, rover, start, duration_s, profile, seed=12, systems="G",
                  marker="ROVR")
@@ -179,6 +173,10 @@ def rtk_l1(work: Path, nav, base, start: str, profile, duration_s: float = 3600)
     return {"epochs": len(sol), "fix_rate": float(fixed.mean()) if len(sol) else 0.0,
             "max_fixed_error_m": float(err[fixed].max()) if fixed.any() else None,
             "fixed_over_10cm": int((err[fixed] > 0.10).sum())}
+
+
+def _label(profile: str) -> str:
+    return "geodetic" if profile == "geodetic" else "fitted on ESBC 0-12 h"
 
 
 def _f(v, d=2):
@@ -226,7 +224,7 @@ def main(argv=None) -> int:
     dur = 3600.0 * a.hours
     cases = []
     for prof in ("geodetic", str(fitted)):
-        name = "geodetic" if prof == "geodetic" else "fitted on ESBC 0-12 h"
+        name = _label(prof)
         sim = simulate(work / f"esbc_{len(cases)}", f["esbc_nav"], ref_esbc, "2020-06-25T12:00:00", dur, prof)
         sig = signal_figures(compare_signals(sim, f["esbc_obs"], [f["esbc_nav"]], ref_esbc,
                                              work / f"cmp_esbc_{len(cases)}"))
@@ -279,7 +277,7 @@ def main(argv=None) -> int:
     print("|---|---|---|---|---|---|")
     for prof in ("geodetic", str(fitted)):
         r = rtk_l1(work, f["esbc_nav"], ref_esbc, "2020-06-25T12:00:00", prof)
-        name = "geodetic" if prof == "geodetic" else "fitted on ESBC 0-12 h"
+        name = _label(prof)
         print(f"| ESBC sky 12-13 h | {name} | {r['epochs']} | {100 * r['fix_rate']:.1f} % | "
               f"{_f(r['max_fixed_error_m'], 3)} | {r['fixed_over_10cm']} |")
     print(f"\nworking files: {work}")
