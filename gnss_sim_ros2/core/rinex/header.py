@@ -7,6 +7,15 @@ from pathlib import Path
 import numpy as np
 
 
+def _three_f14(line: str, path, n: int, label: str) -> np.ndarray:
+    """The three 3F14.4 numbers of a header line (APPROX POSITION XYZ, ANTENNA: DELTA H/E/N; RINEX 3.05 table A2);
+    ValueError naming the file, line and label."""
+    try:
+        return np.array([float(line[i:i + 14]) for i in (0, 14, 28)])
+    except ValueError:
+        raise ValueError(f"{path}, line {n}: unreadable {label} {line[:42]!r}") from None
+
+
 def read_obs_header(path: Path) -> dict:
     """Fields georinex does not give: ``version``, ``approx`` (APPROX POSITION XYZ, None when absent or 0),
     ``glo`` (GLONASS SLOT / FRQ #: slot -> channel), ``first_obs`` (TIME OF FIRST OBS to the minute)."""
@@ -42,19 +51,13 @@ def parse_obs_header(f, path) -> dict:
         if label == "END OF HEADER":
             break
         if label == "APPROX POSITION XYZ":
-            try:
-                out["approx"] = np.array([float(line[i:i + 14]) for i in (0, 14, 28)])
-            except ValueError:
-                raise ValueError(f"{path}, line {n}: unreadable APPROX POSITION XYZ {line[:42]!r}") from None
+            out["approx"] = _three_f14(line, path, n, label)
         elif label == "REC # / TYPE / VERS":
             out["receiver_type"] = line[20:40].strip()
         elif label == "ANT # / TYPE":
             out["antenna_type"] = line[20:40].rstrip()
         elif label == "ANTENNA: DELTA H/E/N":
-            try:
-                out["delta_hen_m"] = np.array([float(line[i:i + 14]) for i in (0, 14, 28)])
-            except ValueError:
-                raise ValueError(f"{path}, line {n}: unreadable ANTENNA: DELTA H/E/N {line[:42]!r}") from None
+            out["delta_hen_m"] = _three_f14(line, path, n, label)
         elif label == "INTERVAL":
             try:
                 out["interval_s"] = float(line[:10])
