@@ -122,6 +122,14 @@ class Param:
         return value
 
 
+def _check_box_size(value: list, where: str) -> list:
+    """3 positive box dimensions [m] (length, width, height of an obstacle's box)."""
+    if len(value) != 3 or not all(v > 0 for v in value):
+        raise ValueError(f"{where} = {value!r}: needs 3 positive numbers [m] (length along x, width along y, "
+                         f"height along z of the obstacle's frame)")
+    return value
+
+
 #: the span of GNSS time this simulator supports: the GPS epoch to the end of the leap-second table's use
 SUPPORTED_SPAN = (_dt.datetime(1980, 1, 6), _dt.datetime(2100, 1, 1))
 
@@ -246,6 +254,20 @@ NODE_PARAMS: dict[str, list[Param]] = {
         Param("antenna_position_type", "world", "what antenna_position holds: world (x, y, z in world_frame [m]), "
               "llh (latitude [deg], longitude [deg], ellipsoidal height [m]) or ecef (WGS 84 [m])",
               choices=POSITION_TYPES),
+        Param("obstacle_frames", [], "TF frames of moving obstacles (other robots' base_link): a box of "
+              "obstacle_box_size_m stands on each, looked up in world_frame at each epoch's stamp and blocking "
+              "satellites on top of the static scene; a frame under the antenna_frame's prefix (robot<k>/) is the "
+              "robot's own body and is left out", item_type="string"),
+        Param("obstacle_box_size_m", [1.0, 0.7, 0.4], "size of an obstacle_frames box [m]: length along the frame's "
+              "x, width along y, height along z, its base centred on the frame's origin",
+              check_value=_check_box_size),
+        Param("obstacle_models", [], "Gazebo models that move (cars, buses, people): their poses from "
+              "obstacle_pose_topic, a box of obstacle_model_size_m on each", item_type="string"),
+        Param("obstacle_model_size_m", [4.5, 1.8, 1.5], "size of an obstacle_models box (and of a gnss-sim simulate "
+              "--obstacle-path box) [m]: length, width, height, base centred on the model's origin",
+              check_value=_check_box_size),
+        Param("obstacle_pose_topic", "", "tf2_msgs/TFMessage topic of the models' poses in world_frame (ros_gz_bridge "
+              "of /world/<name>/dynamic_pose/info; child_frame_id = model name); empty: no model obstacles"),
     ],
     "receiver": [
         Param("profile", "geodetic", "receiver profile (signals, antenna, front end, loops, thresholds, noise): a "
@@ -412,6 +434,9 @@ def validate_node(key: str, values: dict, where: str, options: dict[str, str] | 
                              f"means the profile's): a signal would be lost above the level at which it is acquired")
     if key == "visibility" and out["antenna_position"]:
         check_position(out["antenna_position"], out["antenna_position_type"], "antenna_position", where)
+    if key == "visibility" and out["obstacle_models"] and not out["obstacle_pose_topic"]:
+        raise ValueError(f"{where}: parameter 'obstacle_models' ({', '.join(out['obstacle_models'])}) needs "
+                         f"parameter 'obstacle_pose_topic': the topic their poses come on")
     if key == "rtk":
         check_position(out["base_position"], out["base_position_type"], "base_position", where)
     if out["antenna2_frame"] and out["antenna2_frame"] == out["antenna_frame"]:

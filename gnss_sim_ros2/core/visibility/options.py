@@ -10,6 +10,7 @@ import numpy as np
 from ..multipath.scene_paths import cast_paths
 from ..presets import preset as preset_switches
 from ..vocabulary import VisibilityState
+from .moving_obstacles import block_by_obstacles
 
 
 @dataclass(frozen=True)
@@ -51,17 +52,20 @@ class VisibilityOptions:
                    multipath_bounces=int(p.get("multipath_bounces", 2)),
                    multipath_scattering=bool(p.get("multipath_scattering", False)))
 
-    def cast(self, scene, antenna_world_m, sat_ecef_m):
+    def cast(self, scene, antenna_world_m, sat_ecef_m, obstacles=None):
         """(state, attenuation_db, VisibilityResult) of satellites (N, 3) or (M, N, 3) seen from the antenna(s).
 
         ``state`` uses VisibilityState; satellites below the mask are not cast and count as visible (the
         receiver does not track them).  With ``multipath`` on, ``v.paths`` holds the reflected paths
         (core/multipath/scene_paths.py), blocked satellites diffracted over an edge with a loss below 40 dB are
         ATTENUATED by it, those with a reflected path REFLECTED_ONLY, and ``v.extra_path_m`` is the shortest
-        path's excess."""
+        path's excess.  ``obstacles``: moving boxes (core/visibility/moving_obstacles.py ``MovingBoxes``, one row
+        per antenna) that block on top of the static scene, before the reflections are sought."""
         v = scene.visibility_ecef(antenna_world_m, sat_ecef_m, mask_deg=self.mask_deg,
                                   fresnel_rays=self.fresnel_rays, foliage=self.foliage)
         state = np.where(v.state < 0, int(VisibilityState.VISIBLE), v.state).astype(np.int64)
+        if obstacles is not None:
+            state = block_by_obstacles(scene, antenna_world_m, sat_ecef_m, v, state, self.mask_deg, obstacles)
         att = v.attenuation_db + v.diffraction_db
         if self.multipath != "off":
             state, edge_db = cast_paths(self, scene, antenna_world_m, sat_ecef_m, v, state)
