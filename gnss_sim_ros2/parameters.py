@@ -134,6 +134,19 @@ def _check_box_size(value: list, where: str) -> list:
 SUPPORTED_SPAN = (_dt.datetime(1980, 1, 6), _dt.datetime(2100, 1, 1))
 
 
+def _check_scenario(value: str, where: str) -> str:
+    """A threat scenario file read and validated (core/threats/scenario.py), kept as its absolute path; empty:
+    none."""
+    if not value:
+        return value
+    from gnss_sim_ros2.core.threats.scenario import load_scenario
+
+    try:
+        return load_scenario(value).source
+    except ValueError as exc:
+        raise ValueError(f"{where}: {exc}") from None
+
+
 def _check_profile(value: str, where: str) -> str:
     """A receiver profile loaded and validated (core/receiver/profiles.py): a built-in name as it is, a file as
     an absolute path (a run's params.yaml then works from any folder)."""
@@ -298,6 +311,9 @@ NODE_PARAMS: dict[str, list[Param]] = {
               "above the loss threshold at the first epoch are locked, no loss-of-lock or half-cycle flag) or cold "
               "(switched on at the first epoch: every track acquired then, flagged); empty: the profile's "
               "(tracking.start, default warm)", choices=("", *TRACKING_STARTS)),
+        Param("scenario", "", "threat scenario file (YAML, docs/SCENARIOS.md): timed jammers, spoofers and receiver "
+              "faults (core/threats), relative to the working directory, kept as its absolute path; empty: none",
+              check_value=_check_scenario),
     ],
     "trajectory": [
         Param("trajectory_file", "", "CSV t_s,e_m,n_m,u_m[,yaw_deg] in the world frame; empty: waypoints"),

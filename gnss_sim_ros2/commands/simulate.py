@@ -52,6 +52,9 @@ def add_arguments(p):
                    help="warm: the recording starts with the receiver long running (tracks locked, no flags at the "
                         "first epoch); cold: the receiver is switched on at the first epoch (parameter tracking_start; "
                         "default: the profile's)")
+    p.add_argument("--scenario", metavar="FILE", default=None,
+                   help="threat scenario (YAML, docs/SCENARIOS.md): timed jammers, spoofers, receiver faults "
+                        "(parameter scenario)")
     p.add_argument("--marker", default=None, help="RINEX marker name")
     p.add_argument("--rtcm", nargs="?", const="", default=None, metavar="FILE",
                    help="also write the observations as RTCM3 (1006, 1033, MSM, broadcast ephemerides); "
@@ -71,6 +74,7 @@ OPTION_PARAMS = {
     "--world": ("visibility", "world_file"), "--mesh": ("visibility", "mesh_file"),
     "--profile": ("receiver", "profile"), "--noise-free": ("receiver", "noise"),
     "--allow-partial": ("visibility", "strict_world"), "--tracking-start": ("receiver", "tracking_start"),
+    "--scenario": ("receiver", "scenario"),
 }
 
 
@@ -84,6 +88,7 @@ def parameter_overrides(args) -> tuple[dict, dict]:
              "--clk": args.clk, "--world": args.world, "--mesh": args.mesh, "--profile": args.profile,
              "--noise-free": False if args.noise_free else None,
              "--tracking-start": getattr(args, "tracking_start", None),
+             "--scenario": getattr(args, "scenario", None),
              "--allow-partial": False if getattr(args, "allow_partial", False) else None}
     ov: dict = {}
     names: dict = {}
