@@ -5,9 +5,13 @@ each epoch's rays are tested against the boxes separately, here, and combined pe
 (blocked if either blocks).  The test is the slab method (Kay and Kajiya, "Ray tracing complex scenes",
 SIGGRAPH 1986; Williams et al., "An efficient and robust ray-box intersection algorithm", JGT 2005) in numpy,
 float64, in each box's own frame: the ray origin is taken relative to the box centre before anything else, so
-the far-from-origin float32 loss of the Open3D scene (raycast.py) never arises.  Cost per epoch: rays x boxes,
-nothing else (``bench/bench_moving_obstacles.py`` measures it, and a small Open3D scene of the boxes per
-epoch, which costs more below a few hundred boxes).
+the far-from-origin float32 loss of the Open3D scene (raycast.py) never arises.  Rays are culled first by each
+box's bounding sphere, so an epoch costs one dot product per ray and box plus the slab test of the few pairs
+left.  ``bench/bench_moving_obstacles.py`` measured (demo world, 40 satellites, 2 shared cores, load 5.8): 0.18 ms
+added per epoch for 1 box, 0.28 ms for 16, 0.61 ms for 64; the alternative, a small Open3D scene of only the boxes
+built and cast every epoch, cost about the same (0.18 / 0.25 / 0.52 ms) but cannot leave out each antenna's own
+body in one cast; one batched cast of 32 robots (each seeing the 31 other bodies) 2.2 ms against 84 ms for 32
+separate casts.
 
 A box stands on its frame: ``size_m`` = (length along the frame's x, width along y, height along z), its base
 centred on the frame's origin (a robot's ``base_link``, a Gazebo model's origin on the ground).  Boxes are given
@@ -100,25 +104,33 @@ def rays_blocked_by_boxes(origins_world_m, dirs_world, boxes: MovingBoxes, tnear
     rows = np.flatnonzero(boxes.active.any(axis=1))
     if len(rows) == 0:
         return out
-    rot = boxes.rot_world_from_box[rows]                                  # (m', B, 3, 3)
-    # the ray in box b's frame: origin R^T (o - c), direction R^T d
-    ob = np.einsum("mbji,mbj->mbi", rot, o[rows, None, :] - boxes.center_world_m[rows])       # (m', B, 3)
-    db = np.einsum("mbji,mnj->mnbi", rot, d[rows])                                            # (m', N, B, 3)
-    h = boxes.half_size_m[rows][:, None]                                                      # (m', 1, B, 3)
-    ob = ob[:, None]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        inv = 1.0 / db                                                     # +-inf along a face: the slab test's rule
+    # cull first: a ray that passes farther from a box's centre than its half diagonal, or that points away from
+    # it, cannot touch it (one dot product per ray and box); the slab test runs only on the pairs left
+    rel = boxes.center_world_m[rows] - o[rows, None, :]                   # (m', B, 3) antenna -> box centre
+    radius = np.sqrt(np.einsum("mbi,mbi->mb", boxes.half_size_m[rows], boxes.half_size_m[rows]))
+    dist2 = np.einsum("mbi,mbi->mb", rel, rel)
+    proj = np.matmul(d[rows], rel.transpose(0, 2, 1))                     # (m', N, B): along the ray to the centre
+    near = (dist2[:, None, :] - proj * proj <= (radius * radius)[:, None, :]) & (proj >= -radius[:, None, :])
+    near &= boxes.active[rows][:, None, :]
+    mm, nn, bb = np.nonzero(near)
+    if len(mm) == 0:
+        return out
+    rot = boxes.rot_world_from_box[rows][mm, bb]                          # (K, 3, 3) of each pair left
+    ob = -np.einsum("kji,kj->ki", rot, rel[mm, bb])                       # origin in the box's frame R^T (o - c)
+    db = np.einsum("kji,kj->ki", rot, d[rows][mm, nn])                    # direction R^T d
+    h = boxes.half_size_m[rows][mm, bb]
+    # parallel to a slab: 1e-300 instead of 0, so (+-h - o) / d is -+huge inside the slab (no limit there) and of
+    # one sign outside it (never inside): the slab rule without a special case
+    db[db == 0.0] = 1e-300
+    inv = 1.0 / db
+    with np.errstate(over="ignore"):
         t1 = (-h - ob) * inv
         t2 = (h - ob) * inv
-    # parallel to a slab (d = 0): inside it for every t (-inf, inf), outside it never (NaN from 0 * inf below)
-    par = db == 0.0
-    inside = np.abs(ob) <= h
-    t_lo = np.where(par, np.where(inside, -np.inf, np.inf), np.minimum(t1, t2))
-    t_hi = np.where(par, np.where(inside, np.inf, -np.inf), np.maximum(t1, t2))
-    t_in = t_lo.max(axis=-1)
-    t_out = t_hi.min(axis=-1)
-    hit = (t_out >= np.maximum(t_in, tnear_m)) & boxes.active[rows][:, None, :]
-    out[rows] = hit.any(axis=-1)
+    lo, hi = np.minimum(t1, t2), np.maximum(t1, t2)
+    t_in = np.maximum(np.maximum(lo[:, 0], lo[:, 1]), lo[:, 2])
+    t_out = np.minimum(np.minimum(hi[:, 0], hi[:, 1]), hi[:, 2])
+    hit = t_out >= np.maximum(t_in, tnear_m)
+    out[rows[mm[hit]], nn[hit]] = True
     return out
 
 
