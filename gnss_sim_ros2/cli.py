@@ -30,6 +30,8 @@ COMMANDS = {
     "skyplot": ("skyplot", "line-of-sight state of every satellite from a point of a world (CSV, sky plot PNG)"),
     "bench": ("bench", "speed against accuracy of the fidelity presets: table, JSON, cost/accuracy plot"),
     "satpos": ("satpos", "satellite positions, velocities and clocks on a time grid (broadcast or SP3) as CSV"),
+    "plan": ("plan", "GNSS quality over an area and a time window: satellites, DOP, expected accuracy, RTK "
+             "indicator per cell and time; maps, GeoJSON, NetCDF/Parquet, best windows"),
     "sweep": ("sweep", "one simulate scenario over seeds, dates, presets, trajectories, worlds on Dask: Parquet rows"),
     "compare": ("compare", "compare simulated and real observations (RINEX or bag): differences, visibility, "
                 "positions; Markdown report with figures"),

@@ -226,6 +226,43 @@ def _symmetrised(inv: np.ndarray) -> np.ndarray:
     return 0.5 * (inv + np.swapaxes(inv, 1, 2))
 
 
+def dops_from_az_el(az_deg, el_deg, used, clock_index=None):
+    """(gdop, pdop, hdop, vdop, tdop) (K,) of the satellites ``used`` (K, N) bool at ``az_deg``/``el_deg`` (K, N)
+    in the receiver's local ENU, without solving: the same unweighted design matrix as the solver's DOPs (unit
+    line of sight, one clock column per clock group ``clock_index`` (N,) int, all 0 by default); TDOP of the
+    first group present.  NaN where fewer satellites than unknowns (3 + clock groups present) are used."""
+    az, el = np.radians(np.asarray(az_deg, np.float64)), np.radians(np.asarray(el_deg, np.float64))
+    use = np.asarray(used, bool)
+    k, n = use.shape
+    ci = np.zeros(n, np.int64) if clock_index is None else np.asarray(clock_index, np.int64)
+    g = int(ci.max(initial=0)) + 1
+    ce = np.cos(el)
+    h = np.zeros((k, n, 3 + g))
+    h[..., 0], h[..., 1], h[..., 2] = -ce * np.sin(az), -ce * np.cos(az), -np.sin(el)     # ENU
+    h[:, np.arange(n), 3 + ci] = 1.0                # each satellite's own clock column
+    h *= use[..., None]
+    nmat = np.matmul(np.swapaxes(h, 1, 2), h)
+    present = np.stack([(use & (ci == j)).any(axis=1) for j in range(g)], axis=1)
+    ok = use.sum(axis=1) >= 3 + present.sum(axis=1)
+    nmat[~ok] = np.eye(3 + g)                       # too few: any invertible matrix, the result is NaN below
+    nmat = _filled(nmat, present)
+    try:
+        q = _spd_inverses(nmat)
+    except np.linalg.LinAlgError:                   # an exactly singular geometry among them
+        q = _symmetrised(np.linalg.pinv(nmat, hermitian=True))
+    # a degenerate geometry (satellites on one cone): DOPs beyond any use, reported as NaN
+    good = ok & np.all(np.isfinite(q), axis=(1, 2)) & (np.trace(q[:, :3, :3], axis1=1, axis2=2) < 1e8)
+    hdop = np.sqrt(np.maximum(q[:, 0, 0] + q[:, 1, 1], 0.0))
+    vdop = np.sqrt(np.maximum(q[:, 2, 2], 0.0))
+    pdop = np.sqrt(hdop**2 + vdop**2)
+    ref = 3 + np.argmax(present, axis=1)
+    tdop = np.sqrt(np.maximum(q[np.arange(k), ref, ref], 0.0))
+    gdop = np.sqrt(pdop**2 + tdop**2)
+    out = np.stack([gdop, pdop, hdop, vdop, tdop])
+    out[:, ~good] = np.nan
+    return tuple(out)
+
+
 #: ||N||_F ||N^-1||_F below which a normal matrix passes the geometry check without its eigenvalues
 #: (_solve_positions): 100 times below the limit of 1e14, so that neither the rounding of the computed
 #: inverse nor that of the matrix can make a difference

@@ -108,6 +108,13 @@ def _connect(workers: int | None, scheduler: str | None):
     return Client(cluster), cluster
 
 
+def connect_cluster(workers: int | None, scheduler: str | None):
+    """(client, local cluster or None): the existing scheduler at ``scheduler``, else a local cluster of ``workers``
+    (1 by default) started as the sweep's (``gnss-sim plan`` runs its blocks on it too); SweepClusterError naming
+    --scheduler / --workers when it cannot."""
+    return _connect(workers, scheduler)
+
+
 def run_sweep(tasks, out_dir: Path, workers: int | None = None, scheduler: str | None = None,
               progress: bool = True, cache: bool = True, log=None) -> SweepOutcome:
     """Run ``tasks`` [(RunPoint, SimulationSetup with out_dir = the run's folder)] and return the rows.

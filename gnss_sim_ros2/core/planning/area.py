@@ -1,0 +1,172 @@
+"""The cells of a plan: a regular grid over the world's bounds or a polygon (world x, y), or the points of a path.
+
+A grid keeps its full (ny, nx) shape with ``inside`` marking the cells computed (polygon or bounds), so maps
+and GeoJSON cells are plain array views.  Cell centres sit at ``x0 + (i + 0.5) step`` from the lower-left corner
+of the box.  The antenna of a cell is ``height_m`` above its ground: the highest opaque surface under the cell
+centre (one downward cast of the scene per cell; a roof where the cell lies on a building), or z = 0 where
+nothing is under it (a sky mask or a mesh without ground).
+"""
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+
+@dataclass
+class PlanArea:
+    """Cells in the world frame [m]: ``x_m``, ``y_m`` (C,) of the computed cells; a grid also has its shape."""
+
+    x_m: np.ndarray
+    y_m: np.ndarray
+    kind: str                                   # "grid" | "path"
+    step_m: float = 0.0
+    x0_m: float = 0.0                           # grid: lower-left corner of the box
+    y0_m: float = 0.0
+    shape: tuple = ()                           # grid: (ny, nx)
+    inside: np.ndarray | None = None            # grid: (ny, nx) bool, the computed cells in row-major order
+
+    @property
+    def n_cells(self) -> int:
+        return len(self.x_m)
+
+    def corners_xy(self) -> np.ndarray:
+        """(C, 5, 2) closed ring of each cell (grid: the square of side step; path: a step-sized square)."""
+        h = 0.5 * (self.step_m if self.step_m > 0 else 1.0)
+        dx = np.array([-h, h, h, -h, -h])
+        dy = np.array([-h, -h, h, h, -h])
+        return np.stack([self.x_m[:, None] + dx, self.y_m[:, None] + dy], axis=-1)
+
+    def to_grid(self, values, fill=np.nan) -> np.ndarray:
+        """Per-cell values (C, ...) as a (ny, nx, ...) grid (``fill`` outside); a grid area only."""
+        if self.kind != "grid":
+            raise ValueError("to_grid: the area is a path, not a grid")
+        v = np.asarray(values)
+        out = np.full(self.shape + v.shape[1:], fill, dtype=np.result_type(v.dtype, np.asarray(fill).dtype))
+        out[self.inside] = v
+        return out
+
+
+def check_step(step_m: float, option: str = "--step-m") -> float:
+    step = float(step_m)
+    if not (np.isfinite(step) and step > 0):
+        raise ValueError(f"option {option} is {step_m}: a grid step > 0 m is needed")
+    return step
+
+
+def parse_polygon(text: str, option: str = "--polygon") -> np.ndarray:
+    """``"x,y;x,y;x,y[;...]"`` (world metres) -> (P, 2); ValueError naming the option."""
+    try:
+        pts = np.array([[float(v) for v in p.split(",")] for p in text.replace(" ", "").strip(";").split(";")])
+    except ValueError:
+        pts = np.zeros((0, 0))
+    if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 3 or not np.all(np.isfinite(pts)):
+        raise ValueError(f"option {option} {text!r}: expected at least three x,y vertices in world metres, separated "
+                         f"by ';', e.g. {option} '0,0;50,0;50,40;0,40'")
+    if abs(_area(pts)) <= 0.0:
+        raise ValueError(f"option {option} {text!r}: the vertices enclose no area")
+    return pts
+
+
+def _area(p):
+    x, y = p[:, 0], p[:, 1]
+    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
+
+
+def inside_polygon(x, y, poly) -> np.ndarray:
+    """Even-odd rule (W. R. Franklin's pnpoly crossing test), vectorised over points: (K,) bool."""
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    inside = np.zeros(x.shape, bool)
+    px, py = poly[:, 0], poly[:, 1]
+    j = len(poly) - 1
+    for i in range(len(poly)):
+        xi, yi, xj, yj = px[i], py[i], px[j], py[j]
+        crosses = (yi > y) != (yj > y)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            xc = (xj - xi) * (y - yi) / (yj - yi) + xi
+        inside ^= crosses & (x < xc)
+        j = i
+    return inside
+
+
+def grid_area(step_m: float, bounds_xy=None, polygon=None) -> PlanArea:
+    """A grid over ``polygon`` (P, 2) (clipped to ``bounds_xy`` (xmin, ymin, xmax, ymax) when given) or over the
+    bounds.  ValueError naming --polygon when it lies outside the world's bounds."""
+    step = check_step(step_m)
+    if polygon is not None:
+        lo, hi = polygon.min(axis=0), polygon.max(axis=0)
+        if bounds_xy is not None:
+            bx0, by0, bx1, by1 = bounds_xy
+            if hi[0] <= bx0 or lo[0] >= bx1 or hi[1] <= by0 or lo[1] >= by1:
+                raise ValueError(f"option --polygon: x {lo[0]:g}..{hi[0]:g}, y {lo[1]:g}..{hi[1]:g} m lies outside "
+                                 f"the world (x {bx0:g}..{bx1:g}, y {by0:g}..{by1:g} m)")
+            lo = np.maximum(lo, [bx0, by0])
+            hi = np.minimum(hi, [bx1, by1])
+    elif bounds_xy is not None:
+        lo, hi = np.array(bounds_xy[:2], float), np.array(bounds_xy[2:], float)
+    else:
+        raise ValueError("the area needs --polygon or --path (this world source has no bounds)")
+    nx = max(1, int(np.ceil((hi[0] - lo[0]) / step - 1e-9)))
+    ny = max(1, int(np.ceil((hi[1] - lo[1]) / step - 1e-9)))
+    xs = lo[0] + (np.arange(nx) + 0.5) * step
+    ys = lo[1] + (np.arange(ny) + 0.5) * step
+    gx, gy = np.meshgrid(xs, ys)                      # (ny, nx)
+    inside = np.ones(gx.shape, bool) if polygon is None else inside_polygon(gx, gy, polygon)
+    if not inside.any():
+        raise ValueError(f"option --polygon: no cell centre of the {step:g} m grid falls inside the polygon "
+                         f"(a smaller --step-m?)")
+    return PlanArea(gx[inside], gy[inside], "grid", step, float(lo[0]), float(lo[1]), gx.shape, inside)
+
+
+def read_path_csv(path) -> PlanArea:
+    """A path CSV with columns x_m,y_m (or x,y), world metres, one row per point; ValueError naming file and line."""
+    p = Path(path)
+    try:
+        rows = list(csv.reader(p.open()))
+    except OSError as exc:
+        raise ValueError(f"option --path {path}: cannot read ({exc.strerror})") from None
+    rows = [r for r in rows if r and not r[0].lstrip().startswith("#")]
+    if not rows:
+        raise ValueError(f"{path}: empty (expected a header x_m,y_m and one row per point)")
+    head = [h.strip() for h in rows[0]]
+    cols = next(((head.index(a), head.index(b)) for a, b in (("x_m", "y_m"), ("x", "y")) if a in head and b in head),
+                None)
+    if cols is None:
+        raise ValueError(f"{path}:1: header {','.join(head)!r} has no x_m,y_m (or x,y) columns")
+    xy = []
+    for n, r in enumerate(rows[1:], start=2):
+        try:
+            xy.append((float(r[cols[0]]), float(r[cols[1]])))
+        except (ValueError, IndexError):
+            raise ValueError(f"{path}:{n}: expected numbers in columns {head[cols[0]]},{head[cols[1]]}") from None
+    if not xy:
+        raise ValueError(f"{path}: no point after the header")
+    a = np.array(xy)
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{path}: a coordinate is not finite")
+    return PlanArea(a[:, 0], a[:, 1], "path")
+
+
+def ground_z_m(scene, x_m, y_m) -> np.ndarray:
+    """The highest opaque surface under each (x, y) [m] (one downward cast each); 0 where nothing is under it
+    or the scene has no surfaces (a sky mask)."""
+    x, y = np.asarray(x_m, float), np.asarray(y_m, float)
+    rays = getattr(scene, "rays", None)
+    world = getattr(scene, "world", None)
+    if rays is None or world is None or len(world.vertices_m) == 0:
+        return np.zeros(x.shape)
+    top = float(np.nanmax(world.vertices_m[:, 2])) + 10.0
+    o = np.stack([x, y, np.full(x.shape, top)], axis=1)
+    t = rays.hit_distance(o, np.array([[0.0, 0.0, -1.0]]))
+    return np.where(np.isfinite(t), top - t, 0.0)
+
+
+def world_bounds_xy(scene):
+    """(xmin, ymin, xmax, ymax) of the scene's vertices [m], or None (a sky mask)."""
+    world = getattr(scene, "world", None)
+    if world is None or len(world.vertices_m) == 0:
+        return None
+    v = world.vertices_m[np.all(np.isfinite(world.vertices_m), axis=1)]
+    return float(v[:, 0].min()), float(v[:, 1].min()), float(v[:, 0].max()), float(v[:, 1].max())

@@ -1,0 +1,102 @@
+"""The ranging error budget (UERE) of a receiver profile, per satellite: what "HDOP x UERE" multiplies.
+
+sigma_i^2 = SISRE(system)^2 + (iono_error_frac x I_z x F(el))^2 + (T_z / sin el)^2 + mp(el)^2 + dll(C/N0)^2
+          [+ NLOS excess^2 for a reflected-only satellite]
+
+- SISRE: the receiver configuration's broadcast orbit + clock error per system (``ReceiverConfig.sisre_m``,
+  Montenbruck et al., GPS Solutions 19:321, 2015, physics-anchors.md);
+- ionosphere: the residual the simulator leaves after the receiver's Klobuchar correction (``iono_error_frac``
+  ["klobuchar"] = 0.5, about 50 % of the RMS delay removed: Navipedia) of a nominal zenith delay I_z =
+  NOMINAL_ZENITH_IONO_L1_M (an assumption: about 18 TECU, a mid-latitude daytime value; the real one varies by
+  a factor of ten over a day and the solar cycle), mapped by the ICD's obliquity F = 1 + 16 (0.53 - E)^3
+  (E in semicircles, IS-GPS-200N 20.3.3.5.2.5); single frequency for every profile (the simulator's point
+  solution corrects the ionosphere by the broadcast model);
+- troposphere: the residual of the Saastamoinen + mapping correction, T_z = TROPO_RESIDUAL_ZENITH_M (a few cm:
+  UNB3m-class models against radiosondes, physics-anchors.md) over sin(el);
+- code multipath: the profile's open-sky model (receiver/code_multipath.py, mp_zenith_m + mp_low_m
+  exp(-el / 15 deg) or its table);
+- DLL thermal noise at NOMINAL_LOS_CN0_DBHZ minus the satellite's attenuation (receiver/noise.py, Kaplan eq.
+  5.23, the profile's loop bandwidth, spacing, integration and front end) on the profile's first signal.
+
+NLOS: a reflected-only satellite (multipath on) adds its excess path (the scene's shortest reflection's,
+``VisibilityResult.extra_path_m``) as a bias: NLOS pseudorange errors are the positive excess delay of the
+reflection (Hsu, GPS Solutions 22:7, 2018), tens of metres in Hong Kong canyons; the expected accuracy
+HDOP x UERE then takes the RMS of the used satellites' sigma_i, so a larger NLOS share inflates it.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: nominal zenith ionospheric delay at L1 [m] (assumption: about 18 TECU x 0.162 m/TECU; module doc)
+NOMINAL_ZENITH_IONO_L1_M = 3.0
+#: zenith troposphere residual after the model [m] (module doc)
+TROPO_RESIDUAL_ZENITH_M = 0.05
+#: C/N0 of an unobstructed satellite for the thermal noise term [dB-Hz] (Kaplan's table at 45 dB-Hz: 0.82 m
+#: for a 0.5-chip C/A DLL at 1 Hz; physics-anchors.md)
+NOMINAL_LOS_CN0_DBHZ = 45.0
+
+
+@dataclass
+class RangingBudget:
+    """Per system: SISRE [m], whether tracked on two frequencies, thermal noise at the nominal C/N0 [m]."""
+
+    profile: str
+    sisre_m: dict
+    dual_frequency: dict
+    iono_frac: float
+    multipath: object                # CodeMultipath of the profile (sigma_m(el))
+    thermal: dict                    # system -> callable(cn0_dbhz) -> sigma [m]
+
+    def sigma_m(self, systems, el_deg, attenuation_db=0.0, nlos_excess_m=0.0) -> np.ndarray:
+        """(K, N) sigma_i [m] of satellites of ``systems`` (N,) letters at ``el_deg`` (K, N) (module doc)."""
+        el = np.clip(np.asarray(el_deg, np.float64), 1.0, 90.0)
+        e = el / 180.0
+        obliq = 1.0 + 16.0 * (0.53 - e) ** 3                         # IS-GPS-200N 20.3.3.5.2.5
+        var = (self.iono_frac * NOMINAL_ZENITH_IONO_L1_M * obliq) ** 2
+        var = var + (TROPO_RESIDUAL_ZENITH_M / np.sin(np.radians(el))) ** 2
+        var = var + self.multipath.sigma_m(el) ** 2
+        sysv = np.asarray(systems)
+        cn0 = NOMINAL_LOS_CN0_DBHZ - np.broadcast_to(np.asarray(attenuation_db, float), el.shape)
+        for s in np.unique(sysv).tolist():
+            cols = sysv == s
+            var[:, cols] += self.sisre_m.get(s, 1.5) ** 2 + self.thermal[s](cn0[:, cols]) ** 2
+        return np.sqrt(var + np.asarray(nlos_excess_m, float) ** 2)
+
+
+def budget_from_profile(profile: str, systems: str) -> RangingBudget:
+    """The budget of receiver profile ``profile`` (a built-in name or a file) for ``systems``."""
+    from ..receiver.code_multipath import CodeMultipath
+    from ..receiver.config import ReceiverConfig
+    from ..receiver.noise import code_sigma_m
+
+    cfg = ReceiverConfig(profile=profile)
+    sig = cfg.profile                                  # after construction: {system: [codes]} tracked
+    thermal, dual = {}, {}
+    for s in systems:
+        codes = sig.get(s) or []
+        dual[s] = len({c[0] for c in codes}) >= 2      # two bands (first character of the RINEX code)
+        code = codes[0] if codes else None
+
+        def th(cn0, s=s, code=code):
+            if code is None:
+                return np.full(np.shape(cn0), np.inf)  # not tracked by this profile
+            return code_sigma_m(s, code, np.maximum(cn0, 10.0), bn_hz=cfg.dll_bn_hz,
+                                spacing_chips=cfg.dll_spacing_chips, t_int_s=cfg.dll_t_int_s,
+                                frontend_bw_hz=cfg.frontend_bandwidth_hz)
+        thermal[s] = th
+    return RangingBudget(str(profile), dict(cfg.sisre_m), dual, float(cfg.iono_error_frac.get("klobuchar", 0.5)),
+                         CodeMultipath(cfg, np.random.default_rng(0)), thermal)
+
+
+def tracked_systems(profile: str, systems: str) -> str:
+    """The letters of ``systems`` the profile tracks (ValueError naming --systems / --profile when none)."""
+    from ..receiver.config import ReceiverConfig
+
+    sig = ReceiverConfig(profile=profile).profile
+    out = "".join(s for s in systems if sig.get(s))
+    if not out:
+        raise ValueError(f"option --systems {systems!r}: profile {profile!r} tracks none of them "
+                         f"(it tracks {''.join(sig)})")
+    return out

@@ -1,0 +1,176 @@
+"""The planner (core/planning, ``gnss-sim plan``): the same casts as the simulator, DOPs as the solver's,
+GeoJSON placed on the Earth within a centimetre, the best-window logic, and clear errors for bad options."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from gnss_sim_ros2.core.demo import DEMO_START
+from gnss_sim_ros2.core.planning.windows import best_windows
+from gnss_sim_ros2.core.scene.demo_world import demo_world_path
+from gnss_sim_ros2.core.time import GnssTime
+
+WORLD = demo_world_path()
+
+
+@pytest.fixture(scope="module")
+def courtyard():
+    from gnss_sim_ros2.core.visibility import VisibilityOptions, load_scene
+
+    return load_scene(str(WORLD), "", "", VisibilityOptions())
+
+
+@pytest.fixture(scope="module")
+def sky():
+    from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris
+    from gnss_sim_ros2.core.planning.sky import plan_sky, time_steps
+
+    start = GnssTime.from_iso(DEMO_START, scale="GPS")
+    times = time_steps(start, 1.0, 20.0)
+    provider, _ = open_ephemeris("synthetic", start, 3600.0, "GEC")
+    return plan_sky(provider, times, "GEC")
+
+
+def test_states_are_the_simulators_casts(courtyard, sky):
+    """Per satellite and epoch, the planner's state (batched over cells x times in chunks, satellites below the
+    mask at the block's centre left out) equals VisibilityOptions.cast of that one antenna and epoch."""
+    from gnss_sim_ros2.core.planning.quality import PlanInputs, quality_block
+    from gnss_sim_ros2.core.planning.ranging import budget_from_profile
+    from gnss_sim_ros2.core.visibility import VisibilityOptions
+
+    # inside the courtyard, in a gap, on a roof and in the open: every state and both sides of walls
+    rng = np.random.default_rng(3)
+    xy = np.concatenate([rng.uniform(-30, 30, (10, 2)), [[0.0, -22.0], [25.0, 0.0], [80.0, 80.0]]])
+    ant = np.c_[xy, np.full(len(xy), 1.5)]
+    vis = VisibilityOptions(mask_deg=10.0)
+    # a small max_rays: several time chunks, so the chunking and the previous-step carry are exercised
+    inp = PlanInputs(sky.pos_ecef_m, sky.system, budget_from_profile("ublox_f9p", "GEC"), max_rays=900)
+    n_t, n_s = sky.pos_ecef_m.shape[:2]
+    states = np.full((len(ant), n_t, n_s), -2, np.int8)
+    fields = quality_block(courtyard, vis, ant, inp, states_out=states)
+    seen = set()
+    for k in range(n_t):
+        here = np.flatnonzero(np.isfinite(sky.pos_ecef_m[k, :, 0]))
+        for i in range(len(ant)):
+            state, _, v = vis.cast(courtyard, ant[i], sky.pos_ecef_m[k, here])
+            want = np.full(n_s, -1, np.int8)
+            above = np.asarray(v.el_deg) >= vis.mask_deg
+            want[here[above]] = state[above]
+            np.testing.assert_array_equal(states[i, k], want, err_msg=f"cell {i} epoch {k}")
+            seen.update(want.tolist())
+            assert fields["n_los"][i, k] == np.count_nonzero(want == 0)
+            assert fields["n_blocked"][i, k] == np.count_nonzero(want == 1)
+    assert {0, 1} <= seen, seen            # both visible and blocked satellites were compared
+
+
+def test_dops_are_the_solvers():
+    """dops_from_az_el (no solve) gives the DOPs solve_pvt reports for the same satellites (two systems)."""
+    from gnss_sim_ros2.core.frames import az_el_from_ecef, geodetic_to_ecef
+    from gnss_sim_ros2.core.solver import SolverConfig, dops_from_az_el, solve_pvt
+
+    start = GnssTime.from_iso(DEMO_START, scale="GPS")
+    from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris
+
+    provider, _ = open_ephemeris("synthetic", start, 60.0, "GE")
+    st = provider.states(start, systems="GE")
+    rx = np.array(geodetic_to_ecef(47.0, 8.0, 400.0))
+    az, el, rng = az_el_from_ecef(rx, st.pos_ecef_m)
+    keep = el > 10.0
+    sv, sat, rho = np.asarray(st.sv)[keep], st.pos_ecef_m[keep], rng[keep]
+    sol = solve_pvt(sv, sat, rho, config=SolverConfig(check_residuals=False))
+    assert sol.status == "fix"
+    clock = np.array([0 if s[0] == "G" else 1 for s in sv])
+    g, p, h, v, t = dops_from_az_el(az[keep][None], el[keep][None], np.ones((1, len(sv)), bool), clock)
+    np.testing.assert_allclose([g[0], p[0], h[0], v[0], t[0]], [sol.gdop, sol.pdop, sol.hdop, sol.vdop, sol.tdop],
+                               rtol=1e-6)
+    # too few satellites for the unknowns: NaN, not a number from a singular matrix
+    few = np.zeros((1, len(sv)), bool)
+    few[0, :4] = True
+    clock4 = clock.copy()
+    clock4[1] = 1 - clock4[0]
+    assert np.isnan(dops_from_az_el(az[keep][None], el[keep][None], few, clock4)[0][0])
+
+
+@pytest.mark.parametrize("heading_deg", [0.0, 37.0])
+def test_geojson_back_to_world_within_a_centimetre(tmp_path, heading_deg):
+    """Cell corners written as GeoJSON lon/lat/h (as rounded in the file) come back to world x, y within 1 cm."""
+    from gnss_sim_ros2.core.planning.area import grid_area
+    from gnss_sim_ros2.core.planning.geojson import cells_feature_collection, lonlath_to_world, write_geojson
+    from gnss_sim_ros2.core.scene.georeference import SphericalCoordinates
+
+    sph = SphericalCoordinates(22.298251, 114.178761, 12.0, heading_deg)
+    area = grid_area(50.0, (-600.0, -700.0, 600.0, 700.0))
+    z = np.linspace(0.0, 30.0, area.n_cells)
+    path = tmp_path / "cells.geojson"
+    write_geojson(path, cells_feature_collection(sph, area.corners_xy(), z, {"k": np.arange(area.n_cells)}))
+    doc = json.loads(path.read_text())
+    assert doc["type"] == "FeatureCollection" and len(doc["features"]) == area.n_cells
+    ring = np.array([f["geometry"]["coordinates"][0] for f in doc["features"]])          # (C, 5, 3)
+    assert np.all(np.abs(ring[..., 0] - 114.178761) < 0.01) and np.all(np.abs(ring[..., 1] - 22.298251) < 0.01)
+    back = lonlath_to_world(sph, ring)
+    err = np.hypot(back[..., 0] - area.corners_xy()[..., 0], back[..., 1] - area.corners_xy()[..., 1])
+    assert err.max() < 0.01, err.max()
+    # RFC 7946: outer rings counter-clockwise (lon, lat)
+    x, y = ring[0, :, 0], ring[0, :, 1]
+    assert np.dot(x[:-1], y[1:]) - np.dot(y[:-1], x[1:]) > 0
+
+
+def test_best_windows_on_constructed_series():
+    step = 600.0
+    share = np.array([0.5, 0.96, 0.97, 0.99, 0.2, 0.95, 0.96, np.nan, 1.0, 1.0, 1.0, 1.0])
+    w = best_windows(share, step, 0.95)
+    assert [(x.start_s, x.end_s) for x in w] == [(8 * step, 11 * step), (1 * step, 4 * step), (5 * step, 7 * step)]
+    assert w[1].min_share == pytest.approx(0.96) and w[1].mean_share == pytest.approx((0.96 + 0.97 + 0.99) / 3)
+    assert best_windows(share, step, 0.999, limit=1)[0].start_s == 8 * step
+    assert best_windows(np.full(5, 0.5), step, 0.9) == []
+    # a series ending inside a window: it ends at the last step, not past the plan
+    assert best_windows(np.array([0.0, 1.0, 1.0]), step, 0.9)[0].end_s == 2 * step
+
+
+def _plan(args, capsys):
+    from gnss_sim_ros2.cli import main
+
+    rc = main(["plan", *args])
+    return rc, capsys.readouterr()
+
+
+@pytest.mark.parametrize("extra, option", [
+    (["--step-m", "0"], "--step-m"), (["--step-m", "-2"], "--step-m"), (["--hours", "0"], "--hours"),
+    (["--hours", "-1"], "--hours"), (["--every-min", "0"], "--every-min"),
+    (["--polygon", "5000,5000;5100,5000;5100,5100"], "--polygon"), (["--polygon", "1,2;3"], "--polygon")])
+def test_bad_options_are_named(tmp_path, capsys, extra, option):
+    rc, out = _plan(["--world", str(WORLD), "--out", str(tmp_path / "o"), "--hours", "1", *extra], capsys)
+    assert rc == 2
+    assert option in out.err and "Traceback" not in out.err, out.err
+    assert not (tmp_path / "o").exists()
+
+
+def test_plan_writes_its_outputs(tmp_path, capsys):
+    """A small plan of the courtyard: every output, readable, the GeoJSON at the world's origin, the summary."""
+    import pyarrow.parquet as pq
+    import xarray as xr
+
+    out = tmp_path / "plan"
+    rc, res = _plan(["--world", str(WORLD), "--out", str(out), "--polygon=-30,-30;30,-30;30,30;-30,30",
+                     "--step-m", "10", "--hours", "1", "--every-min", "30", "--systems", "GE", "--point", "0,0"],
+                    capsys)
+    assert rc == 0, res.err
+    names = {p.name for p in out.iterdir()}
+    assert {"plan.nc", "plan.parquet", "maps.png", "cells.geojson", "summary.md", "timeline_0_0.png",
+            "timeline_0_0.csv"} <= names, names
+    ds = xr.open_dataset(out / "plan.nc")
+    assert ds.sizes["time"] == 3 and ds.sizes["cell"] == 36
+    assert int(ds.n_los.max()) > 0
+    assert pq.read_table(out / "plan.parquet").num_rows == 36 * 3
+    doc = json.loads((out / "cells.geojson").read_text())
+    lon, lat = np.array([f["geometry"]["coordinates"][0][0][:2] for f in doc["features"]]).T
+    assert np.all(np.abs(lat - ds.attrs["latitude_deg"]) < 1e-3)
+    assert np.all(np.abs(lon - ds.attrs["longitude_deg"]) < 1e-3)
+    assert "## Best windows" in (out / "summary.md").read_text()
+    # a second run into the same folder replaces its own files; a foreign file there is refused
+    (out / "mine.txt").write_text("x")
+    rc, res = _plan(["--world", str(WORLD), "--out", str(out), "--polygon=-10,-10;10,-10;10,10",
+                     "--hours", "1", "--every-min", "30"], capsys)
+    assert rc == 2 and "mine.txt" in res.err
