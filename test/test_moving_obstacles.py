@@ -25,11 +25,9 @@ VISIBLE = int(VisibilityState.VISIBLE)
 EDGE_M = 5e-3
 
 
-@pytest.fixture(scope="module")
-def open_scene(tmp_path_factory):
+def write_open_world(path):
     """A georeferenced world whose only model, a small box 400 m away, blocks nothing the tests look at."""
-    p = tmp_path_factory.mktemp("w") / "w.sdf"
-    p.write_text(textwrap.dedent(f"""\
+    path.write_text(textwrap.dedent(f"""\
         <?xml version="1.0"?>
         <sdf version="1.9"><world name="w">
           <spherical_coordinates><latitude_deg>{LAT0}</latitude_deg><longitude_deg>{LON0}</longitude_deg>
@@ -38,7 +36,12 @@ def open_scene(tmp_path_factory):
             <geometry><box><size>1 1 1</size></box></geometry></collision></link></model>
         </world></sdf>
         """))
-    return Scene.from_sdf(p)
+    return path
+
+
+@pytest.fixture(scope="module")
+def open_scene(tmp_path_factory):
+    return Scene.from_sdf(write_open_world(tmp_path_factory.mktemp("w") / "w.sdf"))
 
 
 def sats_at(scene, antenna_world_m, az_deg, el_deg):
@@ -160,3 +163,34 @@ def test_bad_obstacle_parameters_name_the_parameter(name, value):
 def test_models_without_a_pose_topic_are_refused():
     with pytest.raises(ValueError, match="obstacle_pose_topic"):
         validate_node("visibility", {"obstacle_models": ["bus"]}, "node v")
+
+
+def test_simulate_obstacle_path_blocks_while_the_box_stands_over_the_antenna(tmp_path):
+    """`gnss-sim simulate --obstacle-path`: the offline chain with a 40 x 40 x 30 m box that stands over the static
+    antenna from t = 10 to 20 s and 700 m away (under 2 deg high) before and after: every satellite above the mask
+    is blocked in those 11 epochs, none in the others."""
+    import argparse
+
+    from gnss_sim_ros2.commands import simulate
+    from gnss_sim_ros2.core.simulation import run_simulation
+
+    world = write_open_world(tmp_path / "w.sdf")
+    (tmp_path / "antenna.csv").write_text("t_s,e_m,n_m,u_m\n0,0,0,1.5\n")
+    (tmp_path / "box.csv").write_text("t_s,e_m,n_m,u_m,yaw_deg\n0,500,500,-10,0\n9.5,500,500,-10,0\n"
+                                      "10,0,0,-10,0\n20,0,0,-10,0\n20.5,500,500,-10,0\n30,500,500,-10,0\n")
+    cfg = tmp_path / "cfg.yaml"
+    cfg.write_text("gnss_sim_visibility:\n  ros__parameters:\n    obstacle_model_size_m: [40.0, 40.0, 30.0]\n")
+    ap = argparse.ArgumentParser()
+    simulate.add_arguments(ap)
+    args = ap.parse_args(["--config", str(cfg), "--world", str(world), "--trajectory", str(tmp_path / "antenna.csv"),
+                          "--obstacle-path", str(tmp_path / "box.csv"), "--duration", "30", "--interval", "1",
+                          "--quiet", "--out", str(tmp_path / "out")])
+    res = run_simulation(simulate.setup_from_args(args))
+    blocked, visible = np.array(res.blocked_per_epoch), np.array(res.visible_per_epoch)
+    over = (np.arange(31) >= 10) & (np.arange(31) <= 20)
+    assert len(blocked) == 31 and visible[~over].min() > 4
+    assert (visible[over] == 0).all() and (blocked[over] > 4).all() and (blocked[~over] == 0).all()
+    ap2 = ["--world", str(world), "--out", str(tmp_path / "o2"), "--obstacle-path", str(tmp_path / "antenna_geo.csv")]
+    (tmp_path / "antenna_geo.csv").write_text("t_s,lat_deg,lon_deg,h_m\n0,22.3,114.17,10\n")
+    with pytest.raises(ValueError, match="option --obstacle-path"):
+        simulate.setup_from_args(ap.parse_args(ap2))

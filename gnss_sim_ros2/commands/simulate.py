@@ -40,6 +40,9 @@ def add_arguments(p):
                     help="a measured sky mask (azimuth_deg,elevation_deg) as the scene of a static antenna "
                          "(--position or --position-ecef): a satellite under it is blocked")
     from gnss_sim_ros2.core.scene.scene_report import ALLOW_PARTIAL_HELP
+    p.add_argument("--obstacle-path", nargs="+", default=[], metavar="FILE.csv",
+                   help="paths of moving boxes (other vehicles) that block satellites: CSV t_s,e_m,n_m,u_m[,yaw_deg] "
+                        "in the world frame (the base of the box), box size: parameter obstacle_model_size_m")
     p.add_argument("--allow-partial", action="store_true", help=ALLOW_PARTIAL_HELP)
     p.add_argument("--systems", help="systems, RINEX letters from GRECJI")
     p.add_argument("--seed", type=int, default=None)
@@ -129,10 +132,23 @@ def setup_from_args(args):
         tr = Trajectory.static(parse_triple(args.position, "--position"), "geodetic", "option --position")
     elif args.trajectory:
         tr = Trajectory.from_csv(args.trajectory)
-    setup = setup_from_config(cfg, Path(args.out), tr, progress=not args.quiet, rtcm_path=args.rtcm)
+    obstacles = [_obstacle_path(f) for f in getattr(args, "obstacle_path", [])]
+    setup = setup_from_config(cfg, Path(args.out), tr, progress=not args.quiet, rtcm_path=args.rtcm,
+                              obstacle_paths=obstacles)
     if getattr(args, "sky_mask", None):
         setup = _with_sky_mask(setup, args)
     return setup
+
+
+def _obstacle_path(path):
+    """One --obstacle-path file: a world-frame path (a geodetic or ECEF one is refused, naming the option)."""
+    from gnss_sim_ros2.core.trajectory import Trajectory
+
+    tr = Trajectory.from_csv(path)
+    if tr.frame != "world":
+        raise ValueError(f"option --obstacle-path {path}: a {tr.frame} path; an obstacle's path is in the world frame "
+                         f"(header t_s,e_m,n_m,u_m[,yaw_deg])")
+    return tr
 
 
 def _with_sky_mask(setup, args):

@@ -46,6 +46,7 @@ from .receiver.outputs import rinex_name, write_navigation
 from .time import GnssTime
 from .trajectory import Trajectory
 from .visibility import VisibilityOptions, load_scene
+from .visibility.moving_obstacles import boxes_along_paths
 
 
 @dataclass
@@ -90,6 +91,9 @@ class SimulationSetup:
     #: already opened ephemerides by source name: {"broadcast": (provider, nav_paths), "sp3": ...};
     #: used instead of opening the files again (benchmarks running one scenario many times)
     ephemeris: dict = field(default_factory=dict)
+    #: paths (Trajectory, world frame, base of the box) of moving boxes of the visibility parameter
+    #: obstacle_model_size_m that block satellites (core/visibility/moving_obstacles.py; simulate --obstacle-path)
+    obstacle_paths: list = field(default_factory=list)
 
     def node_params(self) -> dict[str, dict]:
         """{"ephemeris": ..., "visibility": ..., "receiver": ...}: the parameters of the nodes this run stands for."""
@@ -476,7 +480,9 @@ class _EpochBlock:
         self.row, self.states = row, st
         self.vis = self.att = self.paths = None
         if scene is not None:
-            self.vis, self.att, v = vis_opt.cast(scene, world, sat)
+            boxes = (boxes_along_paths(setup.obstacle_paths, t_rel, setup.visibility_params["obstacle_model_size_m"])
+                     if setup.obstacle_paths else None)
+            self.vis, self.att, v = vis_opt.cast(scene, world, sat, obstacles=boxes)
             self.paths = getattr(v, "paths", None)          # reflections (VisibilityOptions.multipath)
 
     def stacked(self):

@@ -92,6 +92,17 @@ def fleet_bodies(base_world_m, yaw_deg, size_m) -> MovingBoxes:
                                   size_m, ~np.eye(r, dtype=bool))
 
 
+def boxes_along_paths(paths, t_s, size_m) -> MovingBoxes | None:
+    """Boxes of ``size_m`` standing on timed paths (core/trajectory.Trajectory in the world frame: ``position``,
+    ``yaw``) at the times ``t_s`` (M,): one antenna row per time; None without paths."""
+    if not paths:
+        return None
+    t = np.atleast_1d(np.asarray(t_s, dtype=np.float64))
+    base = np.stack([np.asarray(p.position(t)).reshape(len(t), 3) for p in paths], axis=1)          # (M, B, 3)
+    yaw = np.stack([np.broadcast_to(np.asarray(p.yaw(t), dtype=np.float64), t.shape) for p in paths], axis=1)
+    return MovingBoxes.from_bases(base, yaw_rotations(yaw), size_m)
+
+
 def rays_blocked_by_boxes(origins_world_m, dirs_world, boxes: MovingBoxes, tnear_m: float = TNEAR_M):
     """(M, N) bool: does the ray from antenna m (``origins_world_m`` (M, 3)) along unit ``dirs_world`` (M, N, 3)
     cross an active box of row m beyond ``tnear_m``?  Slab method in each box's frame (module docstring)."""
