@@ -1,6 +1,6 @@
 """Cost of the scene multipath model on the Hong Kong city and the demo courtyard (prints figures; no assertions).
 
-    .venv/bin/python bench/bench_multipath.py [--epochs 120] [--range 50 100 200] [--demo-only]
+    .venv/bin/python bench/bench_multipath.py [--epochs 120] [--range 50 100 200] [--demo-only] [--auto]
 
 The antenna on the first epochs of the Tsim Sha Tsui drive (../shared/data/hk-tst-2019-118-urban-drive,
 truth path placed 1.8 m above the model's ground), the day's GPS + BeiDou broadcast satellites above
@@ -12,6 +12,11 @@ Demo courtyard (``make demo``'s scenario: the demo path, the default configurati
 whole offline chain (``run_simulation``) with multipath off / nlos / full (and the last two with the walls'
 diffuse scattering): ms per epoch, rays and paths per
 epoch, satellites tracked on reflections only, the fix's horizontal RMS.
+``--auto`` (only): what multipath "auto" (the default preset's: core/presets.py) costs against "off" where the
+scene has no wall within range (an open field: the courtyard's ground alone), in the demo courtyard and on the
+city: the whole offline chain on the demo path (ms per epoch, of which the visibility cast; fix availability and
+horizontal RMS; whether auto's RINEX and fixes equal off's) and the city's cast per epoch (off, auto, full; the
+wall test alone), best of ``--repeats`` runs.
 """
 from __future__ import annotations
 
@@ -79,13 +84,112 @@ def demo_figures() -> None:
               f"{count['paths'] / n:12.1f} {np.mean(refl):18.2f} {np.sqrt(np.mean(err ** 2)):12.2f}")
 
 
+def _open_field(scene):
+    """The scene's ground alone (triangles lying in z = 0), same georeference: a world without walls."""
+    from gnss_sim_ros2.core.scene.visibility import Scene
+    from gnss_sim_ros2.core.scene.world_mesh import WorldMesh
+
+    w = scene.world
+    v, tri = np.asarray(w.vertices_m), np.asarray(w.triangles)
+    flat = np.all(np.abs(v[tri][:, :, 2]) < 1e-6, axis=1)
+    return Scene(WorldMesh(v, tri[flat], np.asarray(w.material)[flat], w.materials,
+                           spherical_coordinates=w.spherical_coordinates))
+
+
+def _timed_cast(count):
+    """VisibilityOptions.cast wrapped to add its wall-clock time into ``count["cast_s"]``."""
+    real_cast = VisibilityOptions.cast
+
+    def cast(self, *args, **kwargs):
+        t = time.perf_counter()
+        try:
+            return real_cast(self, *args, **kwargs)
+        finally:
+            count["cast_s"] += time.perf_counter() - t
+    return real_cast, cast
+
+
+def auto_figures(epochs: int, repeats: int) -> None:
+    """Multipath "auto" against "off" (and "full" on the city): an open field, the demo courtyard, the city."""
+    from gnss_sim_ros2.config_file import load_config
+    from gnss_sim_ros2.core.multipath.wall_proximity import antennas_near_walls, walls_of
+    from gnss_sim_ros2.core.scene.demo_world import demo_world_path
+    from gnss_sim_ros2.core.simulation import run_simulation, setup_from_config
+    from gnss_sim_ros2.core.visibility import load_scene
+
+    court = load_scene(str(demo_world_path()), "")
+    field = _open_field(court)
+    print(f"whole offline chain on the demo path (601 epochs, preset balanced, best of {repeats}):")
+    print(f"{'scene':>10} {'mode':>5} {'ms/epoch':>9} {'cast ms/epoch':>14} {'fixes %':>8} {'fix H RMS m':>12} "
+          f"{'same files as off':>18}")
+    for name, scene in (("open field", field), ("courtyard", court)):
+        files = {}
+        for mode in ("off", "auto"):
+            best = None
+            for _ in range(repeats):
+                count = {"cast_s": 0.0}
+                real_cast, cast = _timed_cast(count)
+                with tempfile.TemporaryDirectory() as tmp:
+                    setup = setup_from_config(load_config(), Path(tmp), scene=scene, progress=False)
+                    VisibilityOptions.cast = cast
+                    try:
+                        res = run_simulation(setup.with_params(multipath=mode))
+                    finally:
+                        VisibilityOptions.cast = real_cast
+                    files[mode] = ([x for x in res.obs_path.read_text().splitlines() if "RUN BY" not in x],
+                                   res.fix_path.read_text())
+                if best is None or res.wall_s < best[0].wall_s:
+                    best = (res, count["cast_s"])
+            res, cast_s = best
+            n = res.epochs
+            err = np.asarray(res.horizontal_error_m)
+            same = "" if mode == "off" else ("yes" if files["auto"] == files["off"] else "no")
+            print(f"{name:>10} {mode:>5} {res.wall_s / n * 1e3:9.2f} {cast_s / n * 1e3:14.3f} "
+                  f"{100.0 * res.fixes / n:8.1f} {np.sqrt(np.mean(err ** 2)):12.2f} {same:>18}")
+    if not DRIVE.is_dir() or not CITY.is_dir():
+        print(f"city: needs {DRIVE} and {CITY}")
+        return
+    with tempfile.TemporaryDirectory() as tmp:
+        scene = drive_check.city_scene(CITY, tmp)
+        drive = drive_check.load_drive(DRIVE / "groundTruth_TST.csv", scene)
+        nav = [str(DRIVE / "hksc1180.19n"), str(DRIVE / "hksc1180.19b")]
+        prov, _ = open_ephemeris("broadcast", drive.t[0], epochs + 60.0, "GC", nav, check=False)
+        n = min(epochs, len(drive.t))
+        states = [prov.states(drive.t[i], systems="GC") for i in range(n)]
+        t = time.perf_counter()
+        walls = walls_of(scene)
+        print(f"\ncity ({n} epochs of the drive, one antenna per call, best of {repeats}): {len(walls)} wall "
+              f"triangles, wall test built in {(time.perf_counter() - t) * 1e3:.0f} ms; antennas with walls "
+              f"within 100 m: {antennas_near_walls(scene, drive.antenna_world_m[:n], 100.0).mean():.2f}")
+        ant = drive.antenna_world_m[:n]
+        ms = min(_seconds(lambda: [antennas_near_walls(scene, a, 100.0) for a in ant]) for _ in range(repeats))
+        print(f"  wall test alone: {ms / n * 1e3:.3f} ms/epoch")
+        for mode in ("off", "auto", "full"):
+            opt = VisibilityOptions(mask_deg=15.0, multipath=mode, multipath_range_m=100.0)
+            ms = min(_seconds(lambda o=opt: [o.cast(scene, ant[i], states[i].pos_ecef_m) for i in range(n)])
+                     for _ in range(repeats))
+            print(f"  cast {mode:>4}: {ms / n * 1e3:.2f} ms/epoch")
+
+
+def _seconds(f) -> float:
+    t = time.perf_counter()
+    f()
+    return time.perf_counter() - t
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--epochs", type=int, default=120)
     ap.add_argument("--range", type=float, nargs="+", default=[50.0, 100.0, 200.0])
     ap.add_argument("--demo-only", action="store_true", help="only the demo courtyard")
     ap.add_argument("--quick", action="store_true", help="fewer epochs on the city (make bench)")
+    ap.add_argument("--auto", action="store_true", help="only multipath auto against off (open field, "
+                    "courtyard, city)")
+    ap.add_argument("--repeats", type=int, default=3, help="timed runs per figure of --auto, best kept")
     args = ap.parse_args()
+    if args.auto:
+        auto_figures(args.epochs, args.repeats)
+        return 0
     demo_figures()
     if args.demo_only:
         return 0

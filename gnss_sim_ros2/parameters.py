@@ -248,7 +248,9 @@ NODE_PARAMS: dict[str, list[Param]] = {
         Param("fresnel_rays", -1, "rays over the first Fresnel zone per satellite (0 off; -1 from preset; at most "
               "256)", min=-1, max=256),
         Param("multipath", "", "reflections from the scene (core/multipath): off, nlos (blocked satellites "
-              "only), full (every satellite); empty: from preset", choices=("", *MULTIPATH_MODES)),
+              "only), full (every satellite), auto (full for an antenna with walls within multipath_range_m at "
+              "that epoch, off elsewhere at no cost: core/presets.py); empty: from preset (balanced: auto)",
+              choices=("", *MULTIPATH_MODES)),
         Param("multipath_range_m", 100.0, "facets farther than this from the antenna reflect nothing [m]",
               min=1.0, max=2000.0),
         Param("multipath_max_paths", 3, "reflected paths kept per satellite (the strongest)", min=1, max=10),

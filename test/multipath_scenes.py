@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from gnss_sim_ros2.core.scene.georeference import SphericalCoordinates
 from gnss_sim_ros2.core.scene.materials import MaterialTable
 from gnss_sim_ros2.core.scene.visibility import Scene
 from gnss_sim_ros2.core.scene.world_mesh import WorldMesh
@@ -15,9 +16,14 @@ def _box(x0, x1, y0, y1, z0, z1):
     return v, np.array(f)
 
 
-def canyon_scene():
-    """West wall face at x = -5 (20 m high), east wall face at x = +10 (10 m high), ground z = 0."""
-    parts = [_box(-6.0, -5.0, -200, 200, 0, 20), _box(10.0, 11.0, -200, 200, 0, 10)]
+def canyon_scene(shift_x_m: float = 0.0, walls: bool = True, latitude_deg: float | None = None,
+                 longitude_deg: float = 114.1788):
+    """West wall face at x = -5 (20 m high), east wall face at x = +10 (10 m high), ground z = 0 (600 m square).
+
+    ``shift_x_m``: both walls moved along x (the ground stays); ``walls=False``: the ground alone (an open
+    field); ``latitude_deg``: georeferenced there (world origin on the ellipsoid), else no geodetic origin."""
+    parts = [_box(-6.0 + shift_x_m, -5.0 + shift_x_m, -200, 200, 0, 20),
+             _box(10.0 + shift_x_m, 11.0 + shift_x_m, -200, 200, 0, 10)] if walls else []
     verts, tris = [], []
     for v, f in parts:
         tris.append(f + sum(len(p) for p in verts))
@@ -27,6 +33,9 @@ def canyon_scene():
     verts.append(g)
     v, t = np.vstack(verts), np.vstack(tris)
     world = WorldMesh(v, t, np.zeros(len(t), np.int16), MaterialTable())
+    if latitude_deg is not None:
+        world = WorldMesh(v, t, world.material, world.materials,
+                          spherical_coordinates=SphericalCoordinates(latitude_deg, longitude_deg, 0.0))
     return Scene(world)
 
 
@@ -36,7 +45,6 @@ def write_canyon_mesh(folder, latitude_deg: float = 22.2982, longitude_deg: floa
     import dataclasses
     from pathlib import Path
 
-    from gnss_sim_ros2.core.scene.georeference import SphericalCoordinates
     from gnss_sim_ros2.core.scene.mesh_io import write_scene
 
     world = dataclasses.replace(canyon_scene().world,

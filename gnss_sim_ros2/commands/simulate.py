@@ -171,7 +171,7 @@ def _with_sky_mask(setup, args):
         raise ValueError(f"--sky-mask is the scene, but the configuration {args.config} also sets "
                          f"{'world_file ' + world if world else 'mesh_file ' + mesh}: give one of them")
     opt = visibility_options(setup)
-    if opt.multipath != "off" or opt.fresnel_rays > 0:
+    if opt.multipath not in ("off", "auto") or opt.fresnel_rays > 0:       # auto: a mask has no walls
         raise ValueError(f"--sky-mask: a sky mask has no surfaces to reflect from or diffract over, but preset "
                          f"{setup.preset!r} / the configuration set multipath {opt.multipath!r} and fresnel_rays "
                          f"{opt.fresnel_rays}: use --preset fast or balanced, or multipath: off and fresnel_rays: 0")

@@ -33,8 +33,9 @@ ORBIT_MODES = ("broadcast", "precise")
 TRANSMIT_TIME_MODES = ("recompute", "expansion")
 FOLIAGE_MODES = ("path", "touch")
 PRESET_NAMES = ("fast", "balanced", "accurate")
-#: scene multipath: none, reflections of blocked satellites only, every satellite (core/multipath)
-MULTIPATH_MODES = ("off", "nlos", "full")
+#: scene multipath: none, reflections of blocked satellites only, every satellite, or every satellite of the
+#: antennas with walls in range (core/multipath, core/presets.py)
+MULTIPATH_MODES = ("off", "nlos", "full", "auto")
 
 
 def check_systems(systems: str, where: str) -> str:

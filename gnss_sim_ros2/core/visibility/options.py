@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..multipath.scene_paths import cast_paths
+from ..multipath.wall_proximity import antennas_near_walls
 from ..presets import preset as preset_switches
 from ..vocabulary import VisibilityState
 from .moving_obstacles import block_by_obstacles
@@ -24,7 +25,8 @@ class VisibilityOptions:
     #: world loading: non-static models kept as obstacles; unloadable parts an error (parameter strict_world)
     keep_dynamic: bool = False
     strict_world: bool = True
-    #: reflections from the scene (core/multipath): "off", "nlos" (blocked satellites only) or "full"
+    #: reflections from the scene (core/multipath): "off", "nlos" (blocked satellites only), "full", or "auto"
+    #: ("full" for the antennas with walls within multipath_range_m, "off" for the others: core/presets.py)
     multipath: str = "off"
     multipath_range_m: float = 100.0
     multipath_max_paths: int = 3
@@ -56,18 +58,25 @@ class VisibilityOptions:
         """(state, attenuation_db, VisibilityResult) of satellites (N, 3) or (M, N, 3) seen from the antenna(s).
 
         ``state`` uses VisibilityState; satellites below the mask are not cast and count as visible (the
-        receiver does not track them).  With ``multipath`` on, ``v.paths`` holds the reflected paths
-        (core/multipath/scene_paths.py), blocked satellites diffracted over an edge with a loss below 40 dB are
-        ATTENUATED by it, those with a reflected path REFLECTED_ONLY, and ``v.extra_path_m`` is the shortest
-        path's excess.  ``obstacles``: moving boxes (core/visibility/moving_obstacles.py ``MovingBoxes``, one row
-        per antenna) that block on top of the static scene, before the reflections are sought."""
+        receiver does not track them).  With ``multipath`` on (``auto``: for the antennas with walls in range
+        only; when none has, nothing beyond that test is computed and no ``v.paths`` is attached), ``v.paths``
+        holds the reflected paths (core/multipath/scene_paths.py), blocked satellites diffracted over an edge
+        with a loss below 40 dB are ATTENUATED by it, those with a reflected path REFLECTED_ONLY, and
+        ``v.extra_path_m`` is the shortest path's excess.  ``obstacles``: moving boxes
+        (core/visibility/moving_obstacles.py ``MovingBoxes``, one row per antenna) that block on top of the
+        static scene, before the reflections are sought."""
         v = scene.visibility_ecef(antenna_world_m, sat_ecef_m, mask_deg=self.mask_deg,
                                   fresnel_rays=self.fresnel_rays, foliage=self.foliage)
         state = np.where(v.state < 0, int(VisibilityState.VISIBLE), v.state).astype(np.int64)
         if obstacles is not None:
             state = block_by_obstacles(scene, antenna_world_m, sat_ecef_m, v, state, self.mask_deg, obstacles)
         att = v.attenuation_db + v.diffraction_db
-        if self.multipath != "off":
+        if self.multipath == "auto":
+            near = antennas_near_walls(scene, antenna_world_m, self.multipath_range_m)
+            if near.any():
+                state, edge_db = cast_paths(self, scene, antenna_world_m, sat_ecef_m, v, state, antennas=near)
+                att = att + edge_db
+        elif self.multipath != "off":
             state, edge_db = cast_paths(self, scene, antenna_world_m, sat_ecef_m, v, state)
             att = att + edge_db
         return state, att, v
