@@ -43,6 +43,8 @@ from .presets import preset as preset_switches
 from .receiver.chain import ChainSettings, ReceiverChain
 from .receiver.engine import ATTENUATED, BLOCKED, VISIBLE
 from .receiver.outputs import rinex_name, write_navigation
+from .threats.runtime import ThreatRuntime
+from .threats.scenario import load_scenario
 from .time import GnssTime
 from .trajectory import Trajectory
 from .visibility import VisibilityOptions, load_scene
@@ -392,6 +394,8 @@ def _simulate_into(setup: SimulationSetup) -> SimulationResult:
     chain = ReceiverChain(settings, provider, duration_s=setup.duration_s, glonass_slots=glo_slots,
                           comment=f"gnss_sim simulate, source {source}", rtcm=rtcm,
                           rtcm_ephemeris=setup.rtcm_ephemeris)
+    if setup.receiver_params.get("scenario"):      # the scenario's events (core/threats), the node's way
+        chain.threats = ThreatRuntime(load_scenario(setup.receiver_params["scenario"]), scene, start=setup.start)
     res = SimulationResult(None, nav_written, out / "fix.csv", 0, 0, [], [], [], [], [], 0.0, 0.0,
                            interval_s=interval_s, orbit_source=source)
     svs_all = np.asarray(provider.svs(setup.systems), dtype="<U3")

@@ -154,6 +154,8 @@ class ReceiverChain:
         #: writing a second of epochs together, docs/profile-offline-chain.md)
         self._rinex_pending: list = []
         self._nmea_file = None
+        #: a scenario's events (core/threats/runtime.ThreatRuntime) or None; set before the first epoch
+        self.threats = None
         if settings.output_dir is not None:
             settings.output_dir.mkdir(parents=True, exist_ok=True)   # an unwritable folder fails the start
         self.reset()
@@ -183,7 +185,9 @@ class ReceiverChain:
             # observations from precise orbits are the truth: the broadcast message's own error is then real
             # (what a receiver using the navigation file sees), so no synthetic SISRE is drawn on top
             cfg = replace(cfg, sisre_m={s: 0.0 for s in cfg.sisre_m})
-        return Receiver(cfg, self.provider, self.iono)
+        rx = Receiver(cfg, self.provider, self.iono)
+        rx.threats = self.threats
+        return rx
 
     def _backward_velocity(self, t, ecef):
         """The antenna velocity [m/s ECEF] as the backward difference to the previous epoch's position (None at
@@ -214,8 +218,9 @@ class ReceiverChain:
             antenna_vel_ecef_mps = backward
         if self.rx is None:
             self.rx = self._receiver(states)
-        return self.rx.epoch(t, ecef, states, vis_state, attenuation_db, antenna_vel_ecef_mps=antenna_vel_ecef_mps,
-                             multipath=multipath)
+        obs = self.rx.epoch(t, ecef, states, vis_state, attenuation_db, antenna_vel_ecef_mps=antenna_vel_ecef_mps,
+                            multipath=multipath)
+        return obs if self.threats is None else self.threats.on_ranges(obs)
 
     def finish(self, t: GnssTime, antenna_ecef_m, states, obs) -> EpochProducts:
         """The second half of :meth:`step`: the fix, NMEA, files and RTCM of the observables :meth:`observe`
@@ -235,6 +240,8 @@ class ReceiverChain:
         if self.rx is None:
             self.rx = self._receiver(states)
         obs = self.rx.epochs(ts, ecef, states, epoch_of_row, vis_state, attenuation_db, vel, multipath)
+        if self.threats is not None:
+            obs = [self.threats.on_ranges(o) for o in obs]
         # the fixes of the block in one solve, each started at the last fix before the block (the same
         # solutions as starting at the previous epoch's, to the solver's convergence of 0.1 mm)
         fix_obs = self._smoothed_many(obs) if self.settings.smoothing_s > 0 else obs
@@ -250,9 +257,13 @@ class ReceiverChain:
             fix_obs = self._smoothed(obs) if self.settings.smoothing_s > 0 else obs
             sol = position_fix(fix_obs, self.settings.receiver.profile, self.prior_ecef_m, self.settings.solver)
         self.epochs += 1
+        if self.threats is not None:        # output faults act on what the receiver outputs, not on its state
+            if sol.is_fix:
+                self.prior_ecef_m = sol.pos_ecef_m
+            obs, sol = self.threats.outputs(t, obs, sol)
         if sol.is_fix:
             self.fixes += 1
-            self.prior_ecef_m = sol.pos_ecef_m
+            self.prior_ecef_m = sol.pos_ecef_m if self.threats is None else self.prior_ecef_m
         text = ""
         if self.want_nmea:
             from ..nmea import join_sentences, sentences_from_solution
@@ -376,7 +387,8 @@ class ReceiverChain:
         self._fix_file = open(self.fix_path, "a", newline="", buffering=1)  # noqa: SIM115 - closed in close()
         self._fix_csv = csv.writer(self._fix_rows)
         if new:
-            self._fix_csv.writerow(["time", "lat_deg", "lon_deg", "h_m", "n_sats", "status"])
+            self._fix_csv.writerow(["time", "lat_deg", "lon_deg", "h_m", "n_sats", "status"]
+                                   + (["active_events"] if self.threats is not None else []))
         if s.write_nmea_file:
             self._nmea_file = open(out / "gnss_sim.nmea", "a", buffering=1)  # noqa: SIM115 - closed in close()
 
@@ -384,11 +396,13 @@ class ReceiverChain:
         if self._writer is None:
             self._open(t)
         stamp = t.isoformat(digits=3 if self.settings.interval_s < 1 else 0)
+        # the scenario's truth labels: the events active at the epoch, ";"-separated (core/threats)
+        labels = [";".join(self.threats.labels(t))] if self.threats is not None else []
         if sol.is_fix:
             self._fix_csv.writerow([stamp, f"{sol.lat_deg:.9f}", f"{sol.lon_deg:.9f}", f"{sol.h_m:.4f}", sol.n_used,
-                                    "fix"])
+                                    "fix", *labels])
         else:
-            self._fix_csv.writerow([stamp, "", "", "", sol.n_used, "no_fix"])
+            self._fix_csv.writerow([stamp, "", "", "", sol.n_used, "no_fix", *labels])
         if arrays is not None:
             self._rinex_pending.append((t, arrays))
         if self._nmea_file is not None:

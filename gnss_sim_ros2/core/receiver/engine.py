@@ -109,6 +109,8 @@ class Receiver:
         self._tropo_terms = None
         self._doy_key = None
         self._doy0 = 0.0
+        #: a scenario's threats (core/threats/runtime.ThreatRuntime), injected by the chain; None: none
+        self.threats = None
 
     def set_iono_coefficients(self, iono: dict | None) -> None:
         """Take the navigation header's ionosphere coefficients ({"GPSA": [4], "GPSB": [4], "GAL": [3]}, or
@@ -226,6 +228,9 @@ class Receiver:
         self._world_errors(b)
         self._signal_strength(b)
         self._scene_reflections(b, multipath)
+        if self.threats is not None:      # interference on C/N0 before tracking (core/threats/jamming.py)
+            b.cn0 = self.threats.signal_cn0(ts, b.rx_ep, b.e_sig, b.rows.sv_j, b.codes, b.freq, b.cn0,
+                                            self.cfg.link_budget, self.cfg.frontend_bandwidth_hz)
         self._tracking(b)
         self._receiver_errors(b)
         self._observables(b)
@@ -254,6 +259,8 @@ class Receiver:
                 b.bias_ep[e], b.drift_ep[e] = self.clock.bias_s, self.clock.steered_drift_sps
             b.dt_ep[e] = dt_s
             self._t_prev = t
+        if self.threats is not None and (jump := self.threats.clock_offset_s(b.ts)) is not None:
+            b.bias_ep = b.bias_ep + jump      # a receiver clock fault (core/threats/faults.py)
         if k_n == 1:      # one epoch (a node)
             b.t_true = b.ts[0] - b.bias_ep[0]
         else:
