@@ -8,7 +8,8 @@ gnss_sim's, so it usually lives in a venv of its own)::
 GPS only, a static receiver at ECEF X,Y,Z, one epoch every INTERVAL_S over DURATION_S from
 START_GPS_MILLIS (milliseconds since the GPS epoch), broadcast ephemerides from the RINEX
 navigation file NAV (parsed by gnss_lib_py's RinexNav).  Per epoch, as gnss_lib_py's tutorials
-do: the records of the latest toe at or before the epoch (one per satellite), then
+do: each satellite's record of the latest time at or before the epoch (its earliest when it has none
+before: real files' satellites have their own times, not one grid), then
 ``simulate_measures(gps_millis, state, ephem=...)`` (visibility at 5 deg, expected pseudorange
 and Doppler plus Gaussian noise).  Start-up (imports, parsing) is included in what the caller
 times; prints one JSON line: epochs, measurements, and this process's own timings [s].
@@ -36,6 +37,17 @@ def main(argv) -> int:
     ephem = ephem.where("gnss_id", "gps")
     t_parse = time.perf_counter() - T0 - t_import
     toe_ms = np.asarray(ephem["gps_millis"], dtype=float)
+    sv_ids = np.asarray(ephem["sv_id"])
+    # the selection changes only when an epoch passes a record time: memoised on how many it has passed
+    times = np.unique(toe_ms)
+
+    def records_at(t_ms):
+        cols = []
+        for sv in np.unique(sv_ids):
+            mine = np.flatnonzero(sv_ids == sv)
+            before = mine[toe_ms[mine] <= t_ms]
+            cols.append(before[np.argmax(toe_ms[before])] if before.size else mine[np.argmin(toe_ms[mine])])
+        return np.sort(np.array(cols))
     state = NavData()
     for name, v in zip(("x_rx_m", "y_rx_m", "z_rx_m"), pos):
         state[name] = np.array([v])
@@ -48,10 +60,10 @@ def main(argv) -> int:
     t_loop0 = time.perf_counter()
     for k in range(n_epochs):
         t_ms = start_ms + 1000.0 * k * interval_s
-        latest = float(np.max(toe_ms[toe_ms <= t_ms])) if np.any(toe_ms <= t_ms) else float(np.min(toe_ms))
-        eph = cache.get(latest)
+        passed = int(np.searchsorted(times, t_ms, side="right"))
+        eph = cache.get(passed)
         if eph is None:
-            eph = cache[latest] = ephem.copy(cols=np.flatnonzero(toe_ms == latest))
+            eph = cache[passed] = ephem.copy(cols=records_at(t_ms))
         meas, _ = simulate_measures(t_ms, state, ephem=eph, rng=rng)
         n_meas += len(meas)
     t_loop = time.perf_counter() - t_loop0

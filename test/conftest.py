@@ -17,6 +17,19 @@ REPO_ROOT = Path(__file__).resolve().parents[1]
 SHARED_DATA = Path(os.environ.get("GNSS_SIM_SHARED_DATA", REPO_ROOT.parent / "shared" / "data"))
 
 
+@pytest.fixture(scope="session", autouse=True)
+def _a_cache_folder_of_the_sessions_own(tmp_path_factory):
+    """The user's gnss_sim cache (parsed navigation files: core/rinex/nav/cache.py; downloads) stays out of the
+    tests: the session, and every command it runs, uses a folder of its own."""
+    before = os.environ.get("GNSS_SIM_CACHE")
+    os.environ["GNSS_SIM_CACHE"] = str(tmp_path_factory.mktemp("gnss_sim_cache"))
+    yield
+    if before is None:
+        os.environ.pop("GNSS_SIM_CACHE", None)
+    else:
+        os.environ["GNSS_SIM_CACHE"] = before
+
+
 @pytest.fixture(scope="session")
 def shared_data() -> Path:
     """Path of ``../shared/data``; skips the test when it is absent."""

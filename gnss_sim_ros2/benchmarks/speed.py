@@ -11,6 +11,11 @@
   pandas/xarray/georinex versions than gnss_sim, so it runs in the interpreter given by
   ``--peer-python`` (or GNSS_SIM_PEER_PYTHON), a venv of its own (requirements/bench-peer.txt);
   without one that imports it the ratio is reported as skipped, with the reason.
+* ``GPS hour, real navigation file``: the whole job as a user runs it -- the same static GPS hour from the
+  OPEC station's daily GPS navigation file (../shared/data/opec-2022-001, 2022-01-01 12:00-13:00), gnss_sim
+  ``--nav FILE`` against the peer script on the same file.  gnss_sim twice per repeat: ``cold`` with an empty
+  cache folder (``GNSS_SIM_CACHE``: the file parsed by georinex), ``warm`` right after it (the parsed records
+  from core/rinex/nav/cache.py); the ratios to the peer's time of the same run.  Skipped when the data is absent.
 
 Each child is run ``repeats`` times, alternating, the shortest wall time kept (other processes on a
 shared machine only ever add time); CPU time (user + system of the child) is reported beside it.
@@ -20,6 +25,7 @@ from __future__ import annotations
 import json
 import os
 import resource
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -32,6 +38,9 @@ DEMO_TARGET_RTF = 1000.0
 PEER_TARGET_RATIO = 20.0
 #: the OPEC marker (benchmarks/presets.py OPEC_ECEF_M): a static station
 GPS_STATION_ECEF_M = (3149785.9652, 598260.8822, 5495348.4927)
+#: the real daily GPS navigation file of that station and the hour simulated from it
+REAL_NAV = Path("opec-2022-001") / "OPEC00NOR_S_20220010000_01D_GN.rnx"
+REAL_START = "2022-01-01T12:00:00"
 PEER_SCRIPT = Path(__file__).resolve().parents[2] / "bench" / "peer_gnss_lib_py.py"
 
 
@@ -66,7 +75,9 @@ def peer_python(given: str | None) -> tuple[str | None, str]:
                   "python with --peer-python or GNSS_SIM_PEER_PYTHON)")
 
 
-def run_speed(duration_s: float = 3600.0, repeats: int = 3, peer: str | None = None, log=print) -> dict:
+def run_speed(duration_s: float = 3600.0, repeats: int = 3, peer: str | None = None, log=print,
+              real: bool = True) -> dict:
+    from gnss_sim_ros2.benchmarks.presets import shared_data_dir
     from gnss_sim_ros2.core.ephemeris.synthetic import write_synthetic_nav
     from gnss_sim_ros2.core.time import GnssTime
 
@@ -80,6 +91,9 @@ def run_speed(duration_s: float = 3600.0, repeats: int = 3, peer: str | None = N
     # peer's site-packages are compiled): a shell with PYTHONDONTWRITEBYTECODE would otherwise make every
     # gnss_sim run compile its sources again (about 0.1 s), the peer's not
     env.pop("PYTHONDONTWRITEBYTECODE", None)
+    env.pop("GNSS_SIM_NAV_CACHE", None)
+    cache = work / "cache"
+    env["GNSS_SIM_CACHE"] = str(cache)       # never the user's cache: cold runs start from an empty one
     peer_env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
     subprocess.run([sys.executable, "-m", "compileall", "-q", str(Path(repo) / "gnss_sim_ros2")],
                    capture_output=True, env=env)
@@ -93,15 +107,30 @@ def run_speed(duration_s: float = 3600.0, repeats: int = 3, peer: str | None = N
         start = GnssTime.from_iso(DEMO_START)
         nav = write_synthetic_nav(work / "gps_nav.rnx", start - 7200.0, duration_s + 4 * 3600.0, systems="G")
         peer_cmd = [py, str(PEER_SCRIPT), str(nav), str(int(start.sec) * 1000), f"{duration_s:g}", "1", xyz]
-    runs = {"demo": [], "gps": [], "peer": []}
+    real_nav = shared_data_dir() / REAL_NAV
+    real_why = "" if real else "not asked (--no-real)"
+    if real and not real_nav.is_file():
+        real_why = f"{real_nav} not found (GNSS_SIM_SHARED_DATA)"
+    real_cmd = real_peer_cmd = None
+    if not real_why:
+        real_cmd = sim + ["--nav", str(real_nav), "--systems", "G", "--position-ecef", xyz, "--start", REAL_START,
+                          "--out", str(work / "real")]
+        if py is not None:
+            real_start_ms = int(GnssTime.from_iso(REAL_START).sec) * 1000
+            real_peer_cmd = [py, str(PEER_SCRIPT), str(real_nav), str(real_start_ms), f"{duration_s:g}", "1", xyz]
+    runs = {"demo": [], "gps": [], "peer": [], "real_cold": [], "real_warm": [], "real_peer": []}
     for r in range(repeats):
-        for name, cmd, e in (("demo", demo_cmd, env), ("gps", gps_cmd, env), ("peer", peer_cmd, peer_env)):
+        for name, cmd, e in (("demo", demo_cmd, env), ("gps", gps_cmd, env), ("peer", peer_cmd, peer_env),
+                             ("real_cold", real_cmd, env), ("real_warm", real_cmd, env),
+                             ("real_peer", real_peer_cmd, peer_env)):
             if cmd is None:
                 continue
+            if name == "real_cold":
+                shutil.rmtree(cache, ignore_errors=True)
             # in the repository: `python -m` puts the working folder first on the path (another checkout there
             # would be run instead)
             got = _timed(cmd, e, repo if e is env else str(work))
-            if name == "peer":
+            if name in ("peer", "real_peer"):
                 got["peer"] = json.loads(got["stdout"].strip().splitlines()[-1])
             got.pop("stdout")
             runs[name].append(got)
@@ -124,10 +153,31 @@ def run_speed(duration_s: float = 3600.0, repeats: int = 3, peer: str | None = N
                   "cpu_ratio": best["peer"]["cpu_s"] / max(best["gps"]["cpu_s"], 1e-9), "peer_python": py})
     else:
         g["skipped"] = why
+    rep["real_nav"] = _real_figures(best, epochs, str(real_nav), real_why or ("" if py else why))
     rep["demo"]["target_met"] = rep["demo"]["realtime_factor"] >= DEMO_TARGET_RTF
     if "ratio" in g:
         g["target_met"] = g["ratio"] >= PEER_TARGET_RATIO
     return rep
+
+
+def _real_figures(best: dict, epochs: int, nav: str, why: str) -> dict:
+    """The whole job from the real navigation file: gnss_sim cold and warm, the peer, their ratios."""
+    if "real_cold" not in best:
+        return {"skipped": why}
+    out = {"nav": nav, "start": REAL_START, "target_ratio": PEER_TARGET_RATIO}
+    for k in ("cold", "warm"):
+        out[f"gnss_sim_{k}_wall_s"] = best[f"real_{k}"]["wall_s"]
+        out[f"gnss_sim_{k}_cpu_s"] = best[f"real_{k}"]["cpu_s"]
+    if "real_peer" not in best:
+        out["peer_skipped"] = why
+        return out
+    p = best["real_peer"]
+    out.update({"gnss_lib_py_wall_s": p["wall_s"], "gnss_lib_py_cpu_s": p["cpu_s"], "gnss_lib_py": p["peer"]})
+    for k in ("cold", "warm"):
+        out[f"ratio_{k}"] = p["wall_s"] / out[f"gnss_sim_{k}_wall_s"]
+        out[f"cpu_ratio_{k}"] = p["cpu_s"] / max(out[f"gnss_sim_{k}_cpu_s"], 1e-9)
+    out["target_met"] = out["ratio_warm"] >= PEER_TARGET_RATIO
+    return out
 
 
 def _machine() -> str:
@@ -153,4 +203,19 @@ def speed_table(rep: dict) -> str:
                      f">= {g['target_ratio']:.0f}x: {'met' if g['target_met'] else 'not met'})")
     else:
         lines.append(f"              gnss_lib_py: skipped ({g['skipped']})")
+    r = rep.get("real_nav", {})
+    if "skipped" in r:
+        lines.append(f"  GPS hour, real navigation file: skipped ({r['skipped']})")
+    elif r:
+        lines.append(f"  GPS hour, real navigation file (OPEC {r['start'][:10]}, whole job): gnss_sim cold "
+                     f"{r['gnss_sim_cold_wall_s']:.2f} s wall, {r['gnss_sim_cold_cpu_s']:.2f} s CPU; warm (parsed "
+                     f"navigation cached) {r['gnss_sim_warm_wall_s']:.2f} s wall, {r['gnss_sim_warm_cpu_s']:.2f} s CPU")
+        if "ratio_warm" in r:
+            lines.append(f"              gnss_lib_py {r['gnss_lib_py_wall_s']:.2f} s wall, "
+                         f"{r['gnss_lib_py_cpu_s']:.2f} s CPU")
+            lines.append(f"              ratio cold {r['ratio_cold']:.1f}x wall ({r['cpu_ratio_cold']:.1f}x CPU), warm "
+                         f"{r['ratio_warm']:.1f}x wall ({r['cpu_ratio_warm']:.1f}x CPU) (target >= "
+                         f"{r['target_ratio']:.0f}x: {'met' if r['target_met'] else 'not met'})")
+        else:
+            lines.append(f"              gnss_lib_py: skipped ({r['peer_skipped']})")
     return "\n".join(lines)

@@ -61,7 +61,7 @@ def run_speed_command(args) -> int:
 
     try:
         report = run_speed(args.speed_duration, args.repeats or 3, args.peer_python,
-                           log=lambda m: print(m, file=sys.stderr, flush=True))
+                           log=lambda m: print(m, file=sys.stderr, flush=True), real=not args.no_real)
     except (ValueError, RuntimeError) as exc:
         print(f"gnss-sim bench: error: {exc}", file=sys.stderr)
         return 2

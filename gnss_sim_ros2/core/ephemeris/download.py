@@ -38,6 +38,8 @@ import zlib
 from collections.abc import Sequence
 from pathlib import Path
 
+from ..user_cache import default_cache_dir
+
 log = logging.getLogger(__name__)
 
 #: default URL templates, tried in order (see the module docstring for their source)
@@ -47,22 +49,12 @@ DEFAULT_TEMPLATES: tuple[str, ...] = (
     "https://igs.bkg.bund.de/root_ftp/IGS/BRDC/{yyyy}/{ddd}/BRDC00WRD_S_{yyyy}{ddd}0000_01D_MN.rnx.gz",
     "https://igs.bkg.bund.de/root_ftp/IGS/BRDC/{yyyy}/{ddd}/brdc{ddd}0.{yy}n.gz",
 )
-#: environment variable overriding the default cache directory
-CACHE_ENV = "GNSS_SIM_CACHE"
 _USER_AGENT = "gnss_sim (https://github.com/; broadcast ephemeris fetch)"
 _RETRY_STATUS = {408, 425, 429, 500, 502, 503, 504}
 
 
 class NavDownloadError(RuntimeError):
     """No template gave a usable navigation file; the message lists every attempt."""
-
-
-def default_cache_dir() -> Path:
-    """``$GNSS_SIM_CACHE`` or ``$XDG_CACHE_HOME/gnss_sim`` or ``~/.cache/gnss_sim``."""
-    if os.environ.get(CACHE_ENV):
-        return Path(os.environ[CACHE_ENV]).expanduser()
-    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base).expanduser() / "gnss_sim"
 
 
 def _as_date(date) -> _dt.date:

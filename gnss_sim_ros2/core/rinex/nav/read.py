@@ -43,6 +43,7 @@ import numpy as np
 from ...time import GnssTime
 from ..nav_write import GLONASS_KM_FIELDS, d12, d19, iono_from_header, record_values
 from . import v2, v3, v4
+from .cache import parse_cached
 from .containers import KEPLER_SYSTEMS, SUPPORTED_SYSTEMS, NavData, NavDataWarning, SystemTable, epoch_key
 from .georinex_adapter import GEORINEX_FIELDS, fields_in_file_order, georinex_parse, non_numeric_field
 from .record_text import message_type, parse_header
@@ -72,17 +73,23 @@ def read_nav_files(paths, start: GnssTime | None = None, end: GnssTime | None = 
 def read_nav_file(path, start: GnssTime | None = None, end: GnssTime | None = None,
                   systems: str = SUPPORTED_SYSTEMS, margin_s: float = 6 * 3600.0) -> NavData:
     """Read one RINEX 2/3/4 navigation file (plain or compressed)."""
-    from georinex.rio import opener  # local import: georinex pulls in xarray
-
     path = Path(path)
     if not path.is_file():
         raise ValueError(f"navigation file {path} does not exist")
-    try:
-        with opener(path) as f:
-            text = f.read()
-    except (OSError, EOFError, ValueError) as e:
-        raise ValueError(f"{path}: cannot open as a RINEX navigation file ({e})") from e
-    return parse_nav_text(text, name=str(path), start=start, end=end, systems=systems, margin_s=margin_s)
+
+    def parse() -> NavData:
+        from georinex.rio import opener  # local import: georinex pulls in xarray
+
+        try:
+            with opener(path) as f:
+                text = f.read()
+        except (OSError, EOFError, ValueError) as e:
+            raise ValueError(f"{path}: cannot open as a RINEX navigation file ({e})") from e
+        return parse_nav_text(text, name=str(path), start=start, end=end, systems=systems, margin_s=margin_s)
+
+    # a second run on the same file: the records of the first (cache.py), without georinex
+    window = [None if t is None else [int(t.sec), float(t.frac)] for t in (start, end)] + [systems, float(margin_s)]
+    return parse_cached(path, tuple(window), parse)
 
 
 def parse_nav_text(text: str, name: str = "<text>", start: GnssTime | None = None, end: GnssTime | None = None,
