@@ -8,9 +8,13 @@ batch of rays and publishes ``visibility`` (same stamp) and, once per second
 of ROS time, ``sky_view`` (sensor_msgs/Image, a polar sky plot for RViz);
 diagnostics count the epochs processed and dropped (no TF in time).
 With ``antenna_position`` the antenna stands still there (a base station):
-no TF lookup. Messages travel as CDR bytes read and written from arrays
-(gnss_sim_ros2/messages/cdr.py): ``satellite_states`` is a raw subscription and the
-visibility is published serialised.
+no TF lookup. Moving obstacles (core/visibility/moving_obstacles.py): a box on each
+``obstacle_frames`` frame looked up in TF at the epoch's stamp (the robot's own body, under the
+antenna frame's prefix, left out; a frame TF lacks at the stamp blocks nothing that epoch and is
+counted), and on each ``obstacle_models`` model at its pose from ``obstacle_pose_topic``
+(tf2_msgs/TFMessage, as ros_gz_bridge gives Gazebo's dynamic poses). Messages travel as CDR
+bytes read and written from arrays (gnss_sim_ros2/messages/cdr.py): ``satellite_states`` is a
+raw subscription and the visibility is published serialised.
 """
 from __future__ import annotations
 
@@ -51,6 +55,9 @@ class VisibilityNode(GnssSimNode):
         self.dropped = 0
         self._last_image_s = -1e9
         self.sky_view = None          # core.scene.sky_view.SkyView of the scene (configure .. cleanup)
+        self.obstacle_frames: list = []   # TF frames carrying an obstacle box (own body left out)
+        self.model_poses = None       # core.visibility.obstacle_poses.PoseBuffer of obstacle_models, or None
+        self.obstacles_missing = 0    # obstacle frames TF lacked at an epoch's stamp
 
     def configure(self, p):
         from gnss_sim_ros2.core.scene.demo_world import demo_world_path
@@ -69,6 +76,11 @@ class VisibilityNode(GnssSimNode):
         self.processed = self.dropped = 0
         self._last_image_s = -1e9
         self.sky_view = SkyView(self.scene)
+        from gnss_sim_ros2.core.visibility.obstacle_poses import PoseBuffer, own_body
+
+        self.obstacle_frames = [f for f in p["obstacle_frames"] if not own_body(f, p["antenna_frame"])]
+        self.model_poses = PoseBuffer(p["obstacle_models"]) if p["obstacle_models"] else None
+        self.obstacles_missing = 0
         from gnss_sim_msgs.msg import Visibility
 
         self.pub = self.lifecycle_publisher(Visibility, "visibility", 100)
@@ -100,6 +112,10 @@ class VisibilityNode(GnssSimNode):
         from gnss_sim_msgs.msg import SatelliteStates
 
         self.active_subscription(SatelliteStates, "satellite_states", self._on_states, 100, raw=True)
+        if self.model_poses is not None:
+            from tf2_msgs.msg import TFMessage
+
+            self.active_subscription(TFMessage, self.params["obstacle_pose_topic"], self._on_model_poses, 100)
         # a steady-clock timer: a simulated clock stands still while an epoch waits for its TF
         self.active_timer(0.005, self._drain, clock=Clock(clock_type=ClockType.STEADY_TIME))
 
@@ -108,6 +124,7 @@ class VisibilityNode(GnssSimNode):
 
     def cleanup(self):
         self.pub = self.image_pub = self.diag_pub = None
+        self.model_poses = None
         if self.tf is not None:
             self.tf.close()
             self.tf = None
@@ -147,15 +164,49 @@ class VisibilityNode(GnssSimNode):
             self.queue.popleft()
             self.process(data, np.asarray(tr))
 
+    def _on_model_poses(self, msg):
+        """Gazebo's model poses (tf2_msgs/TFMessage: child_frame_id = model name, pose in world_frame)."""
+        for tf in msg.transforms:
+            tr, q = tf.transform.translation, tf.transform.rotation
+            self.model_poses.add(tf.child_frame_id, tf.header.stamp.sec + tf.header.stamp.nanosec * 1e-9,
+                                 (tr.x, tr.y, tr.z), (q.x, q.y, q.z, q.w))
+
+    def _obstacles(self, stamp):
+        """The moving boxes at ``stamp`` (core.visibility.moving_obstacles.MovingBoxes, one antenna row), or None."""
+        if not self.obstacle_frames and self.model_poses is None:
+            return None
+        from gnss_sim_ros2.core.visibility.moving_obstacles import MovingBoxes
+
+        p = self.params
+        base, rot, size = [], [], []
+        for frame in self.obstacle_frames:
+            try:
+                tr, r = self.tf.lookup(p["world_frame"], frame, stamp)
+            except LookupError:
+                self.obstacles_missing += 1
+                continue
+            base.append(np.asarray(tr, dtype=float))
+            rot.append(r.as_matrix())
+            size.append(p["obstacle_box_size_m"])
+        if self.model_poses is not None:
+            for pos, r in self.model_poses.at(stamp.sec + stamp.nanosec * 1e-9).values():
+                base.append(pos)
+                rot.append(r)
+                size.append(p["obstacle_model_size_m"])
+        if not base:
+            return None
+        return MovingBoxes.from_bases(np.array(base)[None], np.array(rot)[None], np.array(size)[None])
+
     def process(self, data: bytes, antenna_world_m):
         """One epoch: the serialised SatelliteStates in, the serialised Visibility published."""
         (sec, nanosec), _, states, _ = states_from_cdr(data)
+        obstacles = self._obstacles(Time(sec=sec, nanosec=nanosec))
         ecef = self.scene.antenna_ecef(antenna_world_m)
         rows = np.zeros(0, dtype=np.int64)
         sv = az = el = state = att = extra = frac = rows
         paths = None
         if len(states):
-            state, att, v = self.options.cast(self.scene, antenna_world_m, states.pos_ecef_m)
+            state, att, v = self.options.cast(self.scene, antenna_world_m, states.pos_ecef_m, obstacles=obstacles)
             rows = np.flatnonzero(v.el_deg >= 0.0)     # above the horizon
             paths = getattr(v, "paths", None)          # reflected paths (multipath nlos/full), as the offline chain
             sv, az, el = states.sv[rows], v.az_deg[rows], v.el_deg[rows]
@@ -176,7 +227,8 @@ class VisibilityNode(GnssSimNode):
         status = diagnostic_status(f"{self.get_name()}: visibility",
                                    f"{self.processed} epochs, {self.dropped} dropped (no TF)",
                                    {"satellites_above_horizon": n, "epochs_processed": self.processed,
-                                    "epochs_dropped": self.dropped}, warn=bool(self.dropped))
+                                    "epochs_dropped": self.dropped,
+                                    "obstacle_frames_missing": self.obstacles_missing}, warn=bool(self.dropped))
         self.diag_pub.publish(diagnostic_array(self.get_clock().now().to_msg(), status))
 
 
