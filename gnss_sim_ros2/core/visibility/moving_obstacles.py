@@ -7,11 +7,11 @@ SIGGRAPH 1986; Williams et al., "An efficient and robust ray-box intersection al
 float64, in each box's own frame: the ray origin is taken relative to the box centre before anything else, so
 the far-from-origin float32 loss of the Open3D scene (raycast.py) never arises.  Rays are culled first by each
 box's bounding sphere, so an epoch costs one dot product per ray and box plus the slab test of the few pairs
-left.  ``bench/bench_moving_obstacles.py`` measured (demo world, 40 satellites, 2 shared cores, load 5.8): 0.18 ms
-added per epoch for 1 box, 0.28 ms for 16, 0.61 ms for 64; the alternative, a small Open3D scene of only the boxes
-built and cast every epoch, cost about the same (0.18 / 0.25 / 0.52 ms) but cannot leave out each antenna's own
-body in one cast; one batched cast of 32 robots (each seeing the 31 other bodies) 2.2 ms against 84 ms for 32
-separate casts.
+left.  ``bench/bench_moving_obstacles.py`` measured (demo world, 40 satellites, 2 cores at load 6.7, median /
+best): the obstacles' part of a cast 0.07 / 0.07 ms for 1 box, 0.15 / 0.08 ms for 16, 0.24 / 0.13 ms for 64;
+the alternative, a small Open3D scene of only the boxes built and cast every epoch, 0.18 / 0.14, 0.21 / 0.16
+and 0.51 / 0.33 ms, and it cannot leave out each antenna's own body in one cast.  One batched cast of 32
+robots (each seeing the 31 other bodies) 10 / 1.5 ms against 98 / 55 ms for 32 separate casts.
 
 A box stands on its frame: ``size_m`` = (length along the frame's x, width along y, height along z), its base
 centred on the frame's origin (a robot's ``base_link``, a Gazebo model's origin on the ground).  Boxes are given
