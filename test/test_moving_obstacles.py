@@ -15,7 +15,7 @@ from gnss_sim_ros2.core import frames
 from gnss_sim_ros2.core.scene.visibility import Scene
 from gnss_sim_ros2.core.trajectory import Trajectory
 from gnss_sim_ros2.core.visibility import VisibilityOptions
-from gnss_sim_ros2.core.visibility.moving_obstacles import MovingBoxes, fleet_bodies, yaw_rotations
+from gnss_sim_ros2.core.visibility.moving_obstacles import MovingBoxes, fleet_bodies, own_body, yaw_rotations
 from gnss_sim_ros2.core.vocabulary import VisibilityState
 from gnss_sim_ros2.parameters import validate_node
 
@@ -196,20 +196,6 @@ def test_simulate_obstacle_path_blocks_while_the_box_stands_over_the_antenna(tmp
         simulate.setup_from_args(ap.parse_args(ap2))
 
 
-def test_pose_buffer_interpolates_between_the_poses_around_a_stamp():
-    from gnss_sim_ros2.core.visibility.obstacle_poses import PoseBuffer, own_body
-
-    buf = PoseBuffer(["bus"])
-    q_yaw90 = (0.0, 0.0, np.sin(np.pi / 4), np.cos(np.pi / 4))
-    buf.add("bus", 10.0, (10.0, 0.0, 0.0), q_yaw90)
-    buf.add("bus", 0.0, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))     # out of order: put in its place
-    buf.add("car", 0.0, (5.0, 5.0, 0.0), (0.0, 0.0, 0.0, 1.0))     # not an obstacle: ignored
-    assert buf.at(-1.0) == {}                                       # before its first pose: not there yet
-    pos, rot = buf.at(2.5)["bus"]
-    assert np.allclose(pos, [2.5, 0.0, 0.0]) and np.allclose(rot, np.eye(3))
-    pos, rot = buf.at(7.5)["bus"]
-    assert np.allclose(pos, [7.5, 0.0, 0.0]) and np.allclose(rot @ [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
-    assert np.allclose(buf.at(99.0)["bus"][0], [10.0, 0.0, 0.0])   # the last pose held
-    assert set(buf.at(5.0)) == {"bus"}
+def test_own_body_is_the_frame_under_the_antenna_frames_prefix():
     assert own_body("robot2/base_link", "robot2/gnss_antenna")
     assert not own_body("robot1/base_link", "robot2/gnss_antenna") and not own_body("base_link", "gnss_antenna")

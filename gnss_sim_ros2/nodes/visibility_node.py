@@ -35,6 +35,7 @@ from gnss_sim_ros2.messages.diagnostics import diagnostic_array, diagnostic_stat
 from gnss_sim_ros2.messages.images import rgb8_image
 from gnss_sim_ros2.nodes.common import GnssSimNode, run_node
 from gnss_sim_ros2.nodes.tf_source import TfSource
+from gnss_sim_ros2.tf_tree import TransformTree
 
 #: the sky view image is rendered at most this often (ROS time) [s]
 SKY_VIEW_PERIOD_S = 5.0
@@ -56,7 +57,7 @@ class VisibilityNode(GnssSimNode):
         self._last_image_s = -1e9
         self.sky_view = None          # core.scene.sky_view.SkyView of the scene (configure .. cleanup)
         self.obstacle_frames: list = []   # TF frames carrying an obstacle box (own body left out)
-        self.model_poses = None       # core.visibility.obstacle_poses.PoseBuffer of obstacle_models, or None
+        self.model_poses = None       # tf_tree.TransformTree of the obstacle_models' poses, or None
         self.obstacles_missing = 0    # obstacle frames TF lacked at an epoch's stamp
 
     def configure(self, p):
@@ -76,10 +77,11 @@ class VisibilityNode(GnssSimNode):
         self.processed = self.dropped = 0
         self._last_image_s = -1e9
         self.sky_view = SkyView(self.scene)
-        from gnss_sim_ros2.core.visibility.obstacle_poses import PoseBuffer, own_body
+        from gnss_sim_ros2.core.visibility.moving_obstacles import own_body
 
         self.obstacle_frames = [f for f in p["obstacle_frames"] if not own_body(f, p["antenna_frame"])]
-        self.model_poses = PoseBuffer(p["obstacle_models"]) if p["obstacle_models"] else None
+        # the models' poses: interpolated between the two around a stamp, the nearest held beyond the first or last
+        self.model_poses = TransformTree(cache_time_s=30.0, tolerance_s=np.inf) if p["obstacle_models"] else None
         self.obstacles_missing = 0
         from gnss_sim_msgs.msg import Visibility
 
@@ -166,10 +168,13 @@ class VisibilityNode(GnssSimNode):
 
     def _on_model_poses(self, msg):
         """Gazebo's model poses (tf2_msgs/TFMessage: child_frame_id = model name, pose in world_frame)."""
+        models = self.params["obstacle_models"]
         for tf in msg.transforms:
-            tr, q = tf.transform.translation, tf.transform.rotation
-            self.model_poses.add(tf.child_frame_id, tf.header.stamp.sec + tf.header.stamp.nanosec * 1e-9,
-                                 (tr.x, tr.y, tr.z), (q.x, q.y, q.z, q.w))
+            if tf.child_frame_id in models:
+                tr, q = tf.transform.translation, tf.transform.rotation
+                self.model_poses.set_transform(self.params["world_frame"], tf.child_frame_id,
+                                               tf.header.stamp.sec + tf.header.stamp.nanosec * 1e-9,
+                                               (tr.x, tr.y, tr.z), (q.x, q.y, q.z, q.w))
 
     def _obstacles(self, stamp):
         """The moving boxes at ``stamp`` (core.visibility.moving_obstacles.MovingBoxes, one antenna row), or None."""
@@ -189,10 +194,13 @@ class VisibilityNode(GnssSimNode):
             rot.append(r.as_matrix())
             size.append(p["obstacle_box_size_m"])
         if self.model_poses is not None:
-            for pos, r in self.model_poses.at(stamp.sec + stamp.nanosec * 1e-9).values():
-                base.append(pos)
-                rot.append(r)
-                size.append(p["obstacle_model_size_m"])
+            known = self.model_poses.frames()
+            for model in p["obstacle_models"]:
+                if model in known:                  # a model whose pose has not come yet blocks nothing
+                    pos, r = self.model_poses.lookup(p["world_frame"], model, stamp.sec + stamp.nanosec * 1e-9)
+                    base.append(pos)
+                    rot.append(r.as_matrix())
+                    size.append(p["obstacle_model_size_m"])
         if not base:
             return None
         return MovingBoxes.from_bases(np.array(base)[None], np.array(rot)[None], np.array(size)[None])

@@ -33,6 +33,13 @@ from ..vocabulary import VisibilityState
 TNEAR_M = 1e-3
 
 
+def own_body(frame: str, antenna_frame: str) -> bool:
+    """Whether obstacle ``frame`` is the body of the robot that carries ``antenna_frame``: both under the same TF
+    prefix (``robot2/base_link`` and ``robot2/gnss_antenna``); frames without a prefix are never one's own."""
+    prefix = antenna_frame.rpartition("/")[0]
+    return bool(prefix) and frame.rpartition("/")[0] == prefix
+
+
 def yaw_rotations(yaw_deg) -> np.ndarray:
     """(..., 3, 3) world-from-box rotations about world up by ``yaw_deg`` (from +x counter-clockwise, REP-103)."""
     y = np.radians(np.asarray(yaw_deg, dtype=np.float64))
