@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from gnss_sim_ros2.core.demo import DEMO_START
+from gnss_sim_ros2.core.multipath.lms import LMS_ENVIRONMENTS
 from gnss_sim_ros2.core.vocabulary import (
     EPHEMERIS_SOURCES,
     IONOSPHERE_MODELS,
@@ -313,6 +314,11 @@ NODE_PARAMS: dict[str, list[Param]] = {
               "above the loss threshold at the first epoch are locked, no loss-of-lock or half-cycle flag) or cold "
               "(switched on at the first epoch: every track acquired then, flagged); empty: the profile's "
               "(tracking.start, default warm)", choices=("", *TRACKING_STARTS)),
+        Param("lms_environment", "off", "land-mobile-satellite channel layered on the scene's rays (ITU-R P.681 / "
+              "Perez-Fontan 3-state chain, Loo fading, DLR echo delays; core/multipath/lms.py): on satellites the "
+              "scene leaves in sight, shadowed / blocked states and a diffuse echo (what a 3D model lacks: street "
+              "furniture, vehicles, trees). off, auto (per epoch from the share of satellites the scene blocks: "
+              "open field nothing, else suburban or urban) or a class", choices=LMS_ENVIRONMENTS),
         Param("scenario", "", "threat scenario file (YAML, docs/SCENARIOS.md): timed jammers, spoofers and receiver "
               "faults (core/threats), relative to the working directory, kept as its absolute path; empty: none",
               check_value=_check_scenario),

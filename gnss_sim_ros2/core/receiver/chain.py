@@ -88,6 +88,7 @@ class ChainSettings:
             if start:
                 tracking["start"] = start
             kw["tracking"] = TrackingConfig(**tracking)
+        kw["lms_environment"] = p.get("lms_environment", "off")
         kw.update({k: v for k, v in (receiver_overrides or {}).items() if v is not None and v != ""})
         out_dir = p.get("output_dir", "")
         return cls(receiver=ReceiverConfig(**kw), solver=SolverConfig(elevation_mask_deg=p["elevation_mask_deg"]),

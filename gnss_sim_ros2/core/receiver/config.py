@@ -102,6 +102,8 @@ class ReceiverConfig:
     transmit_time: str = "recompute"
     light_time_iterations: int = 2
     seed: int = 1
+    #: land-mobile-satellite layer on the scene's rays (lms_channel.py): off, auto or a class of multipath/lms.py
+    lms_environment: str = "off"
     #: Fields a profile owns (every field but profile_file.RUN_FIELDS) default to None: the profile's value, else
     #: the field's ``builtin`` (a profile that leaves it out, a bare signal mapping); an argument overrides both.
     #: DLL: noise bandwidth [Hz], early-late spacing [chips]

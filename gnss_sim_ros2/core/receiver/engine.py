@@ -72,6 +72,7 @@ from .clock import ReceiverClock
 from .code_multipath import CodeMultipath
 from .config import ReceiverConfig
 from .ionosphere import klobuchar_coeffs, truth_model
+from .lms_channel import LmsChannel, code_and_amplitude
 from .observations import EpochObservations, untracked_epoch
 from .signal_rows import SignalRows, array_key
 from .tracking import Tracker
@@ -97,6 +98,8 @@ class Receiver:
         self.tracker = Tracker(config.tracking, np.random.default_rng(rng.integers(2**63)))
         self.code_multipath = CodeMultipath(config, np.random.default_rng(rng.integers(2**63)))
         self.world_terms = WorldErrorTerms(config.world_seed)
+        #: the land-mobile-satellite layer (lms_channel.py): None with lms_environment off
+        self.lms = LmsChannel(config.lms_environment, config.seed) if config.lms_environment != "off" else None
         self.set_iono_coefficients(iono_coeffs)
         self._t_prev: GnssTime | None = None
         self._geo_key = None
@@ -228,6 +231,8 @@ class Receiver:
         self._world_errors(b)
         self._signal_strength(b)
         self._scene_reflections(b, multipath)
+        if self.lms is not None:
+            self._lms_channel(b)
         if self.threats is not None:      # interference on C/N0 before tracking (core/threats/jamming.py)
             b.cn0 = self.threats.signal_cn0(ts, b.rx_ep, b.e_sig, b.rows.sv_j, b.codes, b.freq, b.cn0,
                                             self.cfg.link_budget, self.cfg.frontend_bandwidth_hz)
@@ -408,6 +413,29 @@ class Receiver:
                     ok_all = b.line_ok.copy()
                 ok_all[nlos_rows] |= b.vis_j[nlos_rows] == REFLECTED_ONLY
         b.ok_all = ok_all
+
+    def _lms_channel(self, b: _Block) -> None:
+        """The land-mobile-satellite layer (lms_channel.py) on the satellites the scene leaves in sight, epoch by epoch
+        in order (its chains have memory): C/N0 of the direct signal's state and echo, the echo's code error."""
+        cfg = self.cfg
+        in_sight = (b.vis == _VISIBLE_I) | (b.vis == _ATTENUATED_I)
+        for e in range(b.k_n):
+            s0, s1 = b.seg[e], b.seg[e + 1]
+            share = float(np.mean(~in_sight[s0:s1])) if s1 > s0 else 0.0
+            out = self.lms.epoch(b.rx_ep[e], b.dt_ep[e], b.svs[s0:s1], b.el[s0:s1], in_sight[s0:s1], share)
+            if out is None:
+                continue
+            rows, level_db, amp, phase, delay_m = out
+            j0, j1 = b.sig_seg[e], b.sig_seg[e + 1]
+            at = np.full(s1 - s0, -1)
+            at[rows] = np.arange(len(rows))
+            pick = at[b.sat_i[j0:j1] - s0]
+            sel = np.flatnonzero(pick >= 0)
+            r = pick[sel]
+            code, mag = code_and_amplitude(level_db[r], amp[r], phase[r], delay_m[r], b.chip[j0 + sel],
+                                           cfg.dll_spacing_chips, cfg.frontend_bandwidth_hz)
+            b.cn0[j0 + sel] += 20.0 * np.log10(np.maximum(mag, 1e-6))
+            b.mp_code[j0 + sel] += code
 
     def _tracking(self, b: _Block) -> None:
         """The tracking loops, epoch by epoch in order (Tracker.update_many)."""
