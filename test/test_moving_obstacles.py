@@ -199,3 +199,24 @@ def test_simulate_obstacle_path_blocks_while_the_box_stands_over_the_antenna(tmp
 def test_own_body_is_the_frame_under_the_antenna_frames_prefix():
     assert own_body("robot2/base_link", "robot2/gnss_antenna")
     assert not own_body("robot1/base_link", "robot2/gnss_antenna") and not own_body("base_link", "gnss_antenna")
+
+
+def test_fleet_with_a_shared_model_in_one_cast_equals_one_cast_per_robot(open_scene):
+    """Three robots and a bus every robot sees: bodies (own left out) and the bus in one batched cast, equal
+    to each robot cast alone with the two other bodies and the bus."""
+    bases = np.array([[0.0, 0.0, 0.0], [2.5, 0.5, 0.0], [-1.0, 3.0, 0.0]])
+    yaw = np.array([0.0, 30.0, 100.0])
+    size = [1.5, 1.0, 1.2]
+    antennas = bases + [0.0, 0.0, 0.5]
+    bus = MovingBoxes.from_bases(np.array([[[0.0, -6.0, 0.0]]]), yaw_rotations(np.array([[0.0]])), [10, 2.5, 3])
+    az, el = np.meshgrid(np.arange(0.0, 360.0, 10.0), np.arange(11.0, 50.0, 5.0), indexing="ij")
+    sat = sats_at(open_scene, antennas[0], az.ravel(), el.ravel())
+    opts = VisibilityOptions(mask_deg=10.0)
+    batched, _, _ = opts.cast(open_scene, antennas, sat, obstacles=fleet_bodies(bases, yaw, size)
+                              .concat(bus.repeat_rows(3)))
+    assert (batched == BLOCKED).any(axis=1).all()
+    for i in range(3):
+        others = np.delete(np.arange(3), i)
+        alone = MovingBoxes.from_bases(bases[None, others], yaw_rotations(yaw[others])[None], size).concat(bus)
+        one, _, _ = opts.cast(open_scene, antennas[i], sat, obstacles=alone)
+        assert np.array_equal(one, batched[i])

@@ -80,6 +80,12 @@ class MovingBoxes:
         """The boxes as seen from the antenna rows ``index`` (a slice or indices)."""
         return MovingBoxes(*(getattr(self, f)[index] for f in _FIELDS))
 
+    def repeat_rows(self, m: int) -> MovingBoxes:
+        """Boxes of one antenna row seen alike from ``m`` rows (a model every robot of a fleet sees)."""
+        if self.active.shape[0] != 1:
+            raise ValueError(f"MovingBoxes.repeat_rows: boxes of one antenna row expected, got {self.active.shape[0]}")
+        return MovingBoxes(*(np.repeat(getattr(self, f), m, axis=0) for f in _FIELDS))
+
     def concat(self, other: MovingBoxes) -> MovingBoxes:
         """These boxes and ``other``'s (same antenna rows) together."""
         return MovingBoxes(*(np.concatenate([getattr(self, f), getattr(other, f)], axis=1) for f in _FIELDS))
