@@ -41,6 +41,9 @@ def add_arguments(parser):
     parser.add_argument("--origin", metavar="LAT,LON,H", help="geodetic point of --sky-mask [deg, deg, m]")
     parser.add_argument("--materials", metavar="FILE.yaml", help="material classes/rules (with --world)")
     parser.add_argument("--allow-partial", action="store_true", help=ALLOW_PARTIAL_HELP)
+    parser.add_argument("--keep-dynamic", action="store_true",
+                        help="keep the world's non-static models as obstacles (parameter keep_dynamic_models; a city "
+                             "model whose buildings are not marked static)")
     area = parser.add_mutually_exclusive_group()
     area.add_argument("--polygon", metavar="'x,y;x,y;...'",
                       help="area polygon in world x, y [m] (write --polygon='-5,0;...' when it starts with a minus; "
@@ -162,7 +165,8 @@ def _run(args, stage: Path) -> None:
     spec = SceneSpec(world=str(Path(args.world).resolve()) if args.world else "",
                      mesh=str(Path(args.mesh).resolve()) if args.mesh else "",
                      materials=str(Path(args.materials).resolve()) if args.materials else "",
-                     strict_world=strict_world(args), sky_mask=args.sky_mask or "", origin_llh=origin)
+                     strict_world=strict_world(args), keep_dynamic=bool(args.keep_dynamic),
+                     sky_mask=args.sky_mask or "", origin_llh=origin)
     scene = spec.load()
     if scene.spherical is None:
         raise ValueError(f"{args.world or args.mesh}: no geodetic origin (<spherical_coordinates> in the world, "

@@ -232,32 +232,54 @@ def dops_from_az_el(az_deg, el_deg, used, clock_index=None):
     line of sight, one clock column per clock group ``clock_index`` (N,) int, all 0 by default); TDOP of the
     first group present.  NaN where fewer satellites than unknowns (3 + clock groups present) are used."""
     az, el = np.radians(np.asarray(az_deg, np.float64)), np.radians(np.asarray(el_deg, np.float64))
+    ce = np.cos(el)
+    return dops_from_los_enu((ce * np.sin(az), ce * np.cos(az), np.sin(el)), used, clock_index)
+
+
+def dops_from_los_enu(los_enu, used, clock_index=None):
+    """:func:`dops_from_az_el` from the unit lines of sight (east, north, up), each (K, N) (several sets of
+    ``used`` satellites of one geometry pay the sines and cosines once).
+
+    Each satellite has one clock column, so the clock block D of the normal matrix [[A, B], [B^T, D]] is
+    diagonal (the satellite count n_g of each group): the position block of the inverse is the 3 x 3 inverse of
+    the Schur complement S = A - B D^-1 B^T = sum_g sum_(s in g) (h_s - mean_g h)(h_s - mean_g h)^T, and a
+    clock's variance is 1 / n_g + c_g^T S^-1 c_g with c_g = mean_g h (block inversion), all closed form."""
     use = np.asarray(used, bool)
     k, n = use.shape
     ci = np.zeros(n, np.int64) if clock_index is None else np.asarray(clock_index, np.int64)
     g = int(ci.max(initial=0)) + 1
-    ce = np.cos(el)
-    h = np.zeros((k, n, 3 + g))
-    h[..., 0], h[..., 1], h[..., 2] = -ce * np.sin(az), -ce * np.cos(az), -np.sin(el)     # ENU
-    h[:, np.arange(n), 3 + ci] = 1.0                # each satellite's own clock column
-    h *= use[..., None]
-    nmat = np.matmul(np.swapaxes(h, 1, 2), h)
-    present = np.stack([(use & (ci == j)).any(axis=1) for j in range(g)], axis=1)
-    ok = use.sum(axis=1) >= 3 + present.sum(axis=1)
-    nmat[~ok] = np.eye(3 + g)                       # too few: any invertible matrix, the result is NaN below
-    nmat = _filled(nmat, present)
-    try:
-        q = _spd_inverses(nmat)
-    except np.linalg.LinAlgError:                   # an exactly singular geometry among them
-        q = _symmetrised(np.linalg.pinv(nmat, hermitian=True))
-    # a degenerate geometry (satellites on one cone): DOPs beyond any use, reported as NaN
-    good = ok & np.all(np.isfinite(q), axis=(1, 2)) & (np.trace(q[:, :3, :3], axis1=1, axis2=2) < 1e8)
-    hdop = np.sqrt(np.maximum(q[:, 0, 0] + q[:, 1, 1], 0.0))
-    vdop = np.sqrt(np.maximum(q[:, 2, 2], 0.0))
-    pdop = np.sqrt(hdop**2 + vdop**2)
-    ref = 3 + np.argmax(present, axis=1)
-    tdop = np.sqrt(np.maximum(q[np.arange(k), ref, ref], 0.0))
-    gdop = np.sqrt(pdop**2 + tdop**2)
+    onehot = np.zeros((n, g))
+    onehot[np.arange(n), ci] = 1.0
+    w = use.astype(np.float64)
+    h = tuple(-np.asarray(c, np.float64) * w for c in los_enu)             # design rows, unused satellites 0
+    cnt = w @ onehot                                                         # (K, G) satellites per clock
+    present = cnt > 0
+    inv_n = np.divide(1.0, cnt, out=np.zeros_like(cnt), where=present)
+    mean = [hi @ onehot * inv_n for hi in h]                                 # (K, G) each: mean_g h
+    sc = {}
+    for i in range(3):
+        for j in range(i, 3):
+            sc[i, j] = np.einsum("ks,ks->k", h[i], h[j]) - np.einsum("kg,kg,kg->k", mean[i], mean[j], cnt)
+    a00, a01, a02, a11, a12, a22 = sc[0, 0], sc[0, 1], sc[0, 2], sc[1, 1], sc[1, 2], sc[2, 2]
+    c00, c01, c02 = a11 * a22 - a12 * a12, a02 * a12 - a01 * a22, a01 * a12 - a02 * a11     # adjugate
+    c11, c12, c22 = a00 * a22 - a02 * a02, a01 * a02 - a00 * a12, a00 * a11 - a01 * a01
+    det = a00 * c00 + a01 * c01 + a02 * c02
+    ok = (use.sum(axis=1) >= 3 + present.sum(axis=1)) & (det > 0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv_det = np.where(ok, 1.0 / det, np.nan)
+        q00, q11, q22 = c00 * inv_det, c11 * inv_det, c22 * inv_det
+        q01, q02, q12 = c01 * inv_det, c02 * inv_det, c12 * inv_det
+        ref = np.argmax(present, axis=1)
+        m = [mi[np.arange(k), ref] for mi in mean]
+        tvar = (inv_n[np.arange(k), ref] + q00 * m[0] ** 2 + q11 * m[1] ** 2 + q22 * m[2] ** 2
+                + 2.0 * (q01 * m[0] * m[1] + q02 * m[0] * m[2] + q12 * m[1] * m[2]))
+        # a degenerate geometry (satellites on one cone): DOPs beyond any use, reported as NaN
+        good = ok & (q00 + q11 + q22 < 1e8) & (q00 + q11 + q22 > 0)
+        hdop = np.sqrt(np.maximum(q00 + q11, 0.0))
+        vdop = np.sqrt(np.maximum(q22, 0.0))
+        pdop = np.sqrt(hdop**2 + vdop**2)
+        tdop = np.sqrt(np.maximum(tvar, 0.0))
+        gdop = np.sqrt(pdop**2 + tdop**2)
     out = np.stack([gdop, pdop, hdop, vdop, tdop])
     out[:, ~good] = np.nan
     return tuple(out)

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..solver import dops_from_az_el
+from ..solver import dops_from_los_enu
 from ..vocabulary import VisibilityState
 from .ranging import RangingBudget
 from .rtk_rule import RtkRule
@@ -95,7 +95,9 @@ def quality_block(scene, vis, antenna_world_m, inp: PlanInputs, stats=None, stat
             st = np.where(above, state, -1).astype(np.int8).reshape(c, len(tt), len(cols))
             states_out[:, tt[0]:tt[-1] + 1] = -1
             states_out[:, tt[0]:tt[-1] + 1, cols] = st
-        gdop, pdop, hdop, vdop, _ = dops_from_az_el(az, el, used, clock_all[cols])
+        ce, el_r = np.cos(np.radians(el)), np.radians(el)
+        los_enu = (ce * np.sin(np.radians(az)), ce * np.cos(np.radians(az)), np.sin(el_r))
+        gdop, pdop, hdop, vdop, _ = dops_from_los_enu(los_enu, used, clock_all[cols])
         excess = np.where(refl, np.nan_to_num(np.asarray(v.extra_path_m, float)), 0.0)
         sigma = inp.budget.sigma_m(sysv[cols], el, np.where(attn, att, 0.0), excess)
         n_used = used.sum(axis=1)
@@ -112,8 +114,10 @@ def quality_block(scene, vis, antenna_world_m, inp: PlanInputs, stats=None, stat
             prev = cur
         cont = cont.reshape(m_rows, len(cols))
         n_rtk = cont.sum(axis=1)
-        pdop_rtk = dops_from_az_el(az, el, cont, clock_all[cols])[1]
-        rtk = (n_rtk >= inp.rule.min_sats) & (pdop_rtk < inp.rule.max_pdop)
+        enough = np.flatnonzero(n_rtk >= inp.rule.min_sats)          # only those can pass: their PDOP
+        pdop_rtk = dops_from_los_enu(tuple(x[enough] for x in los_enu), cont[enough], clock_all[cols])[1]
+        rtk = np.zeros(m_rows, bool)
+        rtk[enough] = pdop_rtk < inp.rule.max_pdop
         vals = {"n_los": los.sum(axis=1), "n_attenuated": attn.sum(axis=1), "n_reflected": refl.sum(axis=1),
                 "n_blocked": blocked.sum(axis=1), "gdop": gdop, "pdop": pdop, "hdop": hdop, "vdop": vdop,
                 "nlos_share": nlos, "h_acc_m": hdop * uere, "n_rtk": n_rtk, "rtk": rtk}

@@ -22,6 +22,7 @@ class SceneSpec:
     mesh: str = ""
     materials: str = ""
     strict_world: bool = True
+    keep_dynamic: bool = False
     sky_mask: str = ""
     origin_llh: tuple = ()
 
@@ -36,7 +37,8 @@ class SceneSpec:
                 from ..visibility import VisibilityOptions, load_scene
 
                 scene = load_scene(self.world, self.mesh, self.materials,
-                                   VisibilityOptions(strict_world=self.strict_world))
+                                   VisibilityOptions(strict_world=self.strict_world,
+                                                     keep_dynamic=self.keep_dynamic))
             _SCENES.clear()                   # one scene per process at a time
             _SCENES[self] = scene
         return scene
