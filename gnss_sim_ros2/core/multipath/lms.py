@@ -1,8 +1,8 @@
 """Land-mobile-satellite (LMS) channel model: what a 3D model lacks (street furniture, vehicles, trees, facade
 detail, its registration error) as a statistical layer per environment class.
 
-Structure (ITU-R P.681-11 section 6 "statistical model for mixed propagation conditions"; Perez-Fontan et al.,
-"Statistical modeling of the LMS channel", IEEE Trans. Veh. Technol. 50(6), 2001, 1549-1567):
+Structure (the state-based statistical LMS models ITU-R P.681 recommends, after Perez-Fontan et al., "Statistical
+modeling of the LMS channel", IEEE Trans. Veh. Technol. 50(6), 2001, 1549-1567):
 
 - three states per satellite: 0 line of sight (A), 1 shadowed (B), 2 blocked / deep shadow (C), a Markov chain in
   the distance travelled with state probabilities W_i and mean state lengths D_i [m] per class and elevation band.
