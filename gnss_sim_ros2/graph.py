@@ -71,6 +71,7 @@ REMAPPINGS = (
     ("status", f"{TOPIC_NAMESPACE}/status"),
     ("nmea", f"{TOPIC_NAMESPACE}/nmea"),
     ("rtcm", f"{TOPIC_NAMESPACE}/rtcm"),
+    ("threats_active", f"{TOPIC_NAMESPACE}/threats/active"),
 )
 
 #: topics a run records (rosbag2) with their types; the sky view images are left out (bulky)
@@ -82,6 +83,7 @@ RECORDED = (
     (f"{TOPIC_NAMESPACE}/vel", "geometry_msgs/msg/TwistWithCovarianceStamped"),
     (f"{TOPIC_NAMESPACE}/status", "gnss_sim_msgs/msg/ReceiverStatus"),
     (f"{TOPIC_NAMESPACE}/nmea", "std_msgs/msg/String"),
+    (f"{TOPIC_NAMESPACE}/threats/active", "std_msgs/msg/String"),      # with a scenario: its truth labels
     ("/tf", "tf2_msgs/msg/TFMessage"),
     ("/tf_static", "tf2_msgs/msg/TFMessage"),
     ("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray"),

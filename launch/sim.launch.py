@@ -24,6 +24,8 @@ Arguments:
                                      base_position) and the rtk node (RTKLIB rtkrcv): /gnss/rtk/fix [false]
   profile:=NAME|FILE                 receiver profile: a built-in name (`gnss-sim profile list`) or a profile
                                      YAML file, relative to the launch's working directory [from config]
+  scenario:=FILE                     threat scenario (docs/SCENARIOS.md): jammers, spoofers, receiver faults;
+                                     truth labels on /gnss/threats/active [from config: none]
   strict_world:=true|false          stop when the world loses geometry it names (a model:// not found) or load
                                      the rest with a warning [from config: true]
   robots:=N                          N robots (1..16): each its trajectory player, visibility and receiver node in
@@ -72,6 +74,8 @@ ARGS = {
     "robots": ("1", "number of robots (1..16), each in namespace robot<k>"),
     "profile": ("", f"receiver profile: a built-in name ({', '.join(builtin_names())}) or a profile YAML file "
                     f"(docs/PROFILES.md), relative to the working directory; empty: the config's profile"),
+    "scenario": ("", "threat scenario file (YAML, docs/SCENARIOS.md): timed jammers, spoofers and receiver faults, "
+                     "relative to the working directory; empty: the config's scenario"),
     "strict_world": ("", "true: stop when the world loses geometry it names (a model:// not found, an unreadable "
                          "mesh); false: load the rest with a warning; empty: the config's strict_world"),
 }
@@ -159,6 +163,8 @@ def _setup(context):
         overrides.setdefault("visibility", {})["strict_world"] = yaml.safe_load(a["strict_world"])
     if a["profile"]:          # loaded and checked by the table; a file kept as its absolute path
         overrides.setdefault("receiver", {})["profile"] = a["profile"]
+    if a["scenario"]:         # read and checked by the table; kept as its absolute path
+        overrides.setdefault("receiver", {})["scenario"] = a["scenario"]
     layout = layout_of(a["composed"])
     rtk = _true(a["rtk"])
     robots = check_robots(a["robots"], "launch argument robots")
@@ -167,7 +173,8 @@ def _setup(context):
                          f"rover (and its base station); use robots:=1 with rtk:=true")
     if rtk:
         overrides.setdefault("receiver", {})["rtcm"] = True      # the rover's RTCM3 for the rtk node
-    cfg = load_config(a["config"] or None, overrides, {"strict_world": "strict_world:=", "profile": "profile:="})
+    cfg = load_config(a["config"] or None, overrides, {"strict_world": "strict_world:=", "profile": "profile:=",
+                                                         "scenario": "scenario:="})
     check_robot_config(cfg, robots, "launch argument robots")
     sim_time = _true(a["use_sim_time"])
     params = {**cfg.ros_parameter_file_dict(), **(graph.rtk_parameter_sections(cfg) if rtk else {}),

@@ -78,6 +78,17 @@ class ReceiverNode(GnssSimNode):
             "nmea": self.lifecycle_publisher(String, "nmea", 100),
             "diag": self.lifecycle_publisher(DiagnosticArray, "/diagnostics", 10),
         }
+        if p["scenario"]:              # the scenario's events (core/threats): llh positions (no scene here)
+            from gnss_sim_ros2.core.threats.runtime import ThreatRuntime
+            from gnss_sim_ros2.core.threats.scenario import load_scenario
+            from gnss_sim_ros2.core.time import GnssTime
+
+            try:
+                self.chain.threats = ThreatRuntime(load_scenario(p["scenario"]),
+                                                   start=GnssTime.from_iso(p["start_time"]))
+            except ValueError as exc:
+                raise ValueError(f"node {self.get_name()}: {exc}") from None
+            self.pubs["threats"] = self.lifecycle_publisher(String, "threats_active", 100)
         if p["rtcm"]:
             from std_msgs.msg import UInt8MultiArray
 
@@ -168,6 +179,11 @@ class ReceiverNode(GnssSimNode):
         self.pubs["vel"].publish(vel_to_msg(header, sol))
         self.pubs["status"].publish(status_to_msg(header, obs, sol, self.chain.settings.receiver.elevation_mask_deg))
         self.pubs["nmea"].publish(nmea_to_msg(ep.nmea))
+        if "threats" in self.pubs:     # the truth labels of the epoch (messages/threats.py)
+            from gnss_sim_ros2.messages.threats import threats_to_msg
+
+            th = self.chain.threats
+            self.pubs["threats"].publish(threats_to_msg(stamp, th.labels(t), th.status(t)))
         if ep.rtcm:
             self.pubs["rtcm"].publish(rtcm_to_msg(ep.rtcm))
             if self.tcp is not None:

@@ -41,6 +41,9 @@ def add_arguments(p):
     p.add_argument("--systems", default=None, help="GNSS systems, letters of GRECJI")
     from gnss_sim_ros2.core.receiver.profile_file import option_help
     p.add_argument("--profile", metavar="NAME|FILE", default=None, help=option_help())
+    p.add_argument("--scenario", metavar="FILE", default=None,
+                   help="threat scenario (YAML, docs/SCENARIOS.md): timed jammers, spoofers, receiver faults "
+                        "(parameter scenario); truth labels on /gnss/threats/active")
     p.add_argument("--layout", choices=LAYOUTS, default=None,
                    help="processes: composed (every node in this one), robot (one process per robot: its player, "
                         "visibility and receiver; the ephemeris node and the recorder in this one), node (one "
@@ -69,7 +72,7 @@ def add_arguments(p):
 #: parameter -> command-line option (load_config's ``options``: errors name the option the user typed)
 PARAM_OPTIONS = {"systems": "--systems", "rate_hz": "--rate", "antenna_frame": "--antenna-frame",
                  "duration_s": "--duration", "world_file": "--world", "mesh_file": "--mesh",
-                 "strict_world": "--allow-partial", "profile": "--profile"}
+                 "strict_world": "--allow-partial", "profile": "--profile", "scenario": "--scenario"}
 
 
 def _overrides(args) -> dict:
@@ -91,6 +94,8 @@ def _overrides(args) -> dict:
         out["ephemeris"] = {"duration_s": args.duration}
     if getattr(args, "profile", None) is not None:    # checked (and a file made absolute) by the table
         out.setdefault("receiver", {})["profile"] = args.profile
+    if getattr(args, "scenario", None) is not None:   # checked (and made absolute) by the table
+        out.setdefault("receiver", {})["scenario"] = args.scenario
     if getattr(args, "rtk", False):
         out.setdefault("receiver", {})["rtcm"] = True      # the rover's RTCM3 for the rtk node
     return out

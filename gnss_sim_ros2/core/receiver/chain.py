@@ -221,7 +221,7 @@ class ReceiverChain:
             self.rx = self._receiver(states)
         obs = self.rx.epoch(t, ecef, states, vis_state, attenuation_db, antenna_vel_ecef_mps=antenna_vel_ecef_mps,
                             multipath=multipath)
-        return obs if self.threats is None else self.threats.on_ranges(obs)
+        return obs if self.threats is None else self.threats.observations(obs)
 
     def finish(self, t: GnssTime, antenna_ecef_m, states, obs) -> EpochProducts:
         """The second half of :meth:`step`: the fix, NMEA, files and RTCM of the observables :meth:`observe`
@@ -242,7 +242,7 @@ class ReceiverChain:
             self.rx = self._receiver(states)
         obs = self.rx.epochs(ts, ecef, states, epoch_of_row, vis_state, attenuation_db, vel, multipath)
         if self.threats is not None:
-            obs = [self.threats.on_ranges(o) for o in obs]
+            obs = [self.threats.observations(o) for o in obs]
         # the fixes of the block in one solve, each started at the last fix before the block (the same
         # solutions as starting at the previous epoch's, to the solver's convergence of 0.1 mm)
         fix_obs = self._smoothed_many(obs) if self.settings.smoothing_s > 0 else obs
@@ -258,13 +258,12 @@ class ReceiverChain:
             fix_obs = self._smoothed(obs) if self.settings.smoothing_s > 0 else obs
             sol = position_fix(fix_obs, self.settings.receiver.profile, self.prior_ecef_m, self.settings.solver)
         self.epochs += 1
-        if self.threats is not None:        # output faults act on what the receiver outputs, not on its state
-            if sol.is_fix:
-                self.prior_ecef_m = sol.pos_ecef_m
-            obs, sol = self.threats.outputs(t, obs, sol)
+        if sol.is_fix:
+            self.prior_ecef_m = sol.pos_ecef_m      # the receiver's own state: before any output fault
+        if self.threats is not None:
+            sol = self.threats.solution(t, sol)     # output faults act on what the receiver outputs (core/threats)
         if sol.is_fix:
             self.fixes += 1
-            self.prior_ecef_m = sol.pos_ecef_m if self.threats is None else self.prior_ecef_m
         text = ""
         if self.want_nmea:
             from ..nmea import join_sentences, sentences_from_solution

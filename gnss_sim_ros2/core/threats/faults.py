@@ -8,8 +8,10 @@
   the broadcast clock does not know), ``satellite_ramp_mps`` (off by ``ramp_mps`` (t - start_s)),
   ``bad_ephemeris`` (the broadcast orbit the receiver solves with is off by ``error_m`` radially; the
   measured ranges are true);
-- on the outputs (after the fix): ``off`` (no observation, no fix), ``stuck`` (the last output before the
-  fault repeated: the fix frozen), ``position_offset`` (the fix displaced by ``offset_enu_m``).
+- on the outputs: ``off`` (no observation, no fix), ``stuck`` (the last output before the fault repeated:
+  observations at the new epoch tag and the fix frozen), ``position_offset`` (the fix displaced by
+  ``offset_enu_m``); off and stuck act on the observations before the fix (so NMEA, RINEX and the published
+  messages agree), the receiver's own state (its prior position) is kept from the true fix.
 """
 from __future__ import annotations
 
@@ -64,27 +66,42 @@ def on_ranges(faults, t_rel_s: float, obs):
 
 
 class OutputFaults:
-    """The output faults of one run; remembers the last output for ``stuck``."""
+    """The output faults of one run: the observations (:meth:`observations`, before the fix, so the fix, NMEA and
+    files agree with them) and the fix (:meth:`solution`); remembers the last output for ``stuck``."""
 
     def __init__(self, faults):
         self.faults = [f for f in faults if f.kind in OUTPUT_KINDS]
-        self._last = None
+        self._last_obs = None
+        self._last_sol = None
 
-    def apply(self, t_rel_s: float, obs, sol):
-        """(obs, sol) as the receiver outputs them at run time ``t_rel_s``."""
-        active = {f.kind: f for f in self.faults if f.active(t_rel_s)}
-        if "off" in active:
+    def _active(self, t_rel_s: float) -> dict:
+        return {f.kind: f for f in self.faults if f.active(t_rel_s)}
+
+    def observations(self, t_rel_s: float, obs):
+        """The observations the receiver outputs: none (off), the last ones again at this epoch's tag (stuck)."""
+        active = self._active(t_rel_s)
+        if "off" in active or ("stuck" in active and self._last_obs is None):
             return untracked_epoch(obs.t, obs.clock_bias_s, obs.clock_drift_sps, obs.sat_sv, obs.sat_az_deg,
-                                   obs.sat_el_deg, obs.sat_vis_state, obs.sat_attenuation_db), _no_fix(sol, "off")
+                                   obs.sat_el_deg, obs.sat_vis_state, obs.sat_attenuation_db)
         if "stuck" in active:
-            if self._last is None:            # stuck from the first epoch: nothing to repeat
-                return obs, _no_fix(sol, "stuck")
-            return obs, self._last
+            frozen = copy.copy(self._last_obs)
+            frozen.t = obs.t
+            return frozen
+        self._last_obs = obs
+        return obs
+
+    def solution(self, t_rel_s: float, sol):
+        """The fix the receiver outputs: none (off), the last one (stuck), displaced (position_offset)."""
+        active = self._active(t_rel_s)
+        if "off" in active:
+            return _no_fix(sol, "off")
+        if "stuck" in active:
+            return self._last_sol if self._last_sol is not None else _no_fix(sol, "stuck")
         offsets = [f.offset_enu_m for f in self.faults if f.kind == "position_offset" and f.active(t_rel_s)]
         if offsets and sol.is_fix:
             sol = _moved(sol, np.sum(offsets, axis=0))
-        self._last = sol
-        return obs, sol
+        self._last_sol = sol
+        return sol
 
 
 def _no_fix(sol, why: str):

@@ -4,8 +4,9 @@ it to its ``Receiver``.  Calls per block of epochs, in the chain's order:
 
 1. ``clock_offset_s(ts)`` -- receiver clock faults (Receiver._receiver_clock);
 2. ``signal_cn0(...)`` -- jamming on every signal row's C/N0, before tracking (Receiver.epochs);
-3. ``on_ranges(obs)`` -- satellite faults on the observables, before the fix;
-4. ``outputs(t, obs, sol)`` -- output faults after the fix; ``labels(t)`` the active events (fix.csv, topic).
+3. ``observations(obs)`` -- satellite faults on the ranges, then the output faults on the observations
+   (off, stuck), before the fix;
+4. ``solution(t, sol)`` -- output faults on the fix; ``labels(t)`` the active events (fix.csv, topic).
 
 Spoofing hook: :meth:`ThreatRuntime.active_spoofers` lists the spoofers active at an epoch; the spoofing model
 (not built yet) is one function ``spoof(runtime, t_rel_s, spoofers, ...)`` called from ``signal_cn0``'s stage
@@ -64,15 +65,18 @@ class ThreatRuntime:
             return None
         return fault_model.clock_offset_s(self.faults, self.t_rel(ts))
 
-    def on_ranges(self, obs):
+    def observations(self, obs):
+        """The epoch's observations as the receiver outputs them (satellite faults, then off / stuck)."""
         if not self.faults:
             return obs
-        return fault_model.on_ranges(self.faults, float(self.t_rel(obs.t)[0]), obs)
+        t_rel = float(self.t_rel(obs.t)[0])
+        return self.output_faults.observations(t_rel, fault_model.on_ranges(self.faults, t_rel, obs))
 
-    def outputs(self, t, obs, sol):
+    def solution(self, t, sol):
+        """The fix as the receiver outputs it (off, stuck, position_offset)."""
         if not self.output_faults.faults:
-            return obs, sol
-        return self.output_faults.apply(float(self.t_rel(t)[0]), obs, sol)
+            return sol
+        return self.output_faults.solution(float(self.t_rel(t)[0]), sol)
 
     def positions_ecef(self, track, t_rel_s) -> np.ndarray:
         """(K, 3) ECEF of a scenario track at run times ``t_rel_s``."""
@@ -93,10 +97,8 @@ class ThreatRuntime:
         dist = np.linalg.norm(d, axis=1)
         u = d / np.maximum(dist, 1e-9)[:, None]
         rays = self.scene.rays
-        loss = np.zeros(len(a))
-        for i in range(len(a)):            # tfar per ray: one cast each (a few jammers x epochs of a block)
-            if rays.occluded(aw[i], u[i], tnear_m=1e-3, tfar_m=float(dist[i]))[0]:
-                loss[i] = np.inf
+        # opaque: the first opaque hit nearer than the source (one cast for every segment of the block)
+        loss = np.where(rays.hit_distance(aw, u, tnear_m=1e-3) < dist, np.inf, 0.0)
         if rays.has_penetrable:
             # the segment's penetration: from the antenna on, minus what lies beyond the source
             loss += np.maximum(rays.penetration(aw, u)[0] - rays.penetration(sw, u)[0], 0.0)
@@ -119,46 +121,43 @@ class ThreatRuntime:
         n0 = budget.noise_density_dbwhz
         jk = np.zeros(len(freq))                    # sum over jammers of kappa J [W/Hz] per row
         j_in = np.zeros(len(freq))                  # jammer power inside the row's front-end band [W]
-        systems = np.array([s[0] for s in np.asarray(sv).tolist()])
-        key = np.char.add(np.char.add(systems, np.asarray(codes, dtype=str)), np.round(freq).astype(np.int64)
-                          .astype(str))
-        uniq, inv = np.unique(key, return_index=False, return_inverse=True)
-        first = np.zeros(len(uniq), dtype=np.int64)
-        first[inv[::-1]] = np.arange(len(inv))[::-1]
+        systems = np.char.asarray(np.asarray(sv, dtype="<U3")).astype("<U1")
+        codes = np.asarray(codes, dtype="<U2")
+        # the signal kinds of the rows (system, code, carrier): kappa and the in-band share once per kind
+        key = np.char.add(np.char.add(systems, codes), np.round(freq).astype(np.int64).astype("<U12"))
+        _, first, inv = np.unique(key, return_index=True, return_inverse=True)
         half = 0.5 * frontend_bw_hz
+        gain = budget.antenna_gain
         for jam, on in act:
             pos = self.positions_ecef(jam.track, t_rel)                               # (K, 3)
             _, el, dist = az_el_from_ecef(antenna_ecef_ep, pos)
             loss = self.scene_loss_db(antenna_ecef_ep, pos)
+            kappa_u, share_u = np.zeros(len(first)), np.zeros(len(first))
             for u, r in enumerate(first):
-                rows = (inv == u) & on[e]
-                if not rows.any():
-                    continue
                 df = jam.center_hz - freq[r]
-                comps = spectra.components(systems[r], str(codes[r]))
-                kappa = spectra.kappa_per_hz(comps, float(frontend_bw_hz), float(df), float(jam.bandwidth_hz))
+                kappa_u[u] = spectra.kappa_per_hz(spectra.components(systems[r], codes[r]), float(frontend_bw_hz),
+                                                  float(df), float(jam.bandwidth_hz))
                 if jam.bandwidth_hz > 0:
-                    share = max(0.0, min(df + 0.5 * jam.bandwidth_hz, half) - max(df - 0.5 * jam.bandwidth_hz,
-                                                                                    -half)) / jam.bandwidth_hz
+                    lo, hi = max(df - 0.5 * jam.bandwidth_hz, -half), min(df + 0.5 * jam.bandwidth_hz, half)
+                    share_u[u] = max(0.0, hi - lo) / jam.bandwidth_hz
                 else:
-                    share = 1.0 if abs(df) <= half else 0.0
-                if kappa == 0.0 and share == 0.0:
-                    continue
-                ee = e[rows]
-                j_w = 10.0 ** (jamming.received_power_dbw(jam.eirp_dbw, dist[ee], jam.center_hz,
-                                                          budget.antenna_gain(el[ee], freq[r]), loss[ee]) / 10.0)
-                jk[rows] += kappa * j_w
-                j_in[rows] += share * j_w
+                    share_u[u] = 1.0 if abs(df) <= half else 0.0
+            j_dbw = jamming.received_power_dbw(jam.eirp_dbw, dist[e], jam.center_hz, gain(el[e], freq), loss[e])
+            j_w = np.where(on[e], 10.0 ** (j_dbw / 10.0), 0.0)
+            jk += kappa_u[inv] * j_w
+            j_in += share_u[inv] * j_w
         out = jamming.effective_cn0_dbhz(cn0_dbhz, jk, n0)
+        # per epoch and band (RINEX band digit): the strongest in-band J/N, the indicator and AGC of it
         jn = jamming.jam_to_noise_db(j_in, n0, frontend_bw_hz)
-        band = np.asarray(codes, dtype="<U1")
-        for k_e, t in enumerate(ts if isinstance(ts, (list, tuple)) else [ts]):
-            sel = e == k_e
-            st = {}
-            for b in np.unique(band[sel]).tolist():
-                x = float(np.max(jn[sel & (band == b)]))
-                st[b] = {"jamming_indicator": int(jamming.jamming_indicator(x)), "agc_db": float(jamming.agc_db(x))}
-            self._status_by_t[_tkey(t)] = st
+        bands, b_of_row = np.unique(codes.astype("<U1"), return_inverse=True)
+        ts = ts if isinstance(ts, (list, tuple)) else [ts]
+        worst = np.full(len(ts) * len(bands), -np.inf)
+        np.maximum.at(worst, e * len(bands) + b_of_row, jn)
+        worst = worst.reshape(len(ts), len(bands))
+        ind, agc = jamming.jamming_indicator(worst), jamming.agc_db(worst)
+        for k_e, t in enumerate(ts):
+            self._status_by_t[_tkey(t)] = {str(b): {"jamming_indicator": int(ind[k_e, i]), "agc_db": float(agc[k_e, i])}
+                                           for i, b in enumerate(bands) if np.isfinite(worst[k_e, i])}
         return out
 
     def status(self, t) -> dict:

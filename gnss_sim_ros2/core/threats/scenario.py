@@ -36,6 +36,7 @@ Every error names the file, the line and the key path (``events[2].eirp_dbw``); 
 """
 from __future__ import annotations
 
+import functools
 import math
 import re
 from dataclasses import dataclass, field
@@ -182,11 +183,27 @@ def load_scenario(path) -> Scenario:
     import yaml
 
     try:
-        node = yaml.compose(text, Loader=_loader())
-        doc = yaml.load(text, Loader=_loader())
+        node = yaml.compose(text, Loader=_scenario_loader())
+        doc = yaml.load(text, Loader=_scenario_loader())
     except yaml.YAMLError as exc:
         raise ScenarioError(f"{where}: not valid YAML: {exc}") from None
     return parse_scenario(doc, node, where, source=str(p.resolve()))
+
+
+@functools.lru_cache(maxsize=1)
+def _scenario_loader():
+    """The profile files' loader (YAML 1.2 floats) with YAML 1.2 booleans too: only true / false, so that
+    ``kind: off`` is the fault kind, not False."""
+    base = _loader()
+    bool_tag = "tag:yaml.org,2002:bool"
+
+    class Loader(base):
+        pass
+
+    Loader.yaml_implicit_resolvers = {c: [(tag, rx) for tag, rx in v if tag != bool_tag]
+                                      for c, v in base.yaml_implicit_resolvers.items()}
+    Loader.add_implicit_resolver(bool_tag, re.compile(r"^(?:true|True|TRUE|false|False|FALSE)$"), list("tTfF"))
+    return Loader
 
 
 def parse_scenario(doc, node=None, where: str = "scenario", source: str = "") -> Scenario:

@@ -1,0 +1,63 @@
+"""A scenario through the ROS graph (``gnss-sim run --scenario``) and offline (``gnss-sim simulate
+--scenario``): one chain, one answer -- every output fault, a clock jump and a jammer give the same fix.csv,
+truth labels included, and the bag records /gnss/threats/active."""
+from __future__ import annotations
+
+import csv
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+
+CLI = [sys.executable, "-m", "gnss_sim_ros2.cli"]
+
+SCENARIO = """\
+version: 1
+events:
+  - {type: fault, name: shift, kind: position_offset, offset_enu_m: [10, 0, 0], start_s: 3, end_s: 6}
+  - {type: fault, name: frozen, kind: stuck, start_s: 7, end_s: 10}
+  - {type: fault, name: dead, kind: off, start_s: 11, end_s: 13}
+  - {type: fault, name: jump, kind: clock_jump_s, jump_s: 1.0e-4, start_s: 14, end_s: 16}
+  - type: jammer
+    name: ppd
+    position: [50.0758, 14.4182, 252.0]
+    position_type: llh
+    eirp_dbw: -20.0
+    center_hz: 1575.42e6
+    bandwidth_hz: 10.0e6
+    start_s: 17
+    end_s: 20
+"""
+
+
+def _cli(*args, timeout=300):
+    env = dict(os.environ, ROS_DOMAIN_ID=str(os.getpid() % 90 + 7))
+    env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    return subprocess.run(CLI + list(args), capture_output=True, text=True, timeout=timeout, env=env)
+
+
+def _rows(path):
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+@pytest.mark.slow
+def test_run_and_simulate_apply_one_scenario_alike(tmp_path):
+    scn = tmp_path / "scenario.yaml"
+    scn.write_text(SCENARIO)
+    run = _cli("run", "--duration", "22", "--scenario", str(scn), "--out", str(tmp_path / "run"), "--quiet")
+    assert run.returncode == 0, run.stderr[-3000:]
+    sim = _cli("simulate", "--duration", "22", "--scenario", str(scn), "--out", str(tmp_path / "sim"), "--quiet")
+    assert sim.returncode == 0, sim.stderr[-3000:]
+    a, b = _rows(tmp_path / "run" / "fix.csv"), _rows(tmp_path / "sim" / "fix.csv")
+    assert a == b and len(a) == 23
+    labels = [r["active_events"] for r in a]
+    assert labels[3:6] == ["shift"] * 3 and labels[7:10] == ["frozen"] * 3 and labels[11:13] == ["dead"] * 2
+    assert labels[14:16] == ["jump"] * 2 and labels[17:20] == ["ppd"] * 3 and labels[0] == labels[21] == ""
+    assert all(r["status"] == "no_fix" and r["n_sats"] == "0" for r in a[11:13])           # off
+    assert len({(r["lat_deg"], r["lon_deg"]) for r in a[6:10]}) == 1                        # stuck: epoch 6's
+    assert max(int(r["n_sats"]) for r in a[17:20]) < min(int(r["n_sats"]) for r in a[:3])  # L1 jammed
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert summary["bag_messages"]["/gnss/threats/active"] == 23
