@@ -4,10 +4,10 @@ canyons: what a 3D model lacks")."""
 from __future__ import annotations
 
 import pytest
+from test_urban_hk_drive import hk  # noqa: F401  (the drive, its city model, ephemeris and real file: one loader)
 
 from gnss_sim_ros2.config_file import load_config
 from gnss_sim_ros2.core.comparison import drive_check
-from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris
 
 #: the city model's georeference offset (east, north) [m] that test_urban_hk_drive estimates from the real file
 #: (drive_check.model_offset_m; docs/VALIDATION.md)
@@ -15,26 +15,13 @@ PLACED_OFFSET_M = (-3.0, -5.0)
 
 
 @pytest.fixture(scope="module")
-def runs(shared_data, tmp_path_factory):
-    import gzip
-    import shutil
-
-    drive_dir = shared_data / "hk-tst-2019-118-urban-drive"
-    city = shared_data / "hk-tst-city-model"
-    if not drive_dir.is_dir() or not city.is_dir() or shutil.which("rnx2rtkp") is None:
-        pytest.skip("needs hk-tst-2019-118-urban-drive, hk-tst-city-model and rnx2rtkp")
-    tmp = tmp_path_factory.mktemp("hk_lms")
-    scene = drive_check.city_scene(city, tmp / "city")
+def runs(hk):  # noqa: F811
+    _, scene, prov, nav, real_obs, tmp, drive_dir = hk
     drive = drive_check.load_drive(drive_dir / "groundTruth_TST.csv", scene, offset_m=PLACED_OFFSET_M)
-    nav = [str(drive_dir / "hksc1180.19n"), str(drive_dir / "hksc1180.19b")]
-    real_obs = tmp / "real.obs"
-    with gzip.open(drive_dir / "COM3_190428_124409.obs.gz") as fin, open(real_obs, "wb") as fout:
-        shutil.copyfileobj(fin, fout)
-    prov, _ = open_ephemeris("broadcast", drive.t[0], float(drive.t[-1] - drive.t[0]) + 60.0, "GC", nav, check=False)
     out, real = {}, None
     for mode in ("off", "auto"):
-        m = drive_check.run_drive(drive, scene, prov, nav, real_obs, tmp / mode, config=load_config(), multipath="nlos",
-                                  scattering=True, real=real, receiver={"lms_environment": mode})
+        m = drive_check.run_drive(drive, scene, prov, nav, real_obs, tmp / f"lms_{mode}", config=load_config(),
+                                  multipath="nlos", scattering=True, real=real, receiver={"lms_environment": mode})
         real = m["real_part"]
         out[mode] = m
     return out

@@ -1,7 +1,8 @@
 """The simulated receiver (``Receiver``): satellites + antenna + visibility -> observables, one epoch or a
 block of epochs at a time (``Receiver.epochs``, in named stages: antenna, receiver clock, satellites above
 the horizon, signals, geometry, satellite clocks, atmosphere, world errors, signal strength, scene
-reflections, tracking, receiver errors, observables, assemble).  Its configuration is config.py
+reflections, the land-mobile-satellite layer (lms_channel.py, with ``lms_environment`` on), tracking, receiver
+errors, observables, assemble).  Its configuration is config.py
 (``ReceiverConfig``), its product observations.py (``EpochObservations``).
 
 Observation equations (per satellite s and signal j, all in metres unless noted;
