@@ -188,3 +188,41 @@ def test_cached_real_ephemeris_gives_the_fresh_row(opec_dir, tmp_path, orbits):
     assert first["status"] == "ok", first["error"]
     assert first["epochs"] == 11 and first["fixes"] == 11
     assert _rows_equal_but_timing(first, cached) == [] and _rows_equal_but_timing(first, fresh) == []
+
+
+def _run_files(run_dir: Path) -> dict:
+    """A run's RINEX and fix.csv bytes (the RINEX line with the wall-clock date aside)."""
+    out = {}
+    for f in sorted(run_dir.iterdir()):
+        if f.suffix in (".rnx", ".csv"):
+            out[f.name] = b"".join(ln for ln in f.read_bytes().splitlines(keepends=True)
+                                   if b"PGM / RUN BY / DATE" not in ln)
+    return out
+
+
+def test_one_or_two_workers_give_the_same_rows_and_files(tmp_path, capsys):
+    rows = {}
+    for w in (1, 2):
+        rc = cli.main(["sweep", "--seeds", "1-4", "--duration", "20", "--workers", str(w), "--quiet",
+                       "--out", str(tmp_path / f"w{w}")])
+        cap = capsys.readouterr()
+        assert rc == 0, cap.err
+        # the time that divides among the workers and the fixed start-up, reported apart
+        assert f"s of runs on {w} worker(s) (" in cap.out and "s before the first run" in cap.out
+        rows[w] = read_rows(tmp_path / f"w{w}" / "results.parquet")
+    assert [r["run"] for r in rows[1]] == [r["run"] for r in rows[2]] == [f"run0000{k}" for k in range(1, 5)]
+    assert [_rows_equal_but_timing(a, b) for a, b in zip(rows[1], rows[2])] == [[]] * 4
+    assert all(r["status"] == "ok" and r["load_s"] is not None for r in rows[1] + rows[2])
+    for r in rows[1]:
+        one, two = (_run_files(tmp_path / f"w{w}" / "runs" / r["run"]) for w in (1, 2))
+        assert len(one) >= 3 and one == two
+
+
+def test_sweep_time_splits_the_work_from_the_fixed_start_up():
+    from gnss_sim_ros2.core.sweep.timing import sweep_time
+
+    rows = [{"runtime_s": 2.0, "load_s": 1.5}, {"runtime_s": 1.0, "load_s": 0.0}, {"runtime_s": 0.5, "load_s": None},
+            {"runtime_s": None, "load_s": None}]
+    t = sweep_time(rows, 2, before_s=3.0, runs_wall_s=2.0, after_s=0.5)
+    assert (t.work_s, t.load_s, t.total_s) == (3.5, 1.5, 5.5)
+    assert t.line().startswith("time 5.5 s: 3.0 s before the first run") and "3.5 s of work" in t.line()

@@ -153,6 +153,7 @@ def absolute_paths(setup):
 
 def run(args) -> int:
     import threading
+    import time
 
     import numpy as np
 
@@ -160,7 +161,9 @@ def run(args) -> int:
     from gnss_sim_ros2.core.output_folder import check_output_folder, record_outputs
     from gnss_sim_ros2.core.sweep.driver import run_sweep, start_local_workers
     from gnss_sim_ros2.core.sweep.plot import summary_plot
+    from gnss_sim_ros2.core.sweep.timing import sweep_time
 
+    started = process_start()
     out = Path(args.out)
     try:
         if not args.print_setup:   # a folder with files the sweep did not write is refused (core/output_folder.py)
@@ -178,8 +181,10 @@ def run(args) -> int:
         threading.Thread(target=pyplot, name="import-matplotlib", daemon=True).start()
         # --workers absent: the cores, as its help says (the driver alone would start one worker)
         workers = None if args.scheduler else (args.workers if args.workers is not None else default_workers())
+        t_sweep = time.time()
         outcome = run_sweep(tasks, out, workers=workers, scheduler=args.scheduler, progress=not args.quiet,
                             cache=not args.no_cache)
+        t_rows = time.time()
     except ValueError as exc:
         print(f"gnss-sim sweep: error: {exc}", file=sys.stderr)
         return 2
@@ -205,4 +210,19 @@ def run(args) -> int:
         print(f"wrote {summary_plot(rows, plot_path)}")
         # what the sweep wrote beside its runs' own folders (each with the manifest of its simulate)
         record_outputs(out, SWEEP_COMMAND, [outcome.results_path, plot_path, *out.glob("runs/*/error.txt")])
+        # what divides among the workers and what does not (core/sweep/timing.py)
+        print(sweep_time(rows, outcome.workers, t_sweep - started + outcome.cluster_s, outcome.wall_s,
+                         time.time() - t_rows).line())
     return 0 if not failed else 1
+
+
+def process_start() -> float:
+    """When this process started (UNIX time): the interpreter and the imports count in a sweep's fixed time."""
+    import time
+
+    import psutil  # a dependency of distributed
+
+    try:
+        return psutil.Process().create_time()
+    except (psutil.Error, OSError):
+        return time.time()

@@ -126,7 +126,9 @@ def run_row(point, setup, cache_dir: str | Path | None = None) -> dict:
             (Path(setup.out_dir) / "error.txt").unlink(missing_ok=True)
             if cache_dir is not None:
                 own = Path(cache_dir) / f"{socket.gethostname()}_{os.getpid()}"
+                t_load = time.perf_counter()
                 setup, notes = worker_cache(cache_dir).prepare(setup, own)
+                row["load_s"] = time.perf_counter() - t_load
             res = run_simulation(setup)
         notes += [str(w.message) for w in caught]
         row.update(result_columns(res))

@@ -15,8 +15,9 @@ Columns (units in the names):
   ``sats_visible_mean``, ``sats_blocked_mean``, ``sats_attenuated_mean``
   (satellites above the mask per epoch by line-of-sight state);
 * cost: ``runtime_s`` (the whole run on its worker: set-up, epochs, files),
-  ``setup_s``, ``loop_s`` (the epoch loop), ``loop_cpu_s`` (its CPU time: a
-  ``loop_s`` well above it means the core was shared), ``realtime_factor`` (simulated
+  ``load_s`` (of it, loading the scene and ephemeris into the worker's cache: paid by a worker's first run
+  of those inputs, about 0 by the next; null without the cache), ``setup_s``, ``loop_s`` (the epoch loop),
+  ``loop_cpu_s`` (its CPU time: a ``loop_s`` well above it means the core was shared), ``realtime_factor`` (simulated
   seconds per second of the loop), ``worker`` (host:pid).
 
 A failed run has nulls in the results.  ``TIMING_COLUMNS`` differ between two
@@ -44,12 +45,13 @@ SCHEMA = pa.schema([
     ("sats_tracked_mean", pa.float64()), ("sats_tracked_min", pa.int64()), ("sats_tracked_max", pa.int64()),
     ("sats_visible_mean", pa.float64()), ("sats_blocked_mean", pa.float64()),
     ("sats_attenuated_mean", pa.float64()),
-    ("runtime_s", pa.float64()), ("setup_s", pa.float64()), ("loop_s", pa.float64()), ("loop_cpu_s", pa.float64()),
+    ("runtime_s", pa.float64()), ("load_s", pa.float64()), ("setup_s", pa.float64()), ("loop_s", pa.float64()),
+    ("loop_cpu_s", pa.float64()),
     ("realtime_factor", pa.float64()), ("worker", pa.string()),
 ])
 COLUMNS = tuple(SCHEMA.names)
 #: columns that measure the machine, not the simulation (differ between identical runs)
-TIMING_COLUMNS = ("runtime_s", "setup_s", "loop_s", "loop_cpu_s", "realtime_factor", "worker")
+TIMING_COLUMNS = ("runtime_s", "load_s", "setup_s", "loop_s", "loop_cpu_s", "realtime_factor", "worker")
 
 
 def to_table(rows: list[dict]) -> pa.Table:
