@@ -3,8 +3,8 @@
 The demo (courtyard world, every system, geodetic profile) simulated for ``--duration`` seconds, ``--repeat``
 times each, in one process, the scene and the ephemeris loaded once (SimulationSetup.scene / .ephemeris):
   * no scenario (parameter scenario empty: ReceiverChain.threats is None);
-  * a scenario whose events are never active during the run (a jammer, a spoofer and every fault kind, all
-    after the run's end): what "a scenario with no event active" costs;
+  * a scenario whose events are never active during the run (a jammer and every fault kind, all after the
+    run's end): what "a scenario with no event active" costs (spoofers are not simulated yet);
   * the same jammer active the whole run (C/N0 of every signal row through jamming.py, a segment cast per epoch).
 Times: the epoch loop's wall clock (SimulationResult.wall_s), median and best, with the load average beside them
 (a shared machine: the best moves least).
@@ -36,9 +36,7 @@ JAMMER = """  - type: jammer
     start_s: {start}
     end_s: {end}
 """
-IDLE_REST = """  - {{type: spoofer, position: [0, 40, 2], eirp_dbw: -60, start_s: {start}, end_s: {end},
-     false_position: [100, 0, 0]}}
-  - {{type: fault, kind: off, start_s: {start}, end_s: {end}}}
+IDLE_REST = """  - {{type: fault, kind: off, start_s: {start}, end_s: {end}}}
   - {{type: fault, kind: stuck, start_s: {start}, end_s: {end}}}
   - {{type: fault, kind: position_offset, offset_enu_m: [1, 0, 0], start_s: {start}, end_s: {end}}}
   - {{type: fault, kind: clock_jump_s, jump_s: 1.0e-3, start_s: {start}, end_s: {end}}}

@@ -93,3 +93,12 @@ def test_the_parameter_validates_the_file_once_and_keeps_its_absolute_path(tmp_p
     _write(tmp_path, GOOD.replace("eirp_dbw: -40", "eirp_dbw: []"))
     with pytest.raises(ValueError, match=r"parameter 'scenario'.*line 6: key 'events\[0\].eirp_dbw'"):
         validate_node("receiver", {"scenario": "scn.yaml"}, "test")
+
+
+def test_a_spoofer_is_read_but_a_run_refuses_it_until_spoofing_is_simulated(tmp_path):
+    from gnss_sim_ros2.core.threats.runtime import ThreatRuntime
+
+    s = load_scenario(_write(tmp_path, GOOD))
+    with pytest.raises(ValueError, match=r"line 11: spoofer event 'spoofer1' is read and checked, but this "
+                                         r"gnss_sim does not simulate spoofing yet"):
+        ThreatRuntime(s)

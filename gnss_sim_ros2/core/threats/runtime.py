@@ -8,9 +8,14 @@ it to its ``Receiver``.  Calls per block of epochs, in the chain's order:
    (off, stuck), before the fix;
 4. ``solution(t, sol)`` -- output faults on the fix; ``labels(t)`` the active events (fix.csv, topic).
 
-Spoofing hook: :meth:`ThreatRuntime.active_spoofers` lists the spoofers active at an epoch; the spoofing model
-(not built yet) is one function ``spoof(runtime, t_rel_s, spoofers, ...)`` called from ``signal_cn0``'s stage
-with the same rows.  Times are relative to the run start: the first epoch seen, unless ``start`` is given.
+Spoofing hook (the spoofing model is not built yet): spoofer events are read and checked (scenario.py) and
+:meth:`ThreatRuntime.active_spoofers` lists those active at a run time; the model goes into a module
+``spoofing.py`` of this package as one function the receiver calls per block with the signal rows, right after
+``signal_cn0`` (the same stage of Receiver.epochs: before tracking, so capture and loss of lock follow the
+thresholds), ``spoof(runtime, t_rel_s, spoofers, rows) -> rows``.  Until then a scenario with a spoofer is
+refused here (an error naming the file and the event's line), never ignored.
+
+Times are relative to the run start: the first epoch seen, unless ``start`` is given.
 """
 from __future__ import annotations
 
@@ -37,6 +42,10 @@ class ThreatRuntime:
         #: the last epoch's per-band status {band: {"jamming_indicator": 0-255, "agc_db": dB}}
         self.band_status: dict = {}
         self._status_by_t: dict = {}
+        if scenario.spoofers:             # the spoofing model replaces this refusal (module doc)
+            sp = scenario.spoofers[0]
+            raise ValueError(f"scenario {scenario.source}, line {scenario.lines.get(sp.name)}: spoofer event "
+                             f"{sp.name!r} is read and checked, but this gnss_sim does not simulate spoofing yet")
         spherical = getattr(scene, "spherical", None)
         if spherical is None and scenario.needs_scene_frame():
             raise ValueError(f"scenario {scenario.source}: an event placed in world coordinates needs a "
