@@ -160,6 +160,22 @@ def _check_profile(value: str, where: str) -> str:
     return prof.path if is_path(value) else value
 
 
+def _check_sky_mask(value: str, where: str) -> str:
+    """A sky mask CSV read and checked (core/visibility/sky_mask.py: errors name the file and line), kept as its
+    absolute path; empty: none."""
+    if not value:
+        return value
+    from pathlib import Path
+
+    from gnss_sim_ros2.core.visibility.sky_mask import read_sky_mask
+
+    try:
+        read_sky_mask(value)
+    except ValueError as exc:
+        raise ValueError(f"{where}: parameter 'sky_mask_csv': {exc}") from None
+    return str(Path(value).resolve())
+
+
 def _check_iso_time(value: str, where: str) -> str:
     from gnss_sim_ros2.core.time import GnssTime
 
@@ -265,6 +281,10 @@ NODE_PARAMS: dict[str, list[Param]] = {
               "dropped (and `gnss-sim run` fails, naming the frames): counted once TF has reached the epoch's "
               "stamp without the frame, or while no node publishes /tf; a TF source that is alive but behind "
               "(a loaded machine) is waited for (tf_tree.FrameWait)", min=0.1, max=600.0),
+        Param("sky_mask_csv", "", "a measured sky mask (CSV azimuth_deg,elevation_deg; docs/USER_GUIDE.md, Sky "
+              "masks) as the scene of a static antenna instead of a world or mesh: a satellite under it is blocked; "
+              "the antenna is antenna_position (llh or ecef) or the static position of `gnss-sim simulate`; "
+              "empty: none", check_value=_check_sky_mask),
         Param("antenna_position", [], "a static antenna (3 numbers in antenna_position_type) instead of "
               "antenna_frame looked up in TF, e.g. a base station; empty: from TF", item_type="double"),
         Param("antenna_position_type", "world", "what antenna_position holds: world (x, y, z in world_frame [m]), "
@@ -458,6 +478,9 @@ def validate_node(key: str, values: dict, where: str, options: dict[str, str] | 
                              f"means the profile's): a signal would be lost above the level at which it is acquired")
     if key == "visibility" and out["antenna_position"]:
         check_position(out["antenna_position"], out["antenna_position_type"], "antenna_position", where)
+    if key == "visibility" and out["sky_mask_csv"] and (out["world_file"] or out["mesh_file"]):
+        scene = named("world_file" if out["world_file"] else "mesh_file")
+        raise ValueError(f"{where}: {named('sky_mask_csv')} is the scene, but {scene} is set too: give one of them")
     if key == "visibility" and out["obstacle_models"] and not out["obstacle_pose_topic"]:
         raise ValueError(f"{where}: parameter 'obstacle_models' ({', '.join(out['obstacle_models'])}) needs "
                          f"parameter 'obstacle_pose_topic': the topic their poses come on")

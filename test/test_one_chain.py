@@ -124,6 +124,42 @@ def test_run_and_simulate_give_one_answer_with_reflections(tmp_path, multipath):
     assert np.abs(d).max() <= 1e-3
 
 
+@pytest.mark.slow
+def test_run_and_simulate_give_one_answer_with_a_sky_mask(tmp_path):
+    """Issue 27: the visibility parameter sky_mask_csv is the scene of the node's static antenna_position (llh) in
+    the ROS graph and of `gnss-sim simulate` (which takes that antenna_position): the same satellites blocked,
+    the same code; fewer signals than the open sky, so the mask is really used."""
+    mask = tmp_path / "mask.csv"
+    mask.write_text("azimuth_deg,elevation_deg\n0,50\n90,50\n170,50\n190,5\n350,5\n")   # a wall to the north-east
+
+    def config(with_mask):
+        cfg = tmp_path / f"cfg_{int(with_mask)}.yaml"
+        vis = {"antenna_position": [22.3, 114.17, 10.0], "antenna_position_type": "llh"}
+        if with_mask:
+            vis["sky_mask_csv"] = str(mask)
+        cfg.write_text(yaml.safe_dump({
+            "/**": {"ros__parameters": {"seed": 3, "systems": "GEC", "start_time": "2019-04-28T05:00:00"}},
+            "gnss_sim_ephemeris": {"ros__parameters": {"duration_s": 30.0}},
+            "gnss_sim_visibility": {"ros__parameters": vis}}))
+        return str(cfg)
+
+    run = _cli("run", "--config", config(True), "--out", str(tmp_path / "run"), "--quiet", "--no-record")
+    assert run.returncode == 0, run.stderr[-3000:]
+    for with_mask, out, extra in ((True, "sim", []), (False, "open", ["--position", "22.3,114.17,10"])):
+        sim = _cli("simulate", "--config", config(with_mask), "--out", str(tmp_path / out), "--quiet", *extra)
+        assert sim.returncode == 0, sim.stderr[-3000:]
+    a = _code_table(next((tmp_path / "run").glob("*_MO.rnx")))
+    b = _code_table(next((tmp_path / "sim").glob("*_MO.rnx")))
+    c = _code_table(next((tmp_path / "open").glob("*_MO.rnx")))
+    masked = {k[1] for k in set(c) - set(b)}
+    d = np.array([a[k] - b[k] for k in set(a) & set(b)])
+    print(f"sky mask: run {len(a)} / simulate {len(b)} / open sky {len(c)} code observations; satellites under the "
+          f"mask {sorted(masked)}; run - simulate max {np.abs(d).max():.2e} m")
+    assert masked and set(b) < set(c)
+    assert set(a) == set(b)
+    assert np.abs(d).max() <= 1e-3
+
+
 def _setup(tmp_path, trajectory, observer, **params) -> SimulationSetup:
     return setup_from_config(load_config(), tmp_path, trajectory, start=GnssTime.from_iso("2025-06-01T10:00:00"),
                              duration_s=120.0, interval_s=1.0, observer=observer).with_params(**params)

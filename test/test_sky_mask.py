@@ -236,7 +236,7 @@ def test_simulate_sky_mask_blocks_exactly_the_satellites_under_it(tmp_path):
     (["--trajectory", "PATH"], ["static antenna"]),
     ([], ["static antenna"]),
     (["--position", HK, "--preset", "accurate"], ["multipath 'full'", "fresnel_rays 8"]),
-    (["--position", HK, "--config", "CONFIG"], ["configuration", "world_file"]),
+    (["--position", HK, "--config", "CONFIG"], ["option --sky-mask (parameter 'sky_mask_csv')", "world_file"]),
     (["--position", HK, "--world", "x.sdf"], ["not allowed with argument --sky-mask"]),
     (["--position", HK, "--mesh", "x.mesh"], ["not allowed with argument --sky-mask"]),
 ])
@@ -272,3 +272,37 @@ def test_skyplot_bad_mask_or_sector_rc2(tmp_path, capsys, mask_text, extra, word
     err = capsys.readouterr().err
     assert rc == 2 and all(w in err for w in words), err
     assert not (tmp_path / "sky.csv").exists() and not (tmp_path / "sky_mask_comparison.csv").exists()
+
+
+def test_sky_mask_parameter_bad_csv_names_file_line_and_parameter(tmp_path):
+    """The visibility parameter sky_mask_csv is read once by the parameter table (node, run and simulate alike)."""
+    from gnss_sim_ros2.parameters import validate_node
+
+    bad = _write(tmp_path / "bad.csv", "azimuth_deg,elevation_deg\n0,20\n90,high\n")
+    with pytest.raises(ValueError, match=r"parameter 'sky_mask_csv'.*bad\.csv:3: azimuth_deg '90' and elevation_deg "
+                                         r"'high' must be numbers"):
+        validate_node("visibility", {"sky_mask_csv": str(bad)}, "node gnss_sim_visibility")
+    good = _write(tmp_path / "good.csv", "azimuth_deg,elevation_deg\n0,20\n")
+    with pytest.raises(ValueError, match=r"parameter 'sky_mask_csv'.* is the scene, but parameter 'mesh_file'"):
+        validate_node("visibility", {"sky_mask_csv": str(good), "mesh_file": "x.ply"}, "node gnss_sim_visibility")
+    assert validate_node("visibility", {"sky_mask_csv": str(good)}, "here")["sky_mask_csv"] == str(good.resolve())
+
+
+def test_sky_mask_scene_needs_one_static_geodetic_or_ecef_antenna():
+    from gnss_sim_ros2.core.visibility.sky_mask import static_antenna_ecef
+
+    for pos, kind in (([], "llh"), ([1.0, 2.0, 3.0], "world")):
+        with pytest.raises(ValueError, match="parameter 'sky_mask_csv': a sky mask is measured at one point"):
+            static_antenna_ecef(pos, kind, None, "parameter 'sky_mask_csv'")
+    _, ecef = static_antenna_ecef([22.3, 114.17, 10.0], "llh")
+    assert np.linalg.norm(ecef) == pytest.approx(6.375e6, rel=2e-3)
+
+
+def test_sky_mask_scene_sky_grid_is_the_mask():
+    """The visibility node's sky view picture of a mask scene: cells under the mask opaque."""
+    m = SkyMask(np.array([0.0, 180.0]), np.array([30.0, 10.0]))
+    az_e, el_e, opaque, foliage = SkyMaskScene(m, (22.3, 114.17, 10.0)).sky_grid(np.zeros(3))
+    cell = lambda az, el: opaque[np.searchsorted(az_e, az) - 1, np.searchsorted(el_e, el) - 1]  # noqa: E731
+    assert cell(1.0, 25.5) and not cell(1.0, 30.5)        # north: the mask at 30 deg
+    assert cell(179.0, 5.5) and not cell(179.0, 12.5)     # south: 10 deg
+    assert opaque.shape == (180, 90) and not foliage.any()

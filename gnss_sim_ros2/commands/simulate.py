@@ -77,7 +77,7 @@ OPTION_PARAMS = {
     "--world": ("visibility", "world_file"), "--mesh": ("visibility", "mesh_file"),
     "--profile": ("receiver", "profile"), "--noise-free": ("receiver", "noise"),
     "--allow-partial": ("visibility", "strict_world"), "--tracking-start": ("receiver", "tracking_start"),
-    "--scenario": ("receiver", "scenario"),
+    "--scenario": ("receiver", "scenario"), "--sky-mask": ("visibility", "sky_mask_csv"),
 }
 
 
@@ -91,7 +91,7 @@ def parameter_overrides(args) -> tuple[dict, dict]:
              "--clk": args.clk, "--world": args.world, "--mesh": args.mesh, "--profile": args.profile,
              "--noise-free": False if args.noise_free else None,
              "--tracking-start": getattr(args, "tracking_start", None),
-             "--scenario": getattr(args, "scenario", None),
+             "--scenario": getattr(args, "scenario", None), "--sky-mask": getattr(args, "sky_mask", None),
              "--allow-partial": False if getattr(args, "allow_partial", False) else None}
     ov: dict = {}
     names: dict = {}
@@ -135,8 +135,6 @@ def setup_from_args(args):
     obstacles = [_obstacle_path(f) for f in getattr(args, "obstacle_path", [])]
     setup = setup_from_config(cfg, Path(args.out), tr, progress=not args.quiet, rtcm_path=args.rtcm,
                               obstacle_paths=obstacles)
-    if getattr(args, "sky_mask", None):
-        setup = _with_sky_mask(setup, args)
     return setup
 
 
@@ -149,35 +147,6 @@ def _obstacle_path(path):
         raise ValueError(f"option --obstacle-path {path}: a {tr.frame} path; an obstacle's path is in the world frame "
                          f"(header t_s,e_m,n_m,u_m[,yaw_deg])")
     return tr
-
-
-def _with_sky_mask(setup, args):
-    """The setup with the sky mask ``--sky-mask`` as its scene (core/visibility/sky_mask.py): a static geodetic
-    or ECEF antenna, no world or mesh, no model a mask cannot give (reflections, soft edges)."""
-    import dataclasses
-
-    import numpy as np
-
-    from gnss_sim_ros2.core.frames import geodetic_to_ecef
-    from gnss_sim_ros2.core.simulation import visibility_options
-    from gnss_sim_ros2.core.visibility.sky_mask import SkyMaskScene, read_sky_mask
-
-    tr = setup.trajectory
-    if not (args.position or args.position_ecef) or not tr.is_static or tr.frame == "world":
-        raise ValueError("--sky-mask: a sky mask is measured at one point: give a static antenna with --position "
-                         "LAT,LON,H or --position-ecef X,Y,Z (no --trajectory)")
-    world, mesh, _ = setup.scene_files()
-    if world or mesh:
-        raise ValueError(f"--sky-mask is the scene, but the configuration {args.config} also sets "
-                         f"{'world_file ' + world if world else 'mesh_file ' + mesh}: give one of them")
-    opt = visibility_options(setup)
-    if opt.multipath not in ("off", "auto") or opt.fresnel_rays > 0:       # auto: a mask has no walls
-        raise ValueError(f"--sky-mask: a sky mask has no surfaces to reflect from or diffract over, but preset "
-                         f"{setup.preset!r} / the configuration set multipath {opt.multipath!r} and fresnel_rays "
-                         f"{opt.fresnel_rays}: use --preset fast or balanced, or multipath: off and fresnel_rays: 0")
-    mask = read_sky_mask(args.sky_mask)
-    ecef = tr.pos[0] if tr.frame == "ecef" else np.array(geodetic_to_ecef(*tr.pos[0]))
-    return dataclasses.replace(setup, scene=SkyMaskScene.at_ecef(mask, ecef))
 
 
 def run(args) -> int:

@@ -156,6 +156,12 @@ def setup_from_config(cfg, out_dir: Path, trajectory: Trajectory | None = None, 
     from .trajectory import antenna_path, robot_path
 
     eph, vis, rcv, trj = cfg.node("ephemeris"), cfg.node("visibility"), cfg.node("receiver"), cfg.node("trajectory")
+    if vis.get("sky_mask_csv") and "scene" not in extra:       # a measured mask as the scene, as the visibility node
+        from .visibility.sky_mask import check_mask_options, mask_scene, static_antenna_ecef
+
+        trajectory, ecef = static_antenna_ecef(vis["antenna_position"], vis["antenna_position_type"], trajectory)
+        vis["multipath"] = check_mask_options(VisibilityOptions.from_params(vis), "parameter 'sky_mask_csv'").multipath
+        extra["scene"] = mask_scene(vis["sky_mask_csv"], ecef)
     if trajectory is None:
         trajectory = antenna_path(robot_path(trj), trj["antenna_offset_m"])
         if not vis["world_file"] and not vis["mesh_file"]:

@@ -66,8 +66,11 @@ class VisibilityNode(GnssSimNode):
 
         try:
             self.options = VisibilityOptions.from_params(p)
-            world = p["world_file"] if p["world_file"] or p["mesh_file"] else str(demo_world_path())
-            self.scene = load_scene(world, p["mesh_file"], p["materials_file"], self.options, shared=True)
+            if p["sky_mask_csv"]:       # a measured mask at the static antenna, as `gnss-sim simulate` builds it
+                self.scene = self._sky_mask_scene(p)
+            else:
+                world = p["world_file"] if p["world_file"] or p["mesh_file"] else str(demo_world_path())
+                self.scene = load_scene(world, p["mesh_file"], p["materials_file"], self.options, shared=True)
         except ValueError as exc:
             raise ValueError(f"node {self.get_name()}: {exc}") from None
         if self.scene.spherical is None:
@@ -90,6 +93,15 @@ class VisibilityNode(GnssSimNode):
         self.diag_pub = self.lifecycle_publisher(DiagnosticArray, "/diagnostics", 10)
         # an epoch waiting for its pose is cast as soon as the pose comes (not at the drain timer's next tick)
         self.tf = TfSource(self, on_update=self.speaking(self._drain), timeout_s=p["tf_timeout_s"])
+
+    def _sky_mask_scene(self, p):
+        """The scene of parameter sky_mask_csv at the static antenna_position (core/visibility/sky_mask.py)."""
+        from gnss_sim_ros2.core.visibility.sky_mask import check_mask_options, mask_scene, static_antenna_ecef
+
+        where = "parameter 'sky_mask_csv'"
+        self.options = check_mask_options(self.options, where)
+        _, ecef = static_antenna_ecef(p["antenna_position"], p["antenna_position_type"], None, where)
+        return mask_scene(p["sky_mask_csv"], ecef)
 
     def _fixed_antenna(self, p) -> np.ndarray:
         """The static antenna of parameter antenna_position in the world frame."""

@@ -16,10 +16,14 @@ literature publish it (a fisheye photo or a theodolite sweep turned into elevati
   Its world frame is ENU at the antenna (``spherical`` at the mask's point), so the offline loop places a
   geodetic or ECEF static antenna in it as in any georeferenced world.  A mask has no surfaces: it gives no
   reflections, no soft edges and no foliage (``visibility_ecef`` refuses ``fresnel_rays`` > 0).
+- :func:`mask_scene`: the scene of the visibility parameter ``sky_mask_csv`` at a static antenna, the one
+  constructor the visibility node and the offline loop (``gnss-sim simulate``) call, with
+  :func:`check_mask_options` refusing the cast options a mask cannot serve (reflections, soft edges).
 """
 from __future__ import annotations
 
 import csv
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -175,6 +179,19 @@ class SkyMaskScene:
     def antenna_ecef(self, antenna_world_m) -> np.ndarray:
         return self.spherical.world_to_ecef(antenna_world_m)
 
+    def sky_grid(self, antenna_world_m, az_step_deg: float = 2.0, el_step_deg: float = 1.0, **_unused):
+        """Like ``Scene.sky_grid`` (the visibility node's sky view): (az_edges_deg, el_edges_deg, opaque (A, E),
+        foliage (A, E)), a cell opaque where its centre is under the mask."""
+        if not (az_step_deg > 0 and el_step_deg > 0):
+            raise ValueError(f"sky_grid: az_step_deg and el_step_deg must be > 0, got {az_step_deg}, {el_step_deg}")
+        az_e = np.arange(0.0, 360.0 + 1e-9, az_step_deg)
+        el_e = np.arange(0.0, 90.0 + 1e-9, el_step_deg)
+        if el_e[-1] < 90.0:
+            el_e = np.append(el_e, 90.0)
+        az_c, el_c = np.meshgrid(0.5 * (az_e[:-1] + az_e[1:]), 0.5 * (el_e[:-1] + el_e[1:]), indexing="ij")
+        opaque = self.mask.blocked(az_c, el_c)
+        return az_e, el_e, opaque, np.zeros_like(opaque)
+
     def visibility_ecef(self, antenna_world_m, sat_ecef_m, *, mask_deg: float = 0.0, fresnel_rays: int = 0,
                         foliage: str = "path", **_unused):
         """Like ``Scene.visibility_ecef``: a VisibilityResult for satellites (N, 3) or (M, N, 3) seen from the
@@ -193,3 +210,41 @@ class SkyMaskScene:
         return VisibilityResult(state=state, attenuation_db=zero, path_in_foliage_m=zero.copy(),
                                 extra_path_m=zero.copy(), fraction_blocked=(state == int(VisibilityState.BLOCKED))
                                 .astype(float), diffraction_db=zero.copy(), az_deg=az, el_deg=el)
+
+
+def mask_scene(csv_path, antenna_ecef_m) -> SkyMaskScene:
+    """The scene of the visibility parameter ``sky_mask_csv``: the mask ``csv_path`` (read_sky_mask: errors name
+    the file and line) measured at the static antenna ``antenna_ecef_m`` (3,)."""
+    return SkyMaskScene.at_ecef(read_sky_mask(csv_path), antenna_ecef_m)
+
+
+def check_mask_options(options, where: str):
+    """The cast ``options`` (VisibilityOptions) for a mask scene: multipath ``auto`` (the scene decides) is off, as
+    a mask has no walls; ValueError naming ``where`` when they ask for what a mask has not: reflections
+    (``multipath`` nlos or full) or soft edges (``fresnel_rays`` > 0)."""
+    if options.multipath == "auto":
+        options = dataclasses.replace(options, multipath="off")
+    if options.multipath != "off" or options.fresnel_rays > 0:
+        raise ValueError(f"{where}: a sky mask (parameter 'sky_mask_csv') has no surfaces to reflect from or "
+                         f"diffract over, but multipath {options.multipath!r} and fresnel_rays "
+                         f"{options.fresnel_rays} (from the preset or the parameters): use preset fast or "
+                         f"balanced, or multipath: off and fresnel_rays: 0")
+    return options
+
+
+def static_antenna_ecef(antenna_position, position_type: str, trajectory=None, where: str = "sky_mask_csv"):
+    """(trajectory, antenna ECEF (3,)) of a mask scene: ``trajectory`` (core.trajectory.Trajectory) if given, else
+    the static ``antenna_position`` in ``position_type`` (llh or ecef: the visibility parameters); ValueError
+    naming ``where`` unless that is one static geodetic or ECEF point (a mask is measured at one point)."""
+    from ..trajectory import Trajectory
+
+    if trajectory is None and len(antenna_position) and position_type != "world":
+        frame = "geodetic" if position_type == "llh" else "ecef"
+        trajectory = Trajectory.static(antenna_position, frame, "parameter 'antenna_position'")
+    if trajectory is None or not trajectory.is_static or trajectory.frame == "world":
+        raise ValueError(f"{where}: a sky mask is measured at one point: give a static antenna (parameter "
+                         f"antenna_position with antenna_position_type llh or ecef, or `gnss-sim simulate --position "
+                         f"LAT,LON,H | --position-ecef X,Y,Z`), not a path or world coordinates")
+    pos = np.asarray(trajectory.pos[0], dtype=np.float64)
+    ecef = pos if trajectory.frame == "ecef" else np.array(frames.geodetic_to_ecef(*pos))
+    return trajectory, ecef
