@@ -27,7 +27,16 @@ its pattern as different from L1's:
   range term left by the satellites' shaped beams (receiver/cn0.py) L1 C/N0 rises about 16 dB from 5 deg
   to the zenith (a PolaRx5 with an ASH701945E_M choke ring: about 17 dB, physics-anchors.md).  Lower band:
   the chokes are tuned between L1 and L2, the L2 beam is slightly broader: 0.5 dB less at zenith, 1 dB more
-  at 10 deg (Tranquilla 1994; stated approximation).  XPD about 25 dB at zenith, 10 dB at 10 deg.
+  at 10 deg (Tranquilla 1994; stated approximation).  XPD (cross-polar discrimination, the LHCP rejection)
+  from the axial ratio AR: XPD = 20 log10((AR + 1) / (AR - 1)) (AR linear; IEEE Std 145 / 149 definitions):
+  about 25 dB at zenith (AR ~1 dB, the Dorne-Margolin element's), 15 dB at 30 deg, 7 dB at 10 deg (AR ~8 dB) and
+  2 dB at the horizon: along the conducting choke-ring ground plane the tangential field vanishes, so the
+  field that reaches the element at grazing arrival is the vertical (linear) component alone, AR -> infinity and
+  XPD -> 0 dB (Rao, Kunysz, Fante, McDonald, "GPS/GNSS Antennas", Artech 2013, ch. 4; from memory, check).
+  Published patterns of geodetic antennas (choke rings, NovAtel pinwheel, Trimble Zephyr) give 15-25 dB at
+  zenith falling to a few dB near the horizon.  Until issue 27 the table held 10 dB at 10 deg and 7 dB at the
+  horizon, more rejection than those patterns: low-elevation LHCP reflections (a wall facing the satellite,
+  incidence below the Brewster angle, fresnel.py) were 3-5 dB too weak for a geodetic receiver to track.
 
 These are representative tables, not one product's measured pattern: stated approximations.
 """
@@ -55,7 +64,7 @@ CHOKE_EL_DEG = np.array([-90.0, -30.0, -10.0, 0.0, 5.0, 10.0, 15.0, 20.0, 30.0, 
 CHOKE_GAIN_DBIC = np.array([-30.0, -25.0, -18.5, -14.0, -11.0, -8.0, -5.8, -4.0, -1.0, 2.0, 3.8, 4.7, 5.0])
 CHOKE_LOW_GAIN_DBIC = np.array([-30.0, -24.0, -17.5, -13.0, -10.0, -7.0, -5.0, -3.3, -0.5, 2.2, 3.6, 4.3, 4.5])
 _CHOKE_XPD_EL = np.array([-90.0, -10.0, 0.0, 10.0, 30.0, 60.0, 90.0])
-_CHOKE_XPD_DB = np.array([5.0, 5.0, 7.0, 10.0, 17.0, 22.0, 25.0])
+_CHOKE_XPD_DB = np.array([5.0, 3.0, 2.0, 7.0, 15.0, 22.0, 25.0])
 
 #: class -> (elevation [deg], RHCP gain upper band [dBic], RHCP gain lower band [dBic], XPD elevation, XPD [dB])
 _TABLES = {
