@@ -160,6 +160,10 @@ def _check_profile(value: str, where: str) -> str:
     return prof.path if is_path(value) else value
 
 
+#: largest |component| of world_offset_enu_m [m]
+MAX_WORLD_OFFSET_M = 1000.0
+
+
 def _check_sky_mask(value: str, where: str) -> str:
     """A sky mask CSV read and checked (core/visibility/sky_mask.py: errors name the file and line), kept as its
     absolute path; empty: none."""
@@ -285,6 +289,10 @@ NODE_PARAMS: dict[str, list[Param]] = {
               "masks) as the scene of a static antenna instead of a world or mesh: a satellite under it is blocked; "
               "the antenna is antenna_position (llh or ecef) or the static position of `gnss-sim simulate`; "
               "empty: none", check_value=_check_sky_mask),
+        Param("world_offset_enu_m", [], "a known georeference error applied on purpose: the world moved by east, "
+              "north, up [m] against the Earth (3 numbers; what is placed in ECEF/geodetic sits at its world "
+              "position minus it; `gnss-sim compare --fit-offset` reports (e, n): apply [-e, -n, 0]); logged when "
+              "set; empty: none", item_type="double"),
         Param("antenna_position", [], "a static antenna (3 numbers in antenna_position_type) instead of "
               "antenna_frame looked up in TF, e.g. a base station; empty: from TF", item_type="double"),
         Param("antenna_position_type", "world", "what antenna_position holds: world (x, y, z in world_frame [m]), "
@@ -478,6 +486,11 @@ def validate_node(key: str, values: dict, where: str, options: dict[str, str] | 
                              f"means the profile's): a signal would be lost above the level at which it is acquired")
     if key == "visibility" and out["antenna_position"]:
         check_position(out["antenna_position"], out["antenna_position_type"], "antenna_position", where)
+    if key == "visibility" and out["world_offset_enu_m"]:
+        off = out["world_offset_enu_m"]
+        if len(off) != 3 or not all(math.isfinite(v) and abs(v) <= MAX_WORLD_OFFSET_M for v in off):
+            raise ValueError(f"{where}: {named('world_offset_enu_m')} = {off!r} needs 3 numbers east, north, up [m], "
+                             f"each within +-{MAX_WORLD_OFFSET_M:g} m (a georeference error is metres)")
     if key == "visibility" and out["sky_mask_csv"] and (out["world_file"] or out["mesh_file"]):
         scene = named("world_file" if out["world_file"] else "mesh_file")
         raise ValueError(f"{where}: {named('sky_mask_csv')} is the scene, but {scene} is set too: give one of them")

@@ -9,6 +9,7 @@ model: minus the walls' shift) within its reported uncertainty.
 from __future__ import annotations
 
 import dataclasses
+import re
 
 import numpy as np
 import pytest
@@ -91,6 +92,34 @@ def test_no_shift_gives_about_zero():
     assert np.all(np.abs(reg.offset_en_m) <= 3.0 * np.array(reg.sigma_en_m)), reg
     assert reg.offset_m <= 1.0
     assert reg.criterion_best <= reg.criterion_zero
+
+
+def test_the_fitted_offset_applied_as_world_offset_leaves_about_zero_to_fit():
+    """Issue 27: fit on a recording, apply the estimate explicitly (world_offset_enu_m = [-e, -n, 0]: the model's
+    georeference moved; the truth, in ECEF, placed again in the moved world), fit again: about zero within the
+    reported uncertainty, and the agreement as good as at the first estimate."""
+    from gnss_sim_ros2.core.visibility.world_offset import shifted_scene
+
+    model, sight = _recording((-3.0, 2.5))
+    reg = fit_offset(model, sight, mask_deg=MASK_DEG, n_bootstrap=50)
+    e, n = reg.offset_en_m
+    moved = shifted_scene(model, [-e, -n, 0.0])
+    assert moved is not model and model.spherical == ORIGIN          # the loaded scene itself is left alone
+    truth_ecef = model.spherical.world_to_ecef(sight.antenna_world_m)
+    again = fit_offset(moved, dataclasses.replace(sight, antenna_world_m=moved.spherical.ecef_to_world(truth_ecef)),
+                       mask_deg=MASK_DEG, n_bootstrap=50)
+    assert np.all(np.abs(again.offset_en_m) <= 3.0 * np.array(reg.sigma_en_m) + 0.25), (reg, again)
+    assert again.criterion_zero <= reg.criterion_best + 0.01
+    assert shifted_scene(model, []) is model and shifted_scene(model, [0.0, 0.0, 0.0]) is model
+
+
+@pytest.mark.parametrize("value, words", [([1.0, 2.0], "needs 3 numbers"), ([0.0, 0.0, 5000.0], "within +-1000"),
+                                          ([float("nan"), 0.0, 0.0], "must be finite")])
+def test_bad_world_offset_is_an_error_naming_the_parameter(value, words):
+    from gnss_sim_ros2.parameters import validate_node
+
+    with pytest.raises(ValueError, match=rf"node x: parameter .world_offset_enu_m. = .*{re.escape(words)}"):
+        validate_node("visibility", {"world_offset_enu_m": value}, "node x")
 
 
 def test_a_shift_beyond_the_search_is_flagged_not_hidden():

@@ -49,6 +49,7 @@ from .time import GnssTime
 from .trajectory import Trajectory
 from .visibility import VisibilityOptions, load_scene
 from .visibility.moving_obstacles import boxes_along_paths
+from .visibility.world_offset import is_zero, offset_note, shifted_scene
 
 
 @dataclass
@@ -364,6 +365,9 @@ def _simulate_into(setup: SimulationSetup) -> SimulationResult:
     n_epochs = int(np.floor(setup.duration_s / interval_s + 1e-9)) + 1
     vis_opt = visibility_options(setup)
     scene = setup.scene if setup.scene is not None else load_scene(*setup.scene_files(), vis_opt)
+    if not is_zero(setup.visibility_params.get("world_offset_enu_m", [])):     # applied on purpose, said aloud
+        scene = shifted_scene(scene, setup.visibility_params["world_offset_enu_m"])
+        print(offset_note(setup.visibility_params["world_offset_enu_m"]), file=sys.stderr)
     path = AntennaPath(setup.trajectory, scene)
     if scene is not None and setup.crop_scene:
         scene = _cropped_scene(scene, path, n_epochs, interval_s, setup.elevation_mask_deg, vis_opt.fresnel_rays)

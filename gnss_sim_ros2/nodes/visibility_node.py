@@ -63,6 +63,7 @@ class VisibilityNode(GnssSimNode):
     def configure(self, p):
         from gnss_sim_ros2.core.scene.demo_world import demo_world_path
         from gnss_sim_ros2.core.visibility import VisibilityOptions, load_scene
+        from gnss_sim_ros2.core.visibility.world_offset import is_zero, offset_note, shifted_scene
 
         try:
             self.options = VisibilityOptions.from_params(p)
@@ -71,11 +72,14 @@ class VisibilityNode(GnssSimNode):
             else:
                 world = p["world_file"] if p["world_file"] or p["mesh_file"] else str(demo_world_path())
                 self.scene = load_scene(world, p["mesh_file"], p["materials_file"], self.options, shared=True)
+            self.scene = shifted_scene(self.scene, p["world_offset_enu_m"])
         except ValueError as exc:
             raise ValueError(f"node {self.get_name()}: {exc}") from None
         if self.scene.spherical is None:
             raise ValueError(f"node {self.get_name()}: the world has no spherical_coordinates: it cannot be placed "
                              f"on the Earth (parameter world_file/mesh_file)")
+        if not is_zero(p["world_offset_enu_m"]):
+            self.get_logger().warning(offset_note(p["world_offset_enu_m"]))
         self.fixed_world_m = self._fixed_antenna(p) if p["antenna_position"] else None
         self.processed = self.dropped = 0
         self._last_image_s = -1e9

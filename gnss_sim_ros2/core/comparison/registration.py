@@ -249,9 +249,9 @@ def apply_hint(reg: Registration) -> str:
     """How a user applies the estimate (nothing does it for them)."""
     e, n = reg.offset_en_m
     return (f"the antenna sits at (east {e:+.2f}, north {n:+.2f}) m from where the truth places it in the model, "
-            f"so move the model by ({-e:+.2f}, {-n:+.2f}) m in the world frame (e.g. the models' <pose> in the "
-            "SDF world, or the mesh's vertices), or place the trajectory in the world frame shifted by "
-            f"({e:+.2f}, {n:+.2f}) m for `gnss-sim simulate --trajectory`.")
+            f"so move the model by ({-e:+.2f}, {-n:+.2f}) m: set the visibility parameter world_offset_enu_m: "
+            f"[{-e:.2f}, {-n:.2f}, 0.0] (core/visibility/world_offset.py; simulate, run and the visibility node "
+            "say so when it is set), or edit the models' <pose> in the SDF world or the mesh's vertices.")
 
 
 def write_registration(reg: Registration, folder, scene_name: str) -> Path:
