@@ -38,6 +38,7 @@ from __future__ import annotations
 import numpy as np
 
 from gnss_sim_ros2.core import signals as _signals
+from gnss_sim_ros2.core.bessel import i0e
 
 
 def _ratio(cn0_dbhz):
@@ -128,8 +129,6 @@ def mean_time_to_slip_s(cn0_dbhz, bn_hz=15.0, t_int_s=0.001, costas=True):
     rho = c / bn_hz
     if costas:
         rho = rho / (1.0 + 1.0 / (2.0 * t_int_s * c)) / 4.0
-    from scipy.special import i0e
-
     # I0(rho)^2 = (i0e(rho) e^rho)^2; evaluated in logs to avoid overflow
     log_t = np.log(np.pi**2 * rho / (2.0 * bn_hz)) + 2.0 * np.log(i0e(rho)) + 2.0 * rho
     return np.exp(np.minimum(log_t, 700.0))
@@ -140,8 +139,7 @@ def slip_probability(cn0_dbhz, dt_s, bn_hz=15.0, t_int_s=0.001):
     T = :func:`mean_time_to_slip_s` (Costas loop).  Rows whose probability is 0 in double precision
     whatever I0 is are not evaluated: with I0(rho) e^-rho >= 1 / sqrt(2 pi rho) for rho >= 1/2,
     log T >= L = log(pi^2 rho / (2 B_n)) - log(2 pi rho) + 2 rho, and dt / T < 2^-54 (L > log dt + 38)
-    makes exp(-dt / T) round to 1 exactly (the I0 evaluation, scipy's, is only imported for weak
-    signals)."""
+    makes exp(-dt / T) round to 1 exactly (I0 is only evaluated for weak signals)."""
     _positive("bn_hz", bn_hz)
     c = _ratio(cn0_dbhz)
     rho = c / bn_hz / (1.0 + 1.0 / (2.0 * t_int_s * c)) / 4.0
