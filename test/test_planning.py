@@ -65,6 +65,37 @@ def test_states_are_the_simulators_casts(courtyard, sky):
     assert {0, 1} <= seen, seen            # both visible and blocked satellites were compared
 
 
+
+def test_path_quality_equals_the_grid_along_a_standing_path(courtyard, sky):
+    """path_quality (one cast of P poses, each with the satellites of its own time; the quality_map node's path
+    service) of an antenna standing at a cell through the plan's times equals quality_block's fields of that cell,
+    RTK continuity from one pose to the next included."""
+    from gnss_sim_ros2.core.planning.quality import FIELDS, PlanInputs, path_quality, quality_block
+    from gnss_sim_ros2.core.planning.ranging import budget_from_profile
+    from gnss_sim_ros2.core.visibility import VisibilityOptions
+
+    vis = VisibilityOptions(mask_deg=10.0)
+    inp = PlanInputs(sky.pos_ecef_m, sky.system, budget_from_profile("ublox_f9p", "GEC"))
+    n_t = sky.pos_ecef_m.shape[0]
+    for x, y in ((0.0, 0.0), (0.0, -22.0), (80.0, 80.0)):
+        grid = quality_block(courtyard, vis, np.array([[x, y, 1.5]]), inp)
+        path = path_quality(courtyard, vis, np.tile([x, y, 1.5], (n_t, 1)), sky.pos_ecef_m, sky.system, inp)
+        for k in FIELDS:
+            np.testing.assert_array_equal(path[k], grid[k][0], err_msg=f"{k} at {x}, {y}")
+    assert path["rtk"].all() and not quality_block(courtyard, vis, np.array([[0.0, 0.0, 1.5]]), inp)["rtk"].all()
+
+
+def test_quality_cost_mapping():
+    """costmap.quality_cost follows its documented mapping: RTK 0, no fix 100, else 1 + 98 min(1, h / max)."""
+    from gnss_sim_ros2.core.planning.costmap import quality_cost
+
+    fields = {"rtk": np.array([True, False, False, False, False, True]),
+              "hdop": np.array([0.8, np.nan, 1.0, 2.0, 1.5, np.nan]),
+              "h_acc_m": np.array([2.0, np.nan, 0.0, 40.0, 5.0, np.nan])}
+    np.testing.assert_array_equal(quality_cost(fields, 10.0), [0, 100, 1, 99, 50, 0])
+    with pytest.raises(ValueError, match="max_accuracy_m"):
+        quality_cost(fields, 0.0)
+
 def test_dops_are_the_solvers():
     """dops_from_az_el (no solve) gives the DOPs solve_pvt reports for the same satellites (two systems)."""
     from gnss_sim_ros2.core.frames import az_el_from_ecef, geodetic_to_ecef

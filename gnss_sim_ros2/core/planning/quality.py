@@ -83,28 +83,14 @@ def quality_block(scene, vis, antenna_world_m, inp: PlanInputs, stats=None, stat
         if stats is not None:
             stats["cast_s"] = stats.get("cast_s", 0.0) + _time.perf_counter() - t_start
             stats["rays"] = stats.get("rays", 0) + int(np.count_nonzero(np.asarray(v.el_deg) >= vis.mask_deg))
-        el, az = np.asarray(v.el_deg), np.asarray(v.az_deg)
         present = np.broadcast_to(present_t[:, cols][None], (c, len(tt), len(cols))).reshape(m_rows, len(cols))
-        above = present & (el >= vis.mask_deg)
-        los = above & (state == int(VisibilityState.VISIBLE))
-        attn = above & (state == int(VisibilityState.ATTENUATED))
-        refl = above & (state == int(VisibilityState.REFLECTED_ONLY))
-        blocked = above & (state == int(VisibilityState.BLOCKED))
-        used = los | attn | refl
+        above = present & (np.asarray(v.el_deg) >= vis.mask_deg)
         if states_out is not None:
             st = np.where(above, state, -1).astype(np.int8).reshape(c, len(tt), len(cols))
             states_out[:, tt[0]:tt[-1] + 1] = -1
             states_out[:, tt[0]:tt[-1] + 1, cols] = st
-        ce, el_r = np.cos(np.radians(el)), np.radians(el)
-        los_enu = (ce * np.sin(np.radians(az)), ce * np.cos(np.radians(az)), np.sin(el_r))
-        gdop, pdop, hdop, vdop, _ = dops_from_los_enu(los_enu, used, clock_all[cols])
-        excess = np.where(refl, np.nan_to_num(np.asarray(v.extra_path_m, float)), 0.0)
-        sigma = inp.budget.sigma_m(sysv[cols], el, np.where(attn, att, 0.0), excess)
-        n_used = used.sum(axis=1)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            uere = np.sqrt(np.where(used, sigma**2, 0.0).sum(axis=1) / n_used)
-            nlos = refl.sum(axis=1) / n_used
-        cand = (los & (el >= inp.rule.ar_mask_deg) & dual[cols]).reshape(c, len(tt), len(cols))
+        vals, cand, los_enu = _rows_quality(state, att, v, above, sysv[cols], clock_all[cols], dual[cols], inp)
+        cand = cand.reshape(c, len(tt), len(cols))
         cont = np.zeros_like(cand)
         for j in range(len(tt)):                       # continuity: in line of sight at the previous step too
             cur = np.zeros((c, n_s), bool)
@@ -112,18 +98,67 @@ def quality_block(scene, vis, antenna_world_m, inp: PlanInputs, stats=None, stat
             before = cur if prev is None else prev     # the first step: no earlier step to break the arc
             cont[:, j] = cand[:, j] & before[:, cols]
             prev = cur
-        cont = cont.reshape(m_rows, len(cols))
-        n_rtk = cont.sum(axis=1)
-        enough = np.flatnonzero(n_rtk >= inp.rule.min_sats)          # only those can pass: their PDOP
-        pdop_rtk = dops_from_los_enu(tuple(x[enough] for x in los_enu), cont[enough], clock_all[cols])[1]
-        rtk = np.zeros(m_rows, bool)
-        rtk[enough] = pdop_rtk < inp.rule.max_pdop
-        vals = {"n_los": los.sum(axis=1), "n_attenuated": attn.sum(axis=1), "n_reflected": refl.sum(axis=1),
-                "n_blocked": blocked.sum(axis=1), "gdop": gdop, "pdop": pdop, "hdop": hdop, "vdop": vdop,
-                "nlos_share": nlos, "h_acc_m": hdop * uere, "n_rtk": n_rtk, "rtk": rtk}
+        vals["n_rtk"], vals["rtk"] = _rtk_fields(los_enu, cont.reshape(m_rows, len(cols)), clock_all[cols], inp.rule)
         for k, val in vals.items():
             out[k][:, tt] = np.asarray(val).reshape(c, len(tt))
     return out
+
+
+def _rows_quality(state, att, v, above, sysv, clock, dual, inp: PlanInputs):
+    """Per antenna row (M rows x S satellites of one cast): the FIELDS but the RTK ones, the RTK candidates (M, S)
+    (dual-frequency, in line of sight above the AR mask) and the line-of-sight unit vectors (e, n, u)."""
+    el, az = np.asarray(v.el_deg), np.asarray(v.az_deg)
+    los = above & (state == int(VisibilityState.VISIBLE))
+    attn = above & (state == int(VisibilityState.ATTENUATED))
+    refl = above & (state == int(VisibilityState.REFLECTED_ONLY))
+    blocked = above & (state == int(VisibilityState.BLOCKED))
+    used = los | attn | refl
+    ce, el_r = np.cos(np.radians(el)), np.radians(el)
+    los_enu = (ce * np.sin(np.radians(az)), ce * np.cos(np.radians(az)), np.sin(el_r))
+    gdop, pdop, hdop, vdop, _ = dops_from_los_enu(los_enu, used, clock)
+    excess = np.where(refl, np.nan_to_num(np.asarray(v.extra_path_m, float)), 0.0)
+    sigma = inp.budget.sigma_m(sysv, el, np.where(attn, att, 0.0), excess)
+    n_used = used.sum(axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        uere = np.sqrt(np.where(used, sigma**2, 0.0).sum(axis=1) / n_used)
+        nlos = refl.sum(axis=1) / n_used
+    cand = los & (el >= inp.rule.ar_mask_deg) & dual
+    vals = {"n_los": los.sum(axis=1), "n_attenuated": attn.sum(axis=1), "n_reflected": refl.sum(axis=1),
+            "n_blocked": blocked.sum(axis=1), "gdop": gdop, "pdop": pdop, "hdop": hdop, "vdop": vdop,
+            "nlos_share": nlos, "h_acc_m": hdop * uere}
+    return vals, cand, los_enu
+
+
+def _rtk_fields(los_enu, cont, clock, rule: RtkRule):
+    """(n_rtk, rtk) per row from the continuously visible candidates ``cont`` (M, S) (rtk_rule.py)."""
+    n_rtk = cont.sum(axis=1)
+    enough = np.flatnonzero(n_rtk >= rule.min_sats)                  # only those can pass: their PDOP
+    pdop_rtk = dops_from_los_enu(tuple(x[enough] for x in los_enu), cont[enough], clock)[1]
+    rtk = np.zeros(len(n_rtk), bool)
+    rtk[enough] = pdop_rtk < rule.max_pdop
+    return n_rtk, rtk
+
+
+def path_quality(scene, vis, antenna_world_m, sat_pos_ecef_m, systems, inp: PlanInputs) -> dict:
+    """The FIELDS along a path: pose i at ``antenna_world_m[i]`` (P, 3) sees the satellites ``sat_pos_ecef_m[i]``
+    (P, S, 3; NaN where absent) of the time it is there; one cast of P rows.  The RTK indicator's continuity is
+    from one pose to the next (a carrier-phase arc held since the previous pose; the first pose: none broken).
+    Values (P,) per field."""
+    ant = np.asarray(antenna_world_m, float).reshape(-1, 3)
+    sat_all = np.asarray(sat_pos_ecef_m, float)
+    sysv = np.asarray(systems)
+    letters = sorted(set(sysv.tolist()))
+    clock = np.array([letters.index(s) for s in sysv.tolist()])
+    dual = np.array([inp.budget.dual_frequency.get(s, False) for s in sysv.tolist()])
+    if not dual.any():
+        dual[:] = True                                # single-frequency profile: rtk_rule.py module doc
+    present = np.isfinite(sat_all[..., 0])
+    state, att, v = vis.cast(scene, ant, np.where(present[..., None], sat_all, 0.0))
+    above = present & (np.asarray(v.el_deg) >= vis.mask_deg)
+    vals, cand, los_enu = _rows_quality(state, att, v, above, sysv, clock, dual, inp)
+    cont = cand & np.concatenate([cand[:1], cand[:-1]], axis=0)
+    vals["n_rtk"], vals["rtk"] = _rtk_fields(los_enu, cont, clock, inp.rule)
+    return {k: np.asarray(vals[k]).astype(dt) for k, dt in FIELDS.items()}
 
 
 def _elevation_deg(rx_ecef_m, sat_ecef_m) -> np.ndarray:
