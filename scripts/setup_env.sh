@@ -83,7 +83,7 @@ fi
 
 if [ $ROS_MODE = 1 ]; then
   # ------------------------------------------------------------ ROS install: colcon
-  h=$(hash_of "$REPO"/package.xml "$REPO"/setup.py "$REPO"/setup.cfg "$REPO"/msg_pkg/CMakeLists.txt "$REPO"/msg_pkg/package.xml "$REPO"/msg_pkg/msg/*.msg)
+  h=$(hash_of "$REPO"/package.xml "$REPO"/setup.py "$REPO"/setup.cfg "$REPO"/msg_pkg/CMakeLists.txt "$REPO"/msg_pkg/package.xml "$REPO"/msg_pkg/msg/*.msg "$REPO"/msg_pkg/srv/*.srv)
   if ! stamp_ok colcon "$h" || [ ! -f "$REPO/install/setup.bash" ]; then
     command -v colcon >/dev/null 2>&1 || "$VPY" -m pip install -q colcon-common-extensions
     log "colcon build (ROS_DISTRO=$ROS_DISTRO)"
@@ -136,7 +136,7 @@ if ! stamp_ok tf2_msgs "$h"; then
   stamp_set tf2_msgs "$h"
 fi
 
-h=$(hash_of "$REPO"/msg_pkg/CMakeLists.txt "$REPO"/msg_pkg/package.xml "$REPO"/msg_pkg/msg/*.msg)
+h=$(hash_of "$REPO"/msg_pkg/CMakeLists.txt "$REPO"/msg_pkg/package.xml "$REPO"/msg_pkg/msg/*.msg "$REPO"/msg_pkg/srv/*.srv)
 if ! stamp_ok msgs "$h"; then
   build_interfaces gnss_sim_msgs "$REPO/msg_pkg"
   stamp_set msgs "$h"
