@@ -35,6 +35,8 @@ COMMANDS = {
     "sweep": ("sweep", "one simulate scenario over seeds, dates, presets, trajectories, worlds on Dask: Parquet rows"),
     "compare": ("compare", "compare simulated and real observations (RINEX or bag): differences, visibility, "
                 "positions; Markdown report with figures"),
+    "threats-plot": ("threats_plot", "the threat timeline of a run with a scenario: C/N0, satellites, fix error and "
+                     "the truth labels over time (PNG)"),
     "calibrate": ("calibrate", "fit a receiver profile (YAML) to a real RINEX recording: C/N0 and code noise against "
                   "elevation, tracking, flags; report with figures"),
 }

@@ -66,12 +66,14 @@ def vel_to_msg(header, sol) -> TwistWithCovarianceStamped:
     return twist_to_msg(header)
 
 
-def status_to_msg(header, obs, sol, elevation_mask_deg: float):
+def status_to_msg(header, obs, sol, elevation_mask_deg: float, bands: dict | None = None):
     """``gnss_sim_msgs/ReceiverStatus`` of one epoch: satellites visible (above the mask and not blocked), tracked
-    and used, systems used, DOPs, the receiver clock, the solution type and, without a fix, its reason."""
+    and used, systems used, DOPs, the receiver clock, the solution type and, without a fix, its reason; ``bands``:
+    the jamming indicator and AGC per band ({band digit: {"jamming_indicator", "agc_db"}}, ThreatRuntime.status)."""
     from gnss_sim_msgs.msg import ReceiverStatus
 
     above = obs.sat_el_deg >= elevation_mask_deg
+    jam = sorted((bands or {}).items())
     return ReceiverStatus(
         header=header, satellites_visible=int(np.sum(above & (obs.sat_vis_state != 1))),
         satellites_tracked=int(obs.n_tracked_sats), satellites_used=int(sol.n_used),
@@ -79,4 +81,5 @@ def status_to_msg(header, obs, sol, elevation_mask_deg: float):
         hdop=float(sol.hdop), vdop=float(sol.vdop), tdop=float(sol.tdop), clock_bias_s=float(obs.clock_bias_s),
         clock_drift_sps=float(obs.clock_drift_sps),
         solution_type=ReceiverStatus.SOLUTION_SINGLE if sol.is_fix else ReceiverStatus.SOLUTION_NONE,
-        reason="" if sol.is_fix else sol.reason)
+        reason="" if sol.is_fix else sol.reason, jam_bands=[b for b, _ in jam],
+        jam_ind=[int(v["jamming_indicator"]) for _, v in jam], agc_db=[float(v["agc_db"]) for _, v in jam])

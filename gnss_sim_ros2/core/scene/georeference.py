@@ -92,3 +92,13 @@ def spherical_from_sdf(world_el, file) -> SphericalCoordinates | None:
     if not -90.0 <= lat <= 90.0:
         raise SdfError(f"{where(sc, file)}: latitude_deg {lat} outside [-90, 90]")
     return SphericalCoordinates(lat, val("longitude_deg"), val("elevation"), val("heading_deg"), surface)
+
+
+def spherical_of_world_file(sdf_path) -> SphericalCoordinates | None:
+    """``<spherical_coordinates>`` of an SDF world file, without loading its geometry (None when absent)."""
+    from pathlib import Path
+
+    from .sdf_xml import parse_xml
+
+    world = child(parse_xml(Path(sdf_path)), "world")
+    return spherical_from_sdf(world, sdf_path) if world is not None else None
