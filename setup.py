@@ -41,6 +41,7 @@ setup(
             "lifecycle_manager = gnss_sim_ros2.nodes.lifecycle_manager:main",
             "recorder = gnss_sim_ros2.nodes.recorder_node:main",
             "rtk_node = gnss_sim_ros2.nodes.rtk_node:main",
+            "quality_map_node = gnss_sim_ros2.nodes.quality_map_node:main",
         ],
     },
 )

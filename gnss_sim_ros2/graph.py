@@ -9,7 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from gnss_sim_ros2.graph_params import INSTANCE_NODE_NAMES, instance_params, robot_namespace, robot_params
-from gnss_sim_ros2.parameters import NODE_NAMES
+from gnss_sim_ros2.parameters import NODE_NAMES, param
 
 #: the ROS package, and the scheme of Python classes in its component index (nodes/components.py)
 PACKAGE = "gnss_sim"
@@ -193,8 +193,10 @@ HEADING_NODES = (
     NodeSpec("receiver", "receiver_node", "gnss_sim_ros2.nodes.receiver_node", "ReceiverNode", "antenna2"),
     NodeSpec("rtk", "rtk_node", "gnss_sim_ros2.nodes.rtk_node", "RtkNode", "heading"),
 )
+#: the GNSS-quality layer for Nav2 (launch argument quality_map:=true; its remappings and parameters below)
+QUALITY_MAP_NODE = NodeSpec("quality_map", "quality_map_node", "gnss_sim_ros2.nodes.quality_map_node", "QualityMapNode")
 #: one line per class in the component index (nodes/components.py)
-COMPONENT_NODES = NODES + (RTK_NODES[2],)
+COMPONENT_NODES = NODES + (RTK_NODES[2], QUALITY_MAP_NODE)
 BASE_NAMESPACE = f"{TOPIC_NAMESPACE}/base"
 BASE_REMAPPINGS = (("satellite_states", f"{TOPIC_NAMESPACE}/satellite_states"),) + tuple(
     (a, f"{BASE_NAMESPACE}/{a}") for a, _ in REMAPPINGS if a != "satellite_states")
@@ -223,6 +225,24 @@ RECORDED_RTK = (
 )
 
 
+# -------------------------------------------------------------------------- the GNSS-quality layer (quality_map:=true)
+#: the planner's grid for Nav2 (nav_msgs/OccupancyGrid on /gnss/quality_map) and its path service
+#: (/gnss/path_quality, gnss_sim_msgs/srv/PathQuality); started after the chain
+QUALITY_MAP_REMAPPINGS = (("quality_map", f"{TOPIC_NAMESPACE}/quality_map"),
+                          ("path_quality", f"{TOPIC_NAMESPACE}/path_quality"))
+#: the quality map's parameters taken from other nodes' sections unless its own section sets them (one setting:
+#: parameters.NODE_PARAMS["quality_map"])
+QUALITY_MAP_FROM = {"visibility": ("world_file", "mesh_file", "materials_file", "keep_dynamic_models", "strict_world"),
+                    "receiver": ("profile",),
+                    "ephemeris": ("source", "nav_files", "sp3_files", "clk_files", "download_cache_dir",
+                                  "time_mapping", "duration_s")}
+
+
+def quality_map_parameter_sections(cfg) -> dict:
+    """The quality map's section of a ROS parameter file ({node name: {"ros__parameters": ...}})."""
+    return {QUALITY_MAP_NODE.name: {"ros__parameters": node_parameters(cfg, QUALITY_MAP_NODE)}}
+
+
 def remappings_of(spec: NodeSpec) -> tuple:
     """The topic remappings of one node: the rover's chain under /gnss, the base station's under /gnss/base,
     robot k's under /robot<k>/gnss (the satellite states: /gnss/satellite_states, shared)."""
@@ -236,6 +256,8 @@ def remappings_of(spec: NodeSpec) -> tuple:
         return HEADING_REMAPPINGS
     if spec.key == "rtk":
         return RTK_REMAPPINGS
+    if spec.key == "quality_map":
+        return QUALITY_MAP_REMAPPINGS
     return REMAPPINGS
 
 
@@ -253,6 +275,9 @@ def node_parameters(cfg, spec: NodeSpec, robots: int = 1) -> dict:
     out = instance_params(cfg, spec.instance, spec.key) if spec.instance else cfg.node(spec.key)
     if spec.key == "rtk" and not out["nav_files"]:
         out["nav_files"] = [str(run_navigation_file(cfg))]
+    if spec.key == "quality_map":     # the other node's value where the quality map's section leaves the default
+        for key, names in QUALITY_MAP_FROM.items():
+            out.update({n: cfg.node(key)[n] for n in names if out[n] == param("quality_map", n).default})
     return out
 
 

@@ -46,6 +46,7 @@ NODE_NAMES = {
     "receiver": "gnss_sim_receiver",
     "trajectory": "gnss_sim_trajectory_player",
     "rtk": "gnss_sim_rtk",
+    "quality_map": "gnss_sim_quality_map",
 }
 SHARED_KEY = "/**"
 
@@ -404,6 +405,33 @@ NODE_PARAMS: dict[str, list[Param]] = {
               max=65535),
     ],
 }
+
+
+def _same_as(key: str, *names: str) -> list[Param]:
+    """Rows of node ``key``'s table that another node takes as they are (one description, one check)."""
+    rows = {p.name: p for p in NODE_PARAMS[key]}
+    return [rows[n] for n in names]
+
+
+#: the GNSS-quality layer for Nav2 (nodes/quality_map_node.py, launch argument quality_map:=true): the scene, the
+#: profile and the ephemeris source are the visibility, receiver and ephemeris nodes' (graph.node_parameters
+#: copies them from their sections)
+NODE_PARAMS["quality_map"] = [
+    *_same_as("visibility", "world_file", "mesh_file", "materials_file", "keep_dynamic_models", "strict_world"),
+    *_same_as("receiver", "profile"),
+    *_same_as("ephemeris", "source", "nav_files", "sp3_files", "clk_files", "download_cache_dir", "time_mapping",
+              "duration_s"),
+    Param("grid_step_m", 2.0, "cell size of the GNSS-quality occupancy grid over the world's bounds [m]",
+          min=0.1, max=1000.0),
+    Param("antenna_height_m", 1.5, "antenna height above the ground (the highest surface under a cell or pose) [m]",
+          min=0.0, max=100.0),
+    Param("refresh_period_s", 60.0, "the grid is recomputed when the (ROS) clock has moved this far [s]: the sky "
+          "moves about 0.5 deg a minute; also the RTK indicator's continuity step", min=1.0, max=86400.0),
+    Param("lookahead_s", 0.0, "the grid shows the quality this far ahead of the clock [s] (0: now)", min=0.0,
+          max=86400.0),
+    Param("max_accuracy_m", 10.0, "grid value mapping (core/planning/costmap.py): RTK indicator 0, no fix 100, "
+          "otherwise 1 + 98 x min(1, expected horizontal accuracy / this) [m]", min=0.01, max=1000.0),
+]
 
 
 @dataclass

@@ -22,6 +22,10 @@ Arguments:
   autostart:=true|false              configure and activate the nodes (lifecycle manager) [true]
   rtk:=true|false                    RTK: the base station (gnss_sim_base_visibility, gnss_sim_base_receiver at
                                      base_position) and the rtk node (RTKLIB rtkrcv): /gnss/rtk/fix [false]
+  quality_map:=true|false            the GNSS-quality layer for Nav2 (gnss_sim_quality_map): the planner's
+                                     quality over the world as nav_msgs/OccupancyGrid on /gnss/quality_map
+                                     (transient_local; 0 RTK expected .. 100 no fix) and the service
+                                     /gnss/path_quality (gnss_sim_msgs/srv/PathQuality) [false]
   profile:=NAME|FILE                 receiver profile: a built-in name (`gnss-sim profile list`) or a profile
                                      YAML file, relative to the launch's working directory [from config]
   scenario:=FILE                     threat scenario (docs/SCENARIOS.md): jammers, spoofers, receiver faults;
@@ -71,6 +75,9 @@ ARGS = {
     "antenna_frame": ("", "TF frame of the antenna; empty: the config's antenna_frame"),
     "autostart": ("true", "configure and activate the nodes (lifecycle manager)"),
     "rtk": ("false", "RTK: a base station and the rtk node (RTKLIB rtkrcv) publishing /gnss/rtk/fix"),
+    "quality_map": ("false", "the GNSS-quality layer for Nav2: the planner's quality over the world as an "
+                             "OccupancyGrid on /gnss/quality_map (0: RTK expected .. 100: no fix; docs/PLANNING.md) "
+                             "and the path service /gnss/path_quality"),
     "robots": ("1", "number of robots (1..16), each in namespace robot<k>"),
     "profile": ("", f"receiver profile: a built-in name ({', '.join(builtin_names())}) or a profile YAML file "
                     f"(docs/PROFILES.md), relative to the working directory; empty: the config's profile"),
@@ -177,11 +184,13 @@ def _setup(context):
                                                          "scenario": "scenario:="})
     check_robot_config(cfg, robots, "launch argument robots")
     sim_time = _true(a["use_sim_time"])
+    quality_map = _true(a["quality_map"])
     params = {**cfg.ros_parameter_file_dict(), **(graph.rtk_parameter_sections(cfg) if rtk else {}),
+              **(graph.quality_map_parameter_sections(cfg) if quality_map else {}),
               **graph.robot_parameter_sections(cfg, robots)}
     params["/**"] = {"ros__parameters": {"use_sim_time": sim_time}}  # every node, composed or not
     params_file = _write_params(params, "params.yaml")
-    specs = graph.nodes(_true(a["trajectory_player"]), robots) + (graph.rtk_nodes(cfg) if rtk else [])
+    specs = graph.nodes(_true(a["trajectory_player"]), robots) + (graph.rtk_nodes(cfg) if rtk else []) + ([graph.QUALITY_MAP_NODE] if quality_map else [])
     node_params = [params_file, {"use_sim_time": sim_time}]
     # launch_ros turns a composable node's parameter file into Parameter messages and rejects empty
     # lists; every list parameter whose value is empty has the empty list as its default: leave them out

@@ -45,4 +45,6 @@ log "launch_test test/test_launch_robots.py on ROS_DOMAIN_ID=$(domain 3)"
 ROS_DOMAIN_ID=$(domain 3) "$LAYER/bin/launch_test" test/test_launch_robots.py
 log "launch_test test/test_launch_robot_layout.py on ROS_DOMAIN_ID=$(domain 4)"
 ROS_DOMAIN_ID=$(domain 4) "$LAYER/bin/launch_test" test/test_launch_robot_layout.py
+log "launch_test test/test_launch_quality_map.py on ROS_DOMAIN_ID=$(domain 5)"
+ROS_DOMAIN_ID=$(domain 5) "$LAYER/bin/launch_test" test/test_launch_quality_map.py
 log "passed in $((SECONDS - t0)) s"

@@ -530,3 +530,46 @@ def test_a_table_without_low_satellites_follows_the_antennas_link_budget_below()
     assert np.all(np.diff(cn0) >= 0) and cn0[0] > 15.0            # rising, and no collapse to ~0 dB-Hz
     straight = fit_cn0_table(st)                                  # without an antenna class: the linear slope
     assert straight["el_deg"][0] == 0.0 and straight["el_deg"][1] == 32.5
+
+
+def test_calibrate_fit_offset_reports_the_registration_with_its_uncertainty(esbc, esbc_fit, tmp_path, capsys):
+    """Issue 27: `calibrate --fit-offset` (with --mesh) writes the scene's georeference estimate and its 1-sigma into
+    report.md and statistics.json, marked not applied; --world-offset moves the scene and says so."""
+    from gnss_sim_ros2.core.calibration.reading import antenna_from_header
+    from gnss_sim_ros2.core.scene.mesh_io import write_scene
+
+    pos = antenna_from_header(esbc_fit[0].header, esbc["obs"])
+    mesh = tmp_path / "wall.ply"
+    write_scene(mesh, _wall_world(pos))
+    common = ("--obs", esbc["obs"], "--nav", esbc["nav"], "--start", SPAN[0], "--duration", 1800, "--name", "w",
+              "--mesh", mesh, "--fit-offset")
+    assert _calibrate(*common, "--out", tmp_path / "fit") == 0
+    out = capsys.readouterr().out
+    assert f"registration of --mesh {mesh}: antenna offset in the world east" in out and "not applied" in out
+    reg = json.loads((tmp_path / "fit" / "statistics.json").read_text())["registration"]
+    assert reg["applied"] is False and reg["epochs"] > 50 and len(reg["sigma_en_m"]) == 2
+    assert all(s > 0 for s in reg["sigma_en_m"]) and reg["scene"] == f"--mesh {mesh}"
+    report = (tmp_path / "fit" / "report.md").read_text()
+    e, n = reg["offset_en_m"]
+    assert "## Registration" in report and f"east **{e:+.2f} +- {reg['sigma_en_m'][0]:.2f} m**" in report
+    assert f"world_offset_enu_m: [{-e:.2f}, {-n:.2f}, 0.0]" in report
+    assert _calibrate(*common, "--world-offset", "1.5,-2,0", "--out", tmp_path / "moved") == 0
+    assert "world_offset_enu_m = [+1.50, -2.00, +0.00] m" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--fit-offset"], "option --fit-offset: needs the scene of the recording"),
+    (["--mesh", "MESH", "--world-offset", "1,2"], "option --world-offset (east,north,up [m]) needs three"),
+    (["--mesh", "MESH", "--world-offset", "1,2,3000"], "option --world-offset (parameter 'world_offset_enu_m') = "),
+])
+def test_calibrate_bad_registration_options_one_line_rc2(esbc, esbc_fit, tmp_path, capsys, extra, message):
+    from gnss_sim_ros2.core.calibration.reading import antenna_from_header
+    from gnss_sim_ros2.core.scene.mesh_io import write_scene
+
+    mesh = tmp_path / "wall.ply"
+    write_scene(mesh, _wall_world(antenna_from_header(esbc_fit[0].header, esbc["obs"])))
+    extra = [str(mesh) if e == "MESH" else e for e in extra]
+    rc = _calibrate("--obs", esbc["obs"], "--nav", esbc["nav"], "--duration", 600, *extra, "--out", tmp_path / "o")
+    err = capsys.readouterr().err
+    assert rc == 2 and message in err and "Traceback" not in err, err
+    assert not (tmp_path / "o").exists()

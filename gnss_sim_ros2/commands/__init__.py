@@ -20,3 +20,25 @@ def fail(command: str, exc: Exception) -> int:
 
     print(f"gnss-sim {command}: error: {exc}", file=sys.stderr)
     return 1 if isinstance(exc, OutputBusy) else 2
+
+
+#: help of --world-offset (calibrate, compare, skyplot): the visibility parameter world_offset_enu_m
+WORLD_OFFSET_HELP = ("a known georeference error applied on purpose: the world moved by east, north, up [m] "
+                     "(parameter world_offset_enu_m, core/visibility/world_offset.py; compare --fit-offset reports "
+                     "(e, n): give -e,-n,0); printed when set")
+
+
+def world_offset_scene(scene, text, command: str):
+    """``scene`` moved by ``--world-offset E,N,U`` (None or empty: unchanged), checked by the parameter table as
+    world_offset_enu_m (errors name the option) and printed on stderr, never applied silently."""
+    if not text:
+        return scene
+    from gnss_sim_ros2.core.visibility.world_offset import is_zero, offset_note, shifted_scene
+    from gnss_sim_ros2.parameters import validate_node
+
+    off = parse_triple(text, "option --world-offset (east,north,up [m])")
+    validate_node("visibility", {"world_offset_enu_m": off}, f"gnss-sim {command}",
+                  {"world_offset_enu_m": "--world-offset"})
+    if not is_zero(off):
+        print(offset_note(off), file=sys.stderr)
+    return shifted_scene(scene, off, "option --world-offset")

@@ -20,9 +20,12 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from gnss_sim_ros2.commands import fail, parse_triple
+from gnss_sim_ros2.commands import WORLD_OFFSET_HELP, fail, parse_triple, world_offset_scene
 
 NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
+#: --fit-offset: the registration's elevation mask is at least this [deg] (low satellites see far walls the model
+#: lacks; drive_check's 15 deg on the Hong Kong drive)
+FIT_MASK_MIN_DEG = 15.0
 
 
 def add_arguments(p):
@@ -41,6 +44,13 @@ def add_arguments(p):
     sc.add_argument("--world", metavar="SDF", help="Gazebo world of the recording's surroundings: only satellites it "
                     "leaves in the line of sight are fitted")
     sc.add_argument("--mesh", metavar="FILE", help="mesh exported by export-world, instead of --world")
+    p.add_argument("--world-offset", metavar="E,N,U", help=WORLD_OFFSET_HELP)
+    p.add_argument("--fit-offset", action="store_true",
+                   help="with --world / --mesh: estimate the scene's georeference error from the recording along "
+                        "the antenna's positions, with its uncertainty: reported in report.md and statistics.json, "
+                        "never applied (core/comparison/registration.py)")
+    p.add_argument("--strong-cn0-dbhz", type=float, default=38.0, metavar="DB",
+                   help="with --fit-offset: C/N0 from which a real signal counts as line of sight (default 38)")
     p.add_argument("--start", metavar="ISO", help="first epoch of the span, GPS time (default: the file's first)")
     p.add_argument("--duration", type=float, metavar="S", help="length of the span [s] (default: to the file's end)")
     p.add_argument("--mask-deg", type=float, default=5.0,
@@ -54,6 +64,30 @@ def add_arguments(p):
                         + " (default: from the RINEX header's receiver type)")
     p.add_argument("--out", required=True, metavar="DIR",
                    help="output folder: new, empty or one of an earlier calibrate (only its files are replaced)")
+
+
+def _fit_offset(args, rec, scene, scene_name, staging, report):
+    """--fit-offset: the scene's georeference error from the recording along its antenna positions
+    (core/comparison/registration.py), a "Registration" section of report.md and a "registration" entry of
+    statistics.json, with its uncertainty; a finding, never applied."""
+    import json
+    from dataclasses import asdict
+
+    from gnss_sim_ros2.core.comparison import registration as rg
+    from gnss_sim_ros2.core.ephemeris.broadcast import BroadcastEphemeris
+
+    eph = BroadcastEphemeris.from_files([str(p) for p in args.nav])
+    sight = rg.sight_from_table(rec.table, rec.table.time, rec.antenna_world_m, eph,
+                                strong_cn0_dbhz=args.strong_cn0_dbhz)
+    reg = rg.fit_offset(scene, sight, mask_deg=max(args.mask_deg, FIT_MASK_MIN_DEG),
+                        strong_cn0_dbhz=args.strong_cn0_dbhz)
+    with open(report, "a") as f:
+        f.write("\n" + rg.registration_markdown(reg, scene_name, rg.apply_hint(reg)))
+    stats_path = Path(staging) / "statistics.json"
+    d = json.loads(stats_path.read_text())
+    d["registration"] = {**asdict(reg), "scene": scene_name, "applied": False, "how_to_apply": rg.apply_hint(reg)}
+    stats_path.write_text(json.dumps(d, indent=1, default=float))
+    return reg
 
 
 def _default_name(obs: str) -> str:
@@ -76,7 +110,8 @@ def _scene(args):
     except Exception as exc:  # the loaders raise ValueError, OSError, XML and mesh errors: one line naming the file
         msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise ValueError(f"option {opt} {path}: {msg}") from None
-    return scene, f"{opt} {path}"
+    command = "compare" if hasattr(args, "sim") else "calibrate"
+    return world_offset_scene(scene, getattr(args, "world_offset", None), command), f"{opt} {path}"
 
 
 def run(args) -> int:
@@ -100,6 +135,8 @@ def run(args) -> int:
         pos = parse_triple(args.position_ecef, "option --position-ecef (ECEF X,Y,Z [m])") \
             if args.position_ecef else None
         scene, scene_name = _scene(args)
+        if args.fit_offset and scene is None:
+            raise ValueError("option --fit-offset: needs the scene of the recording (--world SDF or --mesh FILE)")
         rec = read_recording(args.obs, args.nav, pos, args.trajectory, args.start, args.duration, scene,
                              args.mask_deg, scene_name)
         stats = signal_statistics(rec.table, rec.el_deg, rec.interval_s, args.mask_deg, args.bin_deg, rec.los,
@@ -110,6 +147,7 @@ def run(args) -> int:
             prof_path = staging / f"{name}.yaml"
             prof_path.write_text(yaml.safe_dump(profile, sort_keys=False, default_flow_style=None, width=120))
             report = write_report(rec, stats, profile, notes, prof_path, staging)
+            reg = _fit_offset(args, rec, scene, scene_name, staging, report) if args.fit_offset else None
         except BaseException:
             folder.abandon()
             raise
@@ -126,6 +164,10 @@ def run(args) -> int:
         print(f"line of sight from {stats.scene}: C/N0 samples kept {kept}")
     for n in notes:
         print(f"note: {n}")
+    if reg is not None:
+        print(f"registration of {scene_name}: antenna offset in the world east {reg.offset_en_m[0]:+.2f} +- "
+              f"{reg.sigma_en_m[0]:.2f} m, north {reg.offset_en_m[1]:+.2f} +- {reg.sigma_en_m[1]:.2f} m (not applied; "
+              f"report.md, statistics.json)")
     print(f"wrote {prof_path}")
     print(f"wrote {report}")
     return 0

@@ -29,7 +29,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from gnss_sim_ros2.commands import fail, parse_triple
+from gnss_sim_ros2.commands import WORLD_OFFSET_HELP, fail, parse_triple
 
 
 def add_arguments(p):
@@ -55,6 +55,7 @@ def add_arguments(p):
     sc.add_argument("--world", metavar="SDF", help="Gazebo world of the real recording's surroundings: the "
                     "line-of-sight / NLOS split of the figures (urban.json) and --fit-offset")
     sc.add_argument("--mesh", metavar="FILE", help="mesh exported by export-world, instead of --world")
+    p.add_argument("--world-offset", metavar="E,N,U", help=WORLD_OFFSET_HELP + " (with --world / --mesh)")
     p.add_argument("--fit-offset", action="store_true",
                    help="estimate the scene's georeference error (east, north [m]) from the real file along the "
                         "truth, with its uncertainty: reported in report.md and registration.json, never applied "

@@ -58,6 +58,8 @@ _SECTION_TITLES = {
     "receiver": "the receiver node: observables, fix, RINEX, NMEA, RTCM3",
     "trajectory": "the trajectory player: the robot's path when Gazebo does not move it",
     "rtk": "the rtk node (RTKLIB rtkrcv) and the simulated base station",
+    "quality_map": "the GNSS-quality layer for Nav2 (quality_map:=true): the planner's grid and path service; "
+                   "scene, profile and ephemeris from the other sections unless set here",
 }
 
 

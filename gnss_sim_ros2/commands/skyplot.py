@@ -32,6 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
+from gnss_sim_ros2.commands import WORLD_OFFSET_HELP, world_offset_scene
 from gnss_sim_ros2.core.scene.scene_report import ALLOW_PARTIAL_HELP
 
 
@@ -39,6 +40,7 @@ def add_arguments(parser):
     src = parser.add_mutually_exclusive_group(required=True)
     src.add_argument("--world", metavar="SDF", help="SDF world file")
     src.add_argument("--mesh", metavar="FILE", help="exported scene mesh (with its .scene.yaml sidecar)")
+    parser.add_argument("--world-offset", metavar="E,N,U", help=WORLD_OFFSET_HELP + " (--at stays in the world frame)")
     parser.add_argument("--materials", metavar="FILE.yaml", help="material classes/rules (with --world)")
     parser.add_argument("--allow-partial", action="store_true", help=ALLOW_PARTIAL_HELP)
     parser.add_argument("--at", required=True, metavar="E,N,U", help="antenna position in the world frame [m]")
@@ -128,6 +130,7 @@ def _run(args) -> int:
     # the world as every front end loads it (simulate, run, the visibility node): strict unless --allow-partial
     scene = load_scene(args.world or "", args.mesh or "", args.materials or "",
                        VisibilityOptions(strict_world=strict_world(args)))
+    scene = world_offset_scene(scene, getattr(args, "world_offset", None), "skyplot")
     if scene.spherical is None:
         raise ValueError(f"{args.world or args.mesh}: no geodetic origin (<spherical_coordinates> in the world, "
                          f"spherical_coordinates in the sidecar): satellites cannot be placed")

@@ -40,6 +40,8 @@ class Recording:
     #: (E, S) bool: the scene leaves the satellite in the line of sight (None: no scene, every sample counts)
     los: np.ndarray | None = None
     scene: str = ""              #: the scene that selected ``los`` (for the report)
+    #: (E, 3) the antenna placed in the scene's world frame (NaN where unknown; None: no scene)
+    antenna_world_m: np.ndarray | None = None
 
     @property
     def span(self) -> tuple[str, str]:
@@ -208,7 +210,7 @@ def read_recording(obs_path, nav_paths, position_ecef_m=None, trajectory_csv=Non
         fin = np.all(np.isfinite(rx_e), axis=1)
         world[fin] = scene.spherical.ecef_to_world(rx_e[fin])
         rec.los = line_of_sight_epochs(scene, world, sat, mask_deg)
-        rec.scene = scene_name
+        rec.scene, rec.antenna_world_m = scene_name, world
     return rec
 
 

@@ -29,6 +29,7 @@ import numpy as np
 
 from ..calibration.reading import gnss_times
 from ..visibility.line_of_sight import line_of_sight
+from ..vocabulary import SYSTEMS
 
 #: bootstrap replicates of the uncertainty
 N_BOOTSTRAP = 200
@@ -81,7 +82,7 @@ def sight_epochs(times, antenna_world_m, provider, sv, tracked, cn0_dbhz, *, str
         times = gnss_times(times)
     sv = np.asarray(sv)
     col = {s: j for j, s in enumerate(sv.tolist())}
-    systems = "".join(sorted({s[0] for s in sv.tolist()}))
+    systems = "".join(sorted({s[0] for s in sv.tolist()} & set(SYSTEMS)))   # SBAS (S) is not simulated
     ant = np.asarray(antenna_world_m, float).reshape(-1, 3)
     keep, sats, trk, strg = [], [], [], []
     for d in range(0, len(ant), max(1, int(every))):
