@@ -190,7 +190,8 @@ def _setup(context):
               **graph.robot_parameter_sections(cfg, robots)}
     params["/**"] = {"ros__parameters": {"use_sim_time": sim_time}}  # every node, composed or not
     params_file = _write_params(params, "params.yaml")
-    specs = graph.nodes(_true(a["trajectory_player"]), robots) + (graph.rtk_nodes(cfg) if rtk else []) + ([graph.QUALITY_MAP_NODE] if quality_map else [])
+    specs = graph.nodes(_true(a["trajectory_player"]), robots) + (graph.rtk_nodes(cfg) if rtk else []) + \
+        ([graph.QUALITY_MAP_NODE] if quality_map else [])
     node_params = [params_file, {"use_sim_time": sim_time}]
     # launch_ros turns a composable node's parameter file into Parameter messages and rejects empty
     # lists; every list parameter whose value is empty has the empty list as its default: leave them out
