@@ -78,3 +78,17 @@ def test_receiver_serves_rtcm_on_its_tcp_port_while_configured(ros, tmp_path):  
         node.set_parameters([Parameter("rtcm_tcp_port", value=busy.getsockname()[1])])
         node.trigger_configure()
         assert _state(node) == "unconfigured" and "parameter rtcm_tcp_port" in node.last_error
+
+
+def test_world_offset_moves_the_georeference_and_a_static_llh_antenna_moves_against_it(ros):  # noqa: F811
+    """Issue 27: world_offset_enu_m in the visibility node: the world's georeference moved (the shared scene left
+    alone), an antenna given in LLH sits at its world position minus the offset."""
+    from gnss_sim_ros2.core.scene.loader import load_sdf_world
+
+    ecef = load_sdf_world(str(demo_world_path())).spherical_coordinates.world_to_ecef(ROOF_M)
+    llh = [float(v) for v in ecef_to_geodetic(*ecef)]
+    node = _visibility(ros, antenna_position=llh, antenna_position_type="llh", world_offset_enu_m=[1.5, -2.0, 0.5])
+    node.trigger_configure()
+    assert _state(node) == "inactive", node.last_error
+    assert np.allclose(node.fixed_world_m, ROOF_M - np.array([1.5, -2.0, 0.5]), atol=1e-3)
+    node.trigger_cleanup()
