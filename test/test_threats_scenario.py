@@ -95,10 +95,15 @@ def test_the_parameter_validates_the_file_once_and_keeps_its_absolute_path(tmp_p
         validate_node("receiver", {"scenario": "scn.yaml"}, "test")
 
 
-def test_a_spoofer_is_read_but_a_run_refuses_it_until_spoofing_is_simulated(tmp_path):
+def test_a_spoofer_is_run_and_its_world_positions_need_a_georeferenced_scene(tmp_path):
     from gnss_sim_ros2.core.threats.runtime import ThreatRuntime
 
     s = load_scenario(_write(tmp_path, GOOD))
-    with pytest.raises(ValueError, match=r"line 11: spoofer event 'spoofer1' is read and checked, but this "
-                                         r"gnss_sim does not simulate spoofing yet"):
-        ThreatRuntime(s)
+    with pytest.raises(ValueError, match=r"world coordinates needs a georeferenced scene"):
+        ThreatRuntime(s)                 # the jammer's path and the spoofer's false path are world positions
+    llh = GOOD.replace("false_position: [[0, 0, 0, 0], [10, 100, 0, 0]]",
+                       "false_position: [[0, 50.0, 14.0, 300], [10, 50.001, 14.0, 300]]\n    false_position_type: llh")
+    llh = llh.replace("path: [[0, -50, 0, 1], [100, 50, 0, 1]]",
+                      "position: [50.0, 14.001, 300.0]\n    position_type: llh")
+    rt = ThreatRuntime(load_scenario(_write(tmp_path, llh)))
+    assert rt.spoofing is not None and [e.name for e in rt.spoofing.spoofers] == ["spoofer1"]

@@ -89,6 +89,7 @@ class ChainSettings:
                 tracking["start"] = start
             kw["tracking"] = TrackingConfig(**tracking)
         kw["lms_environment"] = p.get("lms_environment", "off")
+        kw["spoof_capture_margin_db"] = float(p.get("spoof_capture_margin_db", 3.0))
         kw.update({k: v for k, v in (receiver_overrides or {}).items() if v is not None and v != ""})
         out_dir = p.get("output_dir", "")
         return cls(receiver=ReceiverConfig(**kw), solver=SolverConfig(elevation_mask_deg=p["elevation_mask_deg"]),
@@ -388,7 +389,8 @@ class ReceiverChain:
         self._fix_csv = csv.writer(self._fix_rows)
         if new:
             self._fix_csv.writerow(["time", "lat_deg", "lon_deg", "h_m", "n_sats", "status"]
-                                   + (["active_events"] if self.threats is not None else []))
+                                   + (["active_events"] if self.threats is not None else [])
+                                   + (["spoofed"] if self.threats is not None and self.threats.spoofing else []))
         if s.write_nmea_file:
             self._nmea_file = open(out / "gnss_sim.nmea", "a", buffering=1)  # noqa: SIM115 - closed in close()
 
@@ -398,6 +400,8 @@ class ReceiverChain:
         stamp = t.isoformat(digits=3 if self.settings.interval_s < 1 else 0)
         # the scenario's truth labels: the events active at the epoch, ";"-separated (core/threats)
         labels = [";".join(self.threats.labels(t))] if self.threats is not None else []
+        if self.threats is not None and self.threats.spoofing:     # the satellites a spoofer has captured
+            labels.append(" ".join(sv for sv, v in self.threats.spoofed(t).items() if v["captured"]))
         if sol.is_fix:
             self._fix_csv.writerow([stamp, f"{sol.lat_deg:.9f}", f"{sol.lon_deg:.9f}", f"{sol.h_m:.4f}", sol.n_used,
                                     "fix", *labels])

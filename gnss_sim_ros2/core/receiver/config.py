@@ -104,6 +104,9 @@ class ReceiverConfig:
     seed: int = 1
     #: land-mobile-satellite layer on the scene's rays (lms_channel.py): off, auto or a class of multipath/lms.py
     lms_environment: str = "off"
+    #: a scenario spoofer's counterfeit captures a signal when its power exceeds the authentic one's by this [dB]
+    #: (core/threats/spoofing.py)
+    spoof_capture_margin_db: float = 3.0
     #: Fields a profile owns (every field but profile_file.RUN_FIELDS) default to None: the profile's value, else
     #: the field's ``builtin`` (a profile that leaves it out, a bare signal mapping); an argument overrides both.
     #: DLL: noise bandwidth [Hz], early-late spacing [chips]

@@ -234,12 +234,15 @@ class Receiver:
         self._scene_reflections(b, multipath)
         if self.lms is not None:
             self._lms_channel(b)
-        if self.threats is not None:      # interference on C/N0 before tracking (core/threats/jamming.py)
+        if self.threats is not None:      # spoofers and jammers on C/N0 before tracking (core/threats)
+            self.threats.spoof_signals(b, self.cfg)
             b.cn0 = self.threats.signal_cn0(ts, b.rx_ep, b.e_sig, b.rows.sv_j, b.codes, b.freq, b.cn0,
                                             self.cfg.link_budget, self.cfg.frontend_bandwidth_hz)
         self._tracking(b)
         self._receiver_errors(b)
         self._observables(b)
+        if self.threats is not None:      # the captured signals' observables (core/threats/spoofing.py)
+            self.threats.spoof_observables(b, self._light_time)
         return self._assemble(b)
 
     # the stages of epochs(), in order -------------------------------------------------------------
@@ -507,6 +510,8 @@ class Receiver:
          t_rho) = (x[sel] for x in (b.rows.sv_j, b.codes, b.freq, b.pr, b.phase, b.dop, b.cn0_meas, b.lli, b.lock,
                                      b.dts, b.ddts, b.iono_model, b.tropo, b.el_j, b.rho))
         t_pos, t_vel = b.sol.sat_pos_ecef_m[sat_tr], b.sol.sat_vel_ecef_mps[sat_tr]
+        if b.spoofed is not None:         # captured rows: the satellites at the counterfeit's transmit times
+            t_pos, t_vel = b.spoofed.satellites(sel, t_pos, t_vel)
         out = []
         for e in range(b.k_n):
             if b.empty[e]:
@@ -602,6 +607,7 @@ class _Block:
     def __init__(self, ts):
         self.ts = ts
         self.k_n = len(ts)
+        self.spoofed = None       # a scenario's counterfeit signals (core/threats/spoofing.SpoofedRows)
 
     def sat_rows(self, e: int):
         """(svs, az, el, vis, att) of the satellites above the horizon at epoch ``e``."""

@@ -35,7 +35,8 @@ BUILTIN_DIR = Path(__file__).resolve().parents[2] / "profiles"
 #: fields of the receiver configuration that belong to the run (parameters, options), never to a profile
 RUN_FIELDS = frozenset({"profile", "systems", "elevation_mask_deg", "noise", "ionosphere", "troposphere",
                         "transmit_time", "light_time_iterations", "seed", "world_seed", "sisre_m",
-                        "iono_error_frac", "clock", "lms_environment"})
+                        "iono_error_frac", "clock", "lms_environment",
+                        "spoof_capture_margin_db"})
 #: the top-level keys that describe the profile rather than set a field
 META_KEYS = ("gnss_sim_profile", "name", "description", "source", "signals")
 PROFILE_SUFFIXES = (".yaml", ".yml")

@@ -8,12 +8,11 @@ it to its ``Receiver``.  Calls per block of epochs, in the chain's order:
    (off, stuck), before the fix;
 4. ``solution(t, sol)`` -- output faults on the fix; ``labels(t)`` the active events (fix.csv, topic).
 
-Spoofing hook (the spoofing model is not built yet): spoofer events are read and checked (scenario.py) and
-:meth:`ThreatRuntime.active_spoofers` lists those active at a run time; the model goes into a module
-``spoofing.py`` of this package as one function the receiver calls per block with the signal rows, right after
-``signal_cn0`` (the same stage of Receiver.epochs: before tracking, so capture and loss of lock follow the
-thresholds), ``spoof(runtime, t_rel_s, spoofers, rows) -> rows``.  Until then a scenario with a spoofer is
-refused here (an error naming the file and the event's line), never ignored.
+Spoofing (spoofing.py): ``spoof_signals(b, cfg)`` right before ``signal_cn0`` (the same stage: capture or
+interference on each signal's C/N0, so loss of lock and capture follow the thresholds; jammers add on top) and
+``spoof_observables(b, light_time)`` after the observables (the captured rows' code, phase and Doppler, the
+satellites the receiver solves them with, loss-of-lock flags); ``spoofed(t)`` the per-satellite ground truth
+(spoofer, arrival direction, captured signals).  Both are no-ops without a spoofer.
 
 Times are relative to the run start: the first epoch seen, unless ``start`` is given.
 """
@@ -26,6 +25,7 @@ from ..time import GnssTime
 from . import faults as fault_model
 from . import jamming, spectra
 from .scenario import Scenario, SpooferEvent
+from .spoofing import Spoofing
 
 
 class ThreatRuntime:
@@ -42,10 +42,8 @@ class ThreatRuntime:
         #: the last epoch's per-band status {band: {"jamming_indicator": 0-255, "agc_db": dB}}
         self.band_status: dict = {}
         self._status_by_t: dict = {}
-        if scenario.spoofers:             # the spoofing model replaces this refusal (module doc)
-            sp = scenario.spoofers[0]
-            raise ValueError(f"scenario {scenario.source}, line {scenario.lines.get(sp.name)}: spoofer event "
-                             f"{sp.name!r} is read and checked, but this gnss_sim does not simulate spoofing yet")
+        #: the spoofers' model (spoofing.py), None without a spoofer
+        self.spoofing = Spoofing(self, _tkey) if scenario.spoofers else None
         spherical = getattr(scene, "spherical", None)
         if spherical is None and scenario.needs_scene_frame():
             raise ValueError(f"scenario {scenario.source}: an event placed in world coordinates needs a "
@@ -68,7 +66,21 @@ class ThreatRuntime:
         """The spoofing hook: the spoofers active at run time ``t_rel_s`` (a spoofing model acts on them)."""
         return [s for s in self.scenario.spoofers if bool(s.active(t_rel_s))]
 
+    def spoofed(self, t) -> dict:
+        """Ground truth of the spoofers at epoch ``t``: {sv: {"spoofer", "az_deg", "el_deg", "captured": [codes]}}
+        (spoofing.Spoofing.truth; empty without an active spoofer)."""
+        return {} if self.spoofing is None else self.spoofing.truth(t)
+
     # ------------------------------------------------------------------ stages
+    def spoof_signals(self, b, cfg) -> None:
+        """The spoofers' counterfeits on block ``b``'s C/N0 (capture or interference), kept as ``b.spoofed``."""
+        b.spoofed = None if self.spoofing is None else self.spoofing.signals(b, cfg)
+
+    def spoof_observables(self, b, light_time) -> None:
+        """The captured rows' observables and satellites (spoofing.Spoofing.observables)."""
+        if self.spoofing is not None:
+            self.spoofing.observables(b, light_time)
+
     def clock_offset_s(self, ts) -> np.ndarray | None:
         if not self.faults:
             return None

@@ -50,6 +50,9 @@ from ..vocabulary import SYSTEMS
 SCHEMA_VERSION = 1
 POSITION_TYPES = ("world", "llh")
 SPOOFER_MODES = ("simulate", "meacon")
+#: largest |false_time_offset_s| and delay_s [s]: the receiver here does not re-steer its clock (and its epoch tags)
+#: to a false time, so the offset stays in its ranges (c x 10 ms = 3000 km: pseudoranges stay positive)
+MAX_SPOOF_TIME_S = 0.01
 #: fault kind -> its own keys (besides type, name, kind, start_s, end_s)
 FAULT_KINDS = {
     "off": (),                                   # the receiver outputs nothing
@@ -358,6 +361,7 @@ def _event(v: _Validator, ev, keys: tuple, i: int) -> Event:
     if not isinstance(systems, str) or not systems or any(s not in SYSTEMS for s in systems):
         v.fail((*keys, "systems"), f"must be letters of {''.join(SYSTEMS)}, got {systems!r}")
     return SpooferEvent(**common, track=track, eirp_dbw=eirp, false_track=false_track,
-                        false_time_offset_s=v.number(ev, keys, "false_time_offset_s", 0.0),
+                        false_time_offset_s=v.number(ev, keys, "false_time_offset_s", 0.0, lo=-MAX_SPOOF_TIME_S,
+                                                     hi=MAX_SPOOF_TIME_S),
                         systems=systems, power_advantage_db=v.number(ev, keys, "power_advantage_db", 3.0),
-                        mode=mode, delay_s=v.number(ev, keys, "delay_s", 0.0, lo=0.0))
+                        mode=mode, delay_s=v.number(ev, keys, "delay_s", 0.0, lo=0.0, hi=MAX_SPOOF_TIME_S))

@@ -83,3 +83,14 @@ def kappa_per_hz(comps: tuple, frontend_bw_hz: float, offset_hz: float, bandwidt
         return float(psd_per_hz(comps, offset_hz)) / in_band
     lo, hi = max(offset_hz - 0.5 * bandwidth_hz, -half), min(offset_hz + 0.5 * bandwidth_hz, half)
     return _integral(comps, lo, hi) / bandwidth_hz / in_band
+
+
+@functools.lru_cache(maxsize=256)
+def matched_kappa_per_hz(comps: tuple, frontend_bw_hz: float) -> float:
+    """Spectral separation coefficient [1/Hz] of an interferer with the signal's own spectrum (a spoofer's
+    counterfeit of the same signal): int G_s^2 df / (int G_s df)^2 over the front end (Betz 2001)."""
+    half = 0.5 * frontend_bw_hz
+    n = max(64, int(np.ceil(frontend_bw_hz / _DF_HZ)))
+    f = np.linspace(-half, half, n + 1)
+    g = psd_per_hz(comps, f)
+    return float(np.trapezoid(g * g, f)) / float(np.trapezoid(g, f)) ** 2
