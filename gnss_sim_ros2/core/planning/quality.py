@@ -139,11 +139,12 @@ def _rtk_fields(los_enu, cont, clock, rule: RtkRule):
     return n_rtk, rtk
 
 
-def path_quality(scene, vis, antenna_world_m, sat_pos_ecef_m, systems, inp: PlanInputs) -> dict:
+def path_quality(scene, vis, antenna_world_m, sat_pos_ecef_m, systems, inp: PlanInputs, states_out=None) -> dict:
     """The FIELDS along a path: pose i at ``antenna_world_m[i]`` (P, 3) sees the satellites ``sat_pos_ecef_m[i]``
     (P, S, 3; NaN where absent) of the time it is there; one cast of P rows.  The RTK indicator's continuity is
     from one pose to the next (a carrier-phase arc held since the previous pose; the first pose: none broken).
-    Values (P,) per field."""
+    Values (P,) per field.  ``states_out``: a (P, S) int8 array that receives each satellite's VisibilityState
+    where it is above the mask, -1 elsewhere."""
     ant = np.asarray(antenna_world_m, float).reshape(-1, 3)
     sat_all = np.asarray(sat_pos_ecef_m, float)
     sysv = np.asarray(systems)
@@ -155,6 +156,8 @@ def path_quality(scene, vis, antenna_world_m, sat_pos_ecef_m, systems, inp: Plan
     present = np.isfinite(sat_all[..., 0])
     state, att, v = vis.cast(scene, ant, np.where(present[..., None], sat_all, 0.0))
     above = present & (np.asarray(v.el_deg) >= vis.mask_deg)
+    if states_out is not None:
+        states_out[:] = np.where(above, state, -1)
     vals, cand, los_enu = _rows_quality(state, att, v, above, sysv, clock, dual, inp)
     cont = cand & np.concatenate([cand[:1], cand[:-1]], axis=0)
     vals["n_rtk"], vals["rtk"] = _rtk_fields(los_enu, cont, clock, inp.rule)

@@ -1,0 +1,35 @@
+"""How well a yes/no prediction (a satellite in line of sight, RTK available) matches what happened: accuracy
+against the base rate of always answering the more frequent class, and the Heidke skill score.
+
+Heidke skill score (Heidke 1926; Wilks, Statistical Methods in the Atmospheric Sciences, 3rd ed., 8.2.4 / eq.
+8.16 for the 2x2 table): HSS = (PC - E) / (1 - E), PC the proportion correct, E the proportion correct by chance
+of a prediction independent of the outcome with the same marginals, E = (p_yes_pred p_yes_obs + p_no_pred
+p_no_obs).  HSS 0: no skill over chance, 1: perfect, < 0: worse than chance.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+def skill(predicted, observed, considered=None) -> dict:
+    """Scores of boolean ``predicted`` against ``observed`` (same shape) over the ``considered`` entries (all by
+    default): n, accuracy, base_rate (share of the majority observed class), hss, hit_rate (predicted yes among
+    observed yes), false_alarm_ratio (observed no among predicted yes), p_pred, p_obs (shares of yes)."""
+    p = np.asarray(predicted, bool)
+    o = np.asarray(observed, bool)
+    if p.shape != o.shape:
+        raise ValueError(f"skill: predicted {p.shape} and observed {o.shape} differ in shape")
+    m = np.ones(p.shape, bool) if considered is None else np.asarray(considered, bool)
+    p, o = p[m], o[m]
+    n = int(p.size)
+    if n == 0:
+        raise ValueError("skill: no entry to score")
+    a, b = int(np.sum(p & o)), int(np.sum(p & ~o))          # hits, false alarms
+    c, d = int(np.sum(~p & o)), int(np.sum(~p & ~o))        # misses, correct negatives
+    pc = (a + d) / n
+    pp, po = (a + b) / n, (a + c) / n
+    e = pp * po + (1.0 - pp) * (1.0 - po)
+    return {"n": n, "accuracy": pc, "base_rate": max(po, 1.0 - po),
+            "hss": (pc - e) / (1.0 - e) if e < 1.0 else float("nan"),
+            "hit_rate": a / (a + c) if a + c else float("nan"),
+            "false_alarm_ratio": b / (a + b) if a + b else float("nan"), "p_pred": pp, "p_obs": po}
