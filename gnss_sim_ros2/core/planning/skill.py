@@ -1,10 +1,10 @@
 """How well a yes/no prediction (a satellite in line of sight, RTK available) matches what happened: accuracy
 against the base rate of always answering the more frequent class, and the Heidke skill score.
 
-Heidke skill score (Heidke 1926; Wilks, Statistical Methods in the Atmospheric Sciences, 3rd ed., 8.2.4 / eq.
-8.16 for the 2x2 table): HSS = (PC - E) / (1 - E), PC the proportion correct, E the proportion correct by chance
-of a prediction independent of the outcome with the same marginals, E = (p_yes_pred p_yes_obs + p_no_pred
-p_no_obs).  HSS 0: no skill over chance, 1: perfect, < 0: worse than chance.
+Heidke skill score (P. Heidke, Geografiska Annaler 8, 1926; the 2x2 contingency-table form of Wilks, Statistical
+Methods in the Atmospheric Sciences): HSS = (PC - E) / (1 - E), PC the proportion correct, E the proportion
+correct by chance of a prediction independent of the outcome with the same marginals, E = (p_yes_pred p_yes_obs +
+p_no_pred p_no_obs).  HSS 0: no skill over chance, 1: perfect, < 0: worse than chance.
 """
 from __future__ import annotations
 
