@@ -9,7 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from gnss_sim_ros2.graph_params import INSTANCE_NODE_NAMES, instance_params, robot_namespace, robot_params
-from gnss_sim_ros2.parameters import NODE_NAMES, param
+from gnss_sim_ros2.parameters import NODE_NAMES, param, validate_node
 
 #: the ROS package, and the scheme of Python classes in its component index (nodes/components.py)
 PACKAGE = "gnss_sim"
@@ -32,6 +32,8 @@ class NodeSpec:
 
     @property
     def name(self) -> str:
+        if self.instance == FLEET_INSTANCE:
+            return FLEET_NODE_NAMES[self.key]
         return INSTANCE_NODE_NAMES[(self.instance, self.key)] if self.instance else NODE_NAMES[self.key]
 
     @property
@@ -51,6 +53,10 @@ class NodeSpec:
         return f"{PYTHON_TARGET_PREFIX}{self.module}:{self.cls}"
 
 
+#: the fleet layout's nodes (LAYOUTS "fleet"): one visibility node casting every robot's antenna in one call per epoch
+#: and one receiver node running every robot's chain (nodes/fleet_visibility_node.py, nodes/fleet_receiver_node.py)
+FLEET_INSTANCE = "fleet"
+FLEET_NODE_NAMES = {"visibility": "gnss_sim_fleet_visibility", "receiver": "gnss_sim_fleet_receiver"}
 #: start order: TF first, then the chain upstream -> downstream
 NODES = (
     NodeSpec("trajectory", "trajectory_player", "gnss_sim_ros2.nodes.trajectory_player", "TrajectoryPlayer"),
@@ -91,11 +97,16 @@ RECORDED = (
 RECORDED_TOPICS = tuple(t for t, _ in RECORDED)
 
 
-def nodes(with_trajectory_player: bool = True, robots: int = 1) -> list[NodeSpec]:
+def nodes(with_trajectory_player: bool = True, robots: int = 1, fleet: bool = False) -> list[NodeSpec]:
     """The nodes of a run; without the player when Gazebo (ros_gz_bridge) publishes the robot's TF.
 
     ``robots`` > 1: one ephemeris node and, per robot k, a trajectory player, a visibility and a receiver node
-    in the namespace ``robot<k>`` (ROBOT_KEYS); the players first, then the chain upstream -> downstream."""
+    in the namespace ``robot<k>`` (ROBOT_KEYS); the players first, then the chain upstream -> downstream.
+    ``fleet``: the robots' players, the ephemeris node, then FLEET_NODES (one visibility and one receiver node
+    serving every robot)."""
+    if fleet:
+        return [n for n in nodes(with_trajectory_player, robots) if n.key == "trajectory"] + \
+            [n for n in NODES if n.key == "ephemeris"] + list(FLEET_NODES)
     if robots == 1:
         return [n for n in NODES if with_trajectory_player or n.key != "trajectory"]
     by_key = {n.key: n for n in NODES}
@@ -110,8 +121,9 @@ ROBOT_KEYS = ("trajectory", "visibility", "receiver")
 
 #: process layouts (gnss-sim run --layout, the launch file's composed:=): every node in one process
 #: ("composed"), one process per robot (its player, visibility and receiver; the shared nodes, ephemeris and
-#: RTK, in the main one: "robot"), one process per node ("node")
-LAYOUTS = ("composed", "robot", "node")
+#: RTK, in the main one: "robot"), one process per node ("node"), every node in one process with one visibility
+#: and one receiver node serving all the robots ("fleet": FLEET_NODES)
+LAYOUTS = ("composed", "robot", "node", "fleet")
 #: the component container of a robot in the "robot" layout (in the robot's namespace: /robot<k>/...)
 ROBOT_CONTAINER = "gnss_sim_robot_container"
 
@@ -149,6 +161,12 @@ def robot_topic(k: int, topic: str) -> str:
     """Robot k's name of a public topic of REMAPPINGS ("/gnss/fix" -> "/robot<k>/gnss/fix"; one robot: the
     topic itself); /gnss/satellite_states is every robot's."""
     return topic if k < 0 or topic == f"{TOPIC_NAMESPACE}/satellite_states" else f"/{robot_namespace(k)}{topic}"
+
+
+def fleet_topic(k: int, robots: int, name: str) -> str:
+    """Robot k's topic ``name`` (a REMAPPINGS source: "fix", "visibility") as a fleet node of ``robots`` robots
+    publishes it: the per-robot layout's (/robot<k>/gnss/fix; one robot: /gnss/fix)."""
+    return robot_topic(k if robots > 1 else -1, dict(REMAPPINGS)[name])
 
 
 def robot_topics(robots: int) -> list[list[str]]:
@@ -193,10 +211,16 @@ HEADING_NODES = (
     NodeSpec("receiver", "receiver_node", "gnss_sim_ros2.nodes.receiver_node", "ReceiverNode", "antenna2"),
     NodeSpec("rtk", "rtk_node", "gnss_sim_ros2.nodes.rtk_node", "RtkNode", "heading"),
 )
+FLEET_NODES = (
+    NodeSpec("visibility", "fleet_visibility_node", "gnss_sim_ros2.nodes.fleet_visibility_node",
+             "FleetVisibilityNode", FLEET_INSTANCE),
+    NodeSpec("receiver", "fleet_receiver_node", "gnss_sim_ros2.nodes.fleet_receiver_node", "FleetReceiverNode",
+             FLEET_INSTANCE),
+)
 #: the GNSS-quality layer for Nav2 (launch argument quality_map:=true; its remappings and parameters below)
 QUALITY_MAP_NODE = NodeSpec("quality_map", "quality_map_node", "gnss_sim_ros2.nodes.quality_map_node", "QualityMapNode")
 #: one line per class in the component index (nodes/components.py)
-COMPONENT_NODES = NODES + (RTK_NODES[2], QUALITY_MAP_NODE)
+COMPONENT_NODES = NODES + (RTK_NODES[2],) + FLEET_NODES + (QUALITY_MAP_NODE,)
 BASE_NAMESPACE = f"{TOPIC_NAMESPACE}/base"
 BASE_REMAPPINGS = (("satellite_states", f"{TOPIC_NAMESPACE}/satellite_states"),) + tuple(
     (a, f"{BASE_NAMESPACE}/{a}") for a, _ in REMAPPINGS if a != "satellite_states")
@@ -248,6 +272,8 @@ def remappings_of(spec: NodeSpec) -> tuple:
     robot k's under /robot<k>/gnss (the satellite states: /gnss/satellite_states, shared)."""
     if spec.robot >= 0:
         return tuple((a, robot_topic(spec.robot, b)) for a, b in REMAPPINGS)
+    if spec.instance == FLEET_INSTANCE:     # each robot's topics are named by the node (fleet_topic)
+        return REMAPPINGS[:1]
     if spec.instance == "base":
         return BASE_REMAPPINGS
     if spec.instance == "antenna2":
@@ -272,6 +298,9 @@ def node_parameters(cfg, spec: NodeSpec, robots: int = 1) -> dict:
     """The parameters of one node of the graph from the configuration (parameters.Config)."""
     if spec.robot >= 0:
         return robot_params(cfg, spec.robot, robots, spec.key)
+    if spec.instance == FLEET_INSTANCE:
+        return validate_node(spec.key, {**cfg.node(spec.key), "fleet_robots": robots},
+                             f"{cfg.source}: {spec.name} (robots: {robots})")
     out = instance_params(cfg, spec.instance, spec.key) if spec.instance else cfg.node(spec.key)
     if spec.key == "rtk" and not out["nav_files"]:
         out["nav_files"] = [str(run_navigation_file(cfg))]

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from gnss_sim_ros2.parameters import NODE_NAMES, Config, validate_node
+from gnss_sim_ros2.parameters import MAX_FLEET_ROBOTS, NODE_NAMES, Config, validate_node
 
 #: the extra nodes of an RTK run, by instance and node key: the base station (a visibility and a receiver node of
 #: the rover's classes at a static antenna), and with antenna2_frame the second antenna's receiver and the rtk
@@ -78,18 +78,22 @@ MAX_ROBOTS = 16
 ROBOT_NAMESPACE = "robot{k}"
 
 
-def check_robots(n, name: str = "option --robots") -> int:
-    """The number of robots of a run, 1..MAX_ROBOTS; ValueError naming ``name`` (the option or launch
-    argument the user typed) otherwise."""
+def check_robots(n, name: str = "option --robots", fleet: bool = False) -> int:
+    """The number of robots of a run, 1..MAX_ROBOTS (``fleet``: the fleet layout, one visibility and one receiver
+    node for all, 1..MAX_FLEET_ROBOTS); ValueError naming ``name`` (the option or launch argument the user typed)
+    otherwise."""
+    most, what = (MAX_FLEET_ROBOTS, "MAX_FLEET_ROBOTS in gnss_sim_ros2/parameters.py") if fleet else \
+        (MAX_ROBOTS, "MAX_ROBOTS in gnss_sim_ros2/graph_params.py")
     try:
         n_int = int(n)
     except (TypeError, ValueError):
-        raise ValueError(f"{name} is {n!r}; a number of robots 1..{MAX_ROBOTS} is needed") from None
+        raise ValueError(f"{name} is {n!r}; a number of robots 1..{most} is needed") from None
     if isinstance(n, float) and n != n_int or isinstance(n, bool):
-        raise ValueError(f"{name} is {n!r}; a whole number of robots 1..{MAX_ROBOTS} is needed")
-    if not 1 <= n_int <= MAX_ROBOTS:
-        raise ValueError(f"{name} is {n_int}; a run takes 1..{MAX_ROBOTS} robots (MAX_ROBOTS in "
-                         f"gnss_sim_ros2/graph_params.py)")
+        raise ValueError(f"{name} is {n!r}; a whole number of robots 1..{most} is needed")
+    if not 1 <= n_int <= most:
+        layout = "the fleet layout" if fleet else "a run (the fleet layout takes up to " \
+                                                  f"{MAX_FLEET_ROBOTS})"
+        raise ValueError(f"{name} is {n_int}; {layout} takes 1..{most} robots ({what})")
     return n_int
 
 
@@ -116,7 +120,14 @@ def robot_params(cfg: Config, k: int, n: int, key: str) -> dict:
         raise KeyError(f"robot nodes are trajectory, visibility, receiver; not {key!r}")
     check_robot_config(cfg, n)
     ns = robot_namespace(k)
-    out = cfg.node(key)
+    return validate_node(key, robot_node_params(cfg.node(key), k, key), f"{cfg.source}: {ns}/{NODE_NAMES[key]}")
+
+
+def robot_node_params(node_params: dict, k: int, key: str) -> dict:
+    """Robot ``k``'s values of one node's parameters ``node_params`` (robot_params; the fleet layout's nodes derive
+    each robot's from their own with it, so a fleet's robot k is the per-robot layout's robot k), unchecked."""
+    ns = robot_namespace(k)
+    out = dict(node_params)
     out["antenna_frame"] = f"{ns}/{out['antenna_frame']}"
     if out["antenna2_frame"]:
         out["antenna2_frame"] = f"{ns}/{out['antenna2_frame']}"
@@ -129,4 +140,13 @@ def robot_params(cfg: Config, k: int, n: int, key: str) -> dict:
     if key == "receiver":
         out["seed"] = out["seed"] + k
         out["output_dir"] = str(Path(out["output_dir"]) / ns) if out["output_dir"] else ""
-    return validate_node(key, out, f"{cfg.source}: {ns}/{NODE_NAMES[key]}")
+    return out
+
+
+def fleet_robot_params(node_params: dict, k: int, key: str) -> dict:
+    """Robot ``k``'s parameters in a fleet node ``key`` whose own are ``node_params`` (fleet_robots of them): the
+    per-robot layout's (robot_node_params); one robot: the node's own (the root's frames, topics and seed, as a
+    one-robot run)."""
+    if node_params["fleet_robots"] == 1:
+        return dict(node_params)
+    return robot_node_params(node_params, k, key)

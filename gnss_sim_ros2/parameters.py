@@ -202,6 +202,8 @@ MAX_DURATION_S = 31 * 86400.0
 #: (geodetic profile, GRECJI: 274 MB for 36001 epochs) and the offline run about 1.3 kB of memory per epoch (peak
 #: RSS 175 MB at 3600 epochs, 216 MB at 36000): 1e6 epochs, e.g. a day at 10 Hz, ~7.6 GB of RINEX
 MAX_EPOCHS = 1_000_000
+#: the most robots one fleet visibility / receiver node serves (the fleet layout: graph.py)
+MAX_FLEET_ROBOTS = 64
 
 #: how a static antenna position is given (parameters antenna_position_type, base_position_type)
 POSITION_TYPES = ("world", "llh", "ecef")
@@ -240,6 +242,13 @@ SHARED = [
     Param("preset", "balanced", "fidelity preset: default values of the model switches",
           choices=PRESET_NAMES),
 ]
+
+#: the fleet layout's nodes (gnss-sim run --layout fleet, composed:=fleet): one visibility and one receiver node
+#: serving robots 0..N-1 (their frames robot<k>/..., topics /robot<k>/gnss/...; one robot: the root's)
+FLEET_ROBOTS = Param("fleet_robots", 1, "robots this node serves in the fleet layout (gnss-sim run --layout fleet, "
+                     "composed:=fleet; set by the layout): one cast of every robot's antenna per epoch, one receiver "
+                     "chain per robot (seed + k, frames robot<k>/..., topics /robot<k>/gnss/...); 1 in the other "
+                     "layouts", min=1, max=MAX_FLEET_ROBOTS)
 
 NODE_PARAMS: dict[str, list[Param]] = {
     "ephemeris": [
@@ -313,6 +322,7 @@ NODE_PARAMS: dict[str, list[Param]] = {
               check_value=_check_box_size),
         Param("obstacle_pose_topic", "", "tf2_msgs/TFMessage topic of the models' poses in world_frame (ros_gz_bridge "
               "of /world/<name>/dynamic_pose/info; child_frame_id = model name); empty: no model obstacles"),
+        FLEET_ROBOTS,
     ],
     "receiver": [
         Param("profile", "geodetic", "receiver profile (signals, antenna, front end, loops, thresholds, noise): a "
@@ -348,6 +358,7 @@ NODE_PARAMS: dict[str, list[Param]] = {
               "scene leaves in sight, shadowed / blocked states and a diffuse echo (what a 3D model lacks: street "
               "furniture, vehicles, trees). off, auto (per epoch from the share of satellites the scene blocks: "
               "open field nothing, else suburban or urban) or a class", choices=LMS_ENVIRONMENTS),
+        FLEET_ROBOTS,
         Param("scenario", "", "threat scenario file (YAML, docs/SCENARIOS.md): timed jammers, spoofers and receiver "
               "faults (core/threats), relative to the working directory, kept as its absolute path; empty: none",
               check_value=_check_scenario),

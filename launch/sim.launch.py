@@ -7,12 +7,15 @@ merged with these launch arguments by gnss_sim_ros2.config_file.load_config.
 Arguments:
   world:=FILE.sdf | mesh:=FILE.ply   scene (default: the demo courtyard)
   config:=FILE.yaml                  gnss_sim parameter file
-  composed:=true|false|robot         the nodes as components of one container (gnss_sim's Python
+  composed:=true|false|robot|fleet   the nodes as components of one container (gnss_sim's Python
                                      container, composition_interfaces), one process per node (false), or
                                      one container per robot (robot: /robot<k>/gnss_sim_robot_container with
                                      the robot's player, visibility and receiver; /gnss_sim_robot_container
                                      for one robot) beside /gnss_sim_container with the shared nodes
-                                     (ephemeris, RTK) [true]
+                                     (ephemeris, RTK), or one container whose one visibility node
+                                     (gnss_sim_fleet_visibility) casts every robot's antenna per epoch and one
+                                     receiver node (gnss_sim_fleet_receiver) steps every robot's chain, each
+                                     robot's outputs on /robot<k>/gnss/... (fleet: up to 64 robots) [true]
   use_sim_time:=true|false           follow /clock (Gazebo) [true]
   trajectory_player:=true|false      move the robot along a path here; false when Gazebo publishes TF [true]
   record:=true|false                 record the gnss_sim topics into output_dir/bag (MCAP): `ros2 bag record`
@@ -67,7 +70,7 @@ ARGS = {
     "mesh": ("", "scene mesh exported by `gnss-sim export-world` (instead of world)"),
     "config": ("", "gnss_sim parameter file (ROS 2 format); empty: the package's config/gnss_sim.yaml defaults"),
     "composed": ("true", "true: every node in one container; false: one process per node; robot: one container "
-                         "per robot"),
+                         "per robot; fleet: one container, one visibility and one receiver node for every robot"),
     "use_sim_time": ("true", "follow /clock (Gazebo or the trajectory player)"),
     "trajectory_player": ("true", "move the robot along a path here; false when Gazebo publishes TF"),
     "record": ("false", "record the gnss_sim topics into output_dir/bag (MCAP)"),
@@ -132,7 +135,7 @@ def _write_params(params: dict, name: str) -> str:
 
 #: composed:= values -> process layout (gnss_sim_ros2.graph.LAYOUTS)
 COMPOSED_LAYOUTS = {**dict.fromkeys(("true", "1", "yes", "on"), "composed"),
-                    **dict.fromkeys(("false", "0", "no", "off"), "node"), "robot": "robot"}
+                    **dict.fromkeys(("false", "0", "no", "off"), "node"), "robot": "robot", "fleet": "fleet"}
 
 
 def layout_of(composed: str) -> str:
@@ -140,7 +143,8 @@ def layout_of(composed: str) -> str:
     layout = COMPOSED_LAYOUTS.get(composed.strip().lower())
     if layout is None:
         raise ValueError(f"launch argument composed is {composed!r}; one of true (one container), false (one "
-                         f"process per node), robot (one container per robot)")
+                         f"process per node), robot (one container per robot), fleet (one container, one "
+                         f"visibility and one receiver node for every robot)")
     return layout
 
 
@@ -174,7 +178,7 @@ def _setup(context):
         overrides.setdefault("receiver", {})["scenario"] = a["scenario"]
     layout = layout_of(a["composed"])
     rtk = _true(a["rtk"])
-    robots = check_robots(a["robots"], "launch argument robots")
+    robots = check_robots(a["robots"], "launch argument robots", fleet=layout == "fleet")
     if rtk and robots > 1:
         raise ValueError(f"launch arguments rtk:=true and robots:={robots} do not go together: an RTK run has one "
                          f"rover (and its base station); use robots:=1 with rtk:=true")
@@ -188,10 +192,13 @@ def _setup(context):
     params = {**cfg.ros_parameter_file_dict(), **(graph.rtk_parameter_sections(cfg) if rtk else {}),
               **(graph.quality_map_parameter_sections(cfg) if quality_map else {}),
               **graph.robot_parameter_sections(cfg, robots)}
+    specs = graph.nodes(_true(a["trajectory_player"]), robots, layout == "fleet") + \
+        (graph.rtk_nodes(cfg) if rtk else []) + ([graph.QUALITY_MAP_NODE] if quality_map else [])
+    # the fleet layout's visibility and receiver node: the configuration's, serving every robot (fleet_robots)
+    params.update({s.name: {"ros__parameters": graph.node_parameters(cfg, s, robots)}
+                   for s in specs if s.instance == graph.FLEET_INSTANCE})
     params["/**"] = {"ros__parameters": {"use_sim_time": sim_time}}  # every node, composed or not
     params_file = _write_params(params, "params.yaml")
-    specs = graph.nodes(_true(a["trajectory_player"]), robots) + (graph.rtk_nodes(cfg) if rtk else []) + \
-        ([graph.QUALITY_MAP_NODE] if quality_map else [])
     node_params = [params_file, {"use_sim_time": sim_time}]
     # launch_ros turns a composable node's parameter file into Parameter messages and rejects empty
     # lists; every list parameter whose value is empty has the empty list as its default: leave them out
@@ -202,7 +209,7 @@ def _setup(context):
     actions = []
     if _true(a["record"]):  # first: a recorder that cannot start fails the launch before any node runs
         actions += _recorder(shared["output_dir"], rtk, robots)
-    if layout == "composed":
+    if layout in ("composed", "fleet"):
         actions += _container(CONTAINER, "", specs, composable_params, sim_time)
     elif layout == "robot":
         actions += _container(CONTAINER, "", [s for s in specs if graph.robot_of(s) is None], composable_params,

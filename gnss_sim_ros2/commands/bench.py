@@ -2,7 +2,8 @@
 
 Without option: speed against accuracy of the fidelity presets (benchmarks/presets.py); ``--scaling``: cost
 and memory against the size of the problem (benchmarks/scaling.py); ``--speed``: the offline speed targets
-(benchmarks/speed.py). Prints a table; ``--json`` and ``--plot`` write the figures.
+(benchmarks/speed.py); ``--fleet``: robots in the fleet layout at real-time pace (benchmarks/fleet.py).
+Prints a table; ``--json`` and ``--plot`` write the figures.
 """
 from __future__ import annotations
 
@@ -39,6 +40,15 @@ def add_arguments(p):
                    "then this one)")
     p.add_argument("--speed-duration", type=float, default=3600.0, metavar="S",
                    help="with --speed: simulated span of each run [s] (3600)")
+    p.add_argument("--fleet", action="store_true",
+                   help="instead of the presets: robots in the fleet layout at real-time pace (benchmarks/fleet.py): "
+                   "p99 states -> observations of the worst robot, epochs without output, added CPU and memory of "
+                   "one more robot")
+    p.add_argument("--fleet-robots", default="1,4,32", metavar="N[,N...]",
+                   help="with --fleet: robot counts, one run each (1..64; 1 is needed for the added cost) [1,4,32]")
+    p.add_argument("--fleet-rate", type=float, default=10.0, metavar="HZ", help="with --fleet: epoch rate [10]")
+    p.add_argument("--fleet-duration", type=float, default=60.0, metavar="S",
+                   help="with --fleet: simulated (= wall) seconds of each run [60]")
 
 
 def run_scaling_command(args) -> int:
@@ -71,7 +81,27 @@ def run_speed_command(args) -> int:
     return _report_out(args, report, speed_table(report), None)
 
 
+def run_fleet_command(args) -> int:
+    from gnss_sim_ros2.benchmarks.fleet import check_counts, fleet_table, run_fleet
+
+    try:
+        counts = check_counts(args.fleet_robots)
+        if not (0 < args.fleet_rate <= 100 and args.fleet_duration >= 1):
+            raise ValueError(f"options --fleet-rate {args.fleet_rate:g} / --fleet-duration {args.fleet_duration:g}: "
+                             f"a rate in (0, 100] Hz and a duration of at least 1 s are needed")
+        if args.plot:
+            raise ValueError("--plot is not available with --fleet")
+        report = run_fleet(counts, args.fleet_rate, args.fleet_duration,
+                           log=lambda m: print(m, file=sys.stderr, flush=True))
+    except (ValueError, RuntimeError) as exc:
+        print(f"gnss-sim bench: error: {exc}", file=sys.stderr)
+        return 2
+    return _report_out(args, report, fleet_table(report), None)
+
+
 def run(args) -> int:
+    if args.fleet:
+        return run_fleet_command(args)
     if args.scaling:
         return run_scaling_command(args)
     if args.speed:

@@ -47,7 +47,9 @@ def add_arguments(p):
     p.add_argument("--layout", choices=LAYOUTS, default=None,
                    help="processes: composed (every node in this one), robot (one process per robot: its player, "
                         "visibility and receiver; the ephemeris node and the recorder in this one), node (one "
-                        "process per node) [composed]")
+                        "process per node), fleet (every node in this one, one visibility node casting every "
+                        "robot's antenna per epoch and one receiver node stepping every robot's chain; up to 64 "
+                        "robots) [composed]")
     p.add_argument("--processes", action="store_true", help="one process per node: --layout node")
     p.add_argument("--realtime", action="store_true", help="simulated time at wall-clock pace")
     p.add_argument("--no-record", action="store_true", help="do not record a bag")
@@ -105,8 +107,8 @@ def run(args) -> int:
     folder = OutputFolder(Path(args.out), command="gnss-sim run", inputs=(args.config, args.world, args.mesh))
     try:
         folder.check()           # a folder with files the run did not write: refused before anything starts
-        args.robots = check_robots(args.robots, "option --robots")
         args.layout = layout_of(args)
+        args.robots = check_robots(args.robots, "option --robots", fleet=args.layout == "fleet")
         args.processes = args.layout == "node"
         if args.rtk and args.robots > 1:
             raise ValueError(f"options --rtk and --robots {args.robots} do not go together: an RTK run has one "

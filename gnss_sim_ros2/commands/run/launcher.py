@@ -15,9 +15,10 @@ from gnss_sim_ros2.commands.run.isolation import die_with_parent
 from gnss_sim_ros2.graph_params import robot_namespace
 
 #: summary.json "mode" of each layout ("processes": one per node, as before --layout)
-LAYOUT_MODES = {"composed": "composed", "robot": "robot_processes", "node": "processes"}
+LAYOUT_MODES = {"composed": "composed", "robot": "robot_processes", "node": "processes", "fleet": "fleet"}
 LAYOUT_WORDS = {"composed": "all nodes in one process", "robot": "one process per robot",
-                "node": "one process per node"}
+                "node": "one process per node",
+                "fleet": "all nodes in one process, one visibility and one receiver node for every robot"}
 
 
 def robot_process_name(k: int, robots: int) -> str:
@@ -58,7 +59,7 @@ class Launcher:
         from gnss_sim_ros2.nodes.manager import LocalNodes, OrderedNodes, RemoteNodes
 
         layout = self.args.layout
-        elsewhere = {"composed": [], "node": specs,
+        elsewhere = {"composed": [], "fleet": [], "node": specs,
                      "robot": [s for s in specs if graph.robot_of(s) is not None]}[layout]
         if elsewhere:
             params = str(self.params_file)
@@ -85,7 +86,7 @@ class Launcher:
             node = cls(parameter_overrides=overrides, cli_args=graph.ros_args(spec, None, True)[:-2])
             self.local.append(node)
             self.executor.add_node(node)
-        if layout == "composed":
+        if layout in ("composed", "fleet"):
             self.manager = LocalNodes(self.local)
         else:           # in the graph's order, wherever each node is
             local = iter(self.local)
@@ -102,7 +103,7 @@ class Launcher:
 
     def foreign_publishers(self) -> dict[str, list[str]]:
         """{topic: nodes} of publishers on the run's topics that are not nodes of its graph."""
-        ours = {s.name for s in graph.nodes() + graph.rtk_nodes(self.cfg)} | {"gnss_sim_run"}
+        ours = {s.name for s in graph.nodes() + graph.rtk_nodes(self.cfg) + list(graph.FLEET_NODES)} | {"gnss_sim_run"}
         out = {}
         for topic in dict.fromkeys(t for topics in graph.robot_topics(self.args.robots) for t in topics):
             others = sorted({f"{i.node_namespace.rstrip('/')}/{i.node_name}"

@@ -64,7 +64,7 @@ class Runner:
 
     def specs(self):
         """The nodes of this run (graph.nodes, and the RTK ones with --rtk)."""
-        return (graph.nodes(not self.args.no_trajectory_player, self.args.robots)
+        return (graph.nodes(not self.args.no_trajectory_player, self.args.robots, self.args.layout == "fleet")
                 + (graph.rtk_nodes(self.cfg) if self.args.rtk else []))
 
     # ------------------------------------------------------------------ run

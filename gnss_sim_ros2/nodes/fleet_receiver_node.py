@@ -1,0 +1,127 @@
+"""Fleet receiver lifecycle node: every robot's receiver chain in one node (the fleet layout, graph.py).
+
+``fleet_robots`` receivers, robot k's with the parameters its own receiver node has in the per-robot layouts
+(graph_params.robot_node_params: seed + k, RINEX in output_dir/robot<k>, frames robot<k>/...; one robot: the
+node's own), each its own core/receiver/chain.ReceiverChain (noise streams, clock, tracking state, RINEX file),
+publishing on its own topics (/robot<k>/gnss/observations, fix, vel, status, nmea, ...).  One subscription to
+``satellite_states`` serves all; robot k's ``visibility`` (the fleet visibility node's, one per robot) pairs with
+it by stamp.  Each robot is a RobotReceiver running the receiver node's own methods (nodes/receiver_node.py:
+configure, pairing, the observations then the fix of an epoch, cleanup) on its chain, so a fleet's robot k
+gives what robot k's own receiver node gives, byte for byte (test_fleet_layout).
+
+The robots' chains are stepped one after the other inside the node (a loop over robots, not one numpy step over
+robots x satellites x signals): what the fleet saves is the per-robot visibility cast, the executor's and the
+middleware's per-node work, not the receiver's arithmetic (docs/BENCHMARKS.md, fleet figures).
+"""
+from __future__ import annotations
+
+import inspect
+import sys
+
+from gnss_sim_ros2.graph import FLEET_NODE_NAMES, fleet_topic
+from gnss_sim_ros2.graph_params import fleet_robot_params, robot_namespace
+from gnss_sim_ros2.nodes.common import GnssSimNode, run_node
+from gnss_sim_ros2.nodes.receiver_node import ReceiverNode
+
+
+class RobotReceiver:
+    """Robot k's receiver inside the fleet node: every method ReceiverNode defines (configure, the pairing, the two
+    halves of an epoch, the threat services, cleanup; bound below the class) on this robot's parameters, chain,
+    pairing buffers, publishers (its topics: graph.fleet_topic; /diagnostics shared by the robots) and services
+    (~/robot<k>/...).  The attributes ReceiverNode.__init__ sets are set here too."""
+
+    def __init__(self, node: FleetReceiverNode, k: int, robots: int, params: dict):
+        self.node, self.k, self.robots, self.params = node, k, robots, params
+        self.chain = None
+        self.pubs: dict = {}
+        self.states: dict = {}
+        self.vis: dict = {}
+        self.last_stamp = None
+        self.tcp = None
+        self.unfinished: list = []
+        self.threat_services: list = []
+        self.last_t = None
+
+    @property
+    def executor(self):
+        return self.node.executor
+
+    def get_name(self) -> str:
+        return f"{self.node.get_name()} ({robot_namespace(self.k)})"
+
+    def get_logger(self):
+        return self.node.get_logger()
+
+    def get_clock(self):
+        return self.node.get_clock()
+
+    def lifecycle_publisher(self, msg_type, topic: str, qos):
+        """Robot k's topic ``topic`` (a relative name of the receiver node); an absolute one (/diagnostics)
+        is the node's, one for every robot."""
+        if topic.startswith("/"):
+            return self.node.shared_publisher(msg_type, topic, qos)
+        return self.node.lifecycle_publisher(msg_type, fleet_topic(self.k, self.robots, topic), qos)
+
+    def create_service(self, srv_type, name: str, callback):
+        """Robot k's service ``name`` (~/threats/start: ~/robot<k>/threats/start of the fleet node)."""
+        if self.robots > 1 and name.startswith("~/"):
+            name = f"~/{robot_namespace(self.k)}/{name[2:]}"
+        return self.node.create_service(srv_type, name, callback)
+
+    def destroy_service(self, srv):
+        return self.node.destroy_service(srv)
+
+
+for _name, _fn in vars(ReceiverNode).items():      # ReceiverNode's own methods, ROS's ones left to the node
+    if inspect.isfunction(_fn) and _name not in ("__init__", "activate") and _name not in vars(RobotReceiver):
+        setattr(RobotReceiver, _name, _fn)
+
+
+class FleetReceiverNode(GnssSimNode):
+    PARAMS_KEY = "receiver"
+
+    def __init__(self, node_name: str | None = None, **kwargs):
+        super().__init__(node_name=node_name or FLEET_NODE_NAMES["receiver"], **kwargs)
+        self.robots: list[RobotReceiver] = []
+        self._shared: dict = {}
+
+    def shared_publisher(self, msg_type, topic: str, qos):
+        if topic not in self._shared:
+            self._shared[topic] = self.lifecycle_publisher(msg_type, topic, qos)
+        return self._shared[topic]
+
+    def configure(self, p):
+        n = p["fleet_robots"]
+        self.robots = [RobotReceiver(self, k, n, fleet_robot_params(p, k, "receiver")) for k in range(n)]
+        for r in self.robots:
+            r.configure(r.params)
+
+    def activate(self):
+        from gnss_sim_msgs.msg import SatelliteStates, Visibility
+
+        self.active_subscription(SatelliteStates, "satellite_states", self._on_states, 100, raw=True)
+        n = len(self.robots)
+        for r in self.robots:
+            self.active_subscription(Visibility, fleet_topic(r.k, n, "visibility"), r._on_vis, 100, raw=True)
+
+    def _on_states(self, data: bytes):
+        for r in self.robots:
+            r._on_states(data)
+
+    def deactivate(self):
+        for r in self.robots:
+            r.deactivate()
+
+    def cleanup(self):
+        for r in self.robots:
+            r.cleanup()
+        self.robots = []
+        self._shared = {}
+
+
+def main(args=None):
+    return run_node(FleetReceiverNode, args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
