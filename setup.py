@@ -21,6 +21,7 @@ setup(
         ("share/" + package_name, ["package.xml"]),
         ("share/" + package_name + "/launch", glob("launch/*.py")),
         ("share/" + package_name + "/config", glob("config/*.yaml")),
+        ("share/" + package_name + "/config/scenarios", glob("config/scenarios/*.yaml")),
         ("share/" + package_name + "/worlds", glob("worlds/*.sdf") + glob("worlds/*.md")),
     ],
     package_data={"gnss_sim_ros2": ["data/*", "core/signal_plans/*.yaml", "profiles/*.yaml"]},

@@ -47,4 +47,6 @@ log "launch_test test/test_launch_robot_layout.py on ROS_DOMAIN_ID=$(domain 4)"
 ROS_DOMAIN_ID=$(domain 4) "$LAYER/bin/launch_test" test/test_launch_robot_layout.py
 log "launch_test test/test_launch_quality_map.py on ROS_DOMAIN_ID=$(domain 5)"
 ROS_DOMAIN_ID=$(domain 5) "$LAYER/bin/launch_test" test/test_launch_quality_map.py
+log "launch_test test/test_launch_threats.py on ROS_DOMAIN_ID=$(domain 6)"
+ROS_DOMAIN_ID=$(domain 6) "$LAYER/bin/launch_test" test/test_launch_threats.py
 log "passed in $((SECONDS - t0)) s"

@@ -31,6 +31,8 @@ class Timeline:
     obs_t_s: np.ndarray
     n_tracked: np.ndarray
     cn0_dbhz: dict
+    #: per epoch of fix.csv: satellites a spoofer has captured (its ``spoofed`` column; None without a spoofer)
+    n_spoofed: np.ndarray | None = None
 
     @property
     def events(self) -> list[str]:
@@ -67,6 +69,7 @@ def read_timeline(run_dir, truth=None, spherical=None) -> Timeline:
     is_fix = np.array([r["status"] != "no_fix" for r in rows])
     n_used = np.array([int(r["n_sats"] or 0) for r in rows])
     active = [[n for n in r["active_events"].split(";") if n] for r in rows]
+    n_spoofed = np.array([len(r["spoofed"].split()) for r in rows]) if "spoofed" in rows[0] else None
     h_err = np.full(len(rows), np.nan)
     if truth is not None:
         est = np.array([geodetic_to_ecef(float(r["lat_deg"] or "nan"), float(r["lon_deg"] or "nan"),
@@ -86,7 +89,8 @@ def read_timeline(run_dir, truth=None, spherical=None) -> Timeline:
             warnings.simplefilter("ignore", RuntimeWarning)           # an epoch without a signal in the band
             cn0[band] = np.nanmedian(cols.transpose(1, 0, 2).reshape(len(table.time), -1), axis=1)
         tracked |= np.isfinite(cols).any(axis=0)
-    return Timeline(t_s, n_used, is_fix, active, h_err, np.asarray(obs_t, dtype=float), tracked.sum(axis=1), cn0)
+    return Timeline(t_s, n_used, is_fix, active, h_err, np.asarray(obs_t, dtype=float), tracked.sum(axis=1), cn0,
+                    n_spoofed)
 
 
 def _truth_ecef(truth, t_s, spherical) -> np.ndarray:
@@ -114,8 +118,10 @@ def plot_timeline(tl: Timeline, path, title: str = "") -> Path:
     ax[0].legend(loc="lower left", fontsize=8, ncol=3)
     ax[1].plot(tl.obs_t_s, tl.n_tracked, lw=1.2, label="tracked")
     ax[1].plot(tl.t_s, tl.n_used, lw=1.2, label="used in the fix")
+    if tl.n_spoofed is not None:
+        ax[1].plot(tl.t_s, tl.n_spoofed, lw=1.2, color="tab:red", label="captured by a spoofer")
     ax[1].set_ylabel("satellites")
-    ax[1].legend(loc="lower left", fontsize=8)
+    ax[1].legend(loc="upper center", fontsize=8, ncol=3)
     ax[2].plot(tl.t_s, tl.h_err_m, lw=1.2, color="k")
     no_fix = ~tl.is_fix
     if no_fix.any():
@@ -143,6 +149,8 @@ def summary(tl: Timeline) -> list[str]:
         err = tl.h_err_m[on & tl.is_fix]
         worst = f"{np.nanmax(err):.1f} m" if np.isfinite(err).any() else "n/a"
         spans = ", ".join(f"{a:g}-{b:g} s" for a, b in tl.event_spans(name))
+        most = int(tl.n_spoofed[on].max()) if tl.n_spoofed is not None else 0
+        captured = f", satellites captured max {most}" if most else ""
         out.append(f"{name}: active {spans}; {int((on & ~tl.is_fix).sum())} of {int(on.sum())} epochs without a "
-                   f"fix, satellites used min {int(tl.n_used[on].min())}, worst horizontal error {worst}")
+                   f"fix, satellites used min {int(tl.n_used[on].min())}{captured}, worst horizontal error {worst}")
     return out
