@@ -103,6 +103,9 @@ def load_config(path: str | Path | None = None, overrides: dict[str, dict] | Non
     where = cfg.source if path is None else str(path)
     for key in NODE_NAMES:
         cfg.values[key] = validate_node(key, cfg.values[key], f"{where}: {NODE_NAMES[key]}", options)
+    rx, vis = cfg.values["receiver"], cfg.values["visibility"]
+    if rx["scenario"] and not rx["scenario_world"]:   # the receiver places the scenario in the visibility's scene
+        rx["scenario_world"] = vis["mesh_file"] or vis["world_file"]
     return cfg
 
 

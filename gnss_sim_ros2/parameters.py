@@ -353,15 +353,23 @@ NODE_PARAMS: dict[str, list[Param]] = {
               "above the loss threshold at the first epoch are locked, no loss-of-lock or half-cycle flag) or cold "
               "(switched on at the first epoch: every track acquired then, flagged); empty: the profile's "
               "(tracking.start, default warm)", choices=("", *TRACKING_STARTS)),
+        Param("scenario", "", "threat scenario file (YAML, docs/SCENARIOS.md): timed jammers, spoofers and receiver "
+              "faults (core/threats), relative to the working directory, kept as its absolute path; empty: none",
+              check_value=_check_scenario),
+        Param("spoof_capture_margin_db", 3.0, "a scenario spoofer's counterfeit captures a signal (the receiver "
+              "tracks it) when its power exceeds the authentic signal's by this margin [dB]; otherwise both "
+              "interfere (docs/SCENARIOS.md; 3 dB: a design value above the 0 dB limit of an aligned counterfeit)",
+              min=0.0, max=30.0),
+        Param("scenario_world", "", "the scene of the scenario's jammers and spoofers in the receiver node: an SDF "
+              "world or a mesh of `gnss-sim export-world` whose spherical_coordinates place world-frame positions "
+              "and whose walls lie between transmitter and antenna, as offline; empty: the visibility node's "
+              "mesh_file or world_file (the configuration copies it; the demo courtyard when both are empty)"),
         Param("lms_environment", "off", "land-mobile-satellite channel layered on the scene's rays (ITU-R P.681 / "
               "Perez-Fontan 3-state chain, Loo fading, DLR echo delays; core/multipath/lms.py): on satellites the "
               "scene leaves in sight, shadowed / blocked states and a diffuse echo (what a 3D model lacks: street "
               "furniture, vehicles, trees). off, auto (per epoch from the share of satellites the scene blocks: "
               "open field nothing, else suburban or urban) or a class", choices=LMS_ENVIRONMENTS),
         FLEET_ROBOTS,
-        Param("scenario", "", "threat scenario file (YAML, docs/SCENARIOS.md): timed jammers, spoofers and receiver "
-              "faults (core/threats), relative to the working directory, kept as its absolute path; empty: none",
-              check_value=_check_scenario),
     ],
     "trajectory": [
         Param("trajectory_file", "", "CSV t_s,e_m,n_m,u_m[,yaw_deg] in the world frame; empty: waypoints"),

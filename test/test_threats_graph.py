@@ -61,3 +61,22 @@ def test_run_and_simulate_apply_one_scenario_alike(tmp_path):
     assert max(int(r["n_sats"]) for r in a[17:20]) < min(int(r["n_sats"]) for r in a[:3])  # L1 jammed
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert summary["bag_messages"]["/gnss/threats/active"] == 23
+
+
+@pytest.mark.slow
+def test_world_frame_jammer_is_placed_alike_in_the_graph_and_offline(tmp_path):
+    """The demo scenario's car jammer, in world coordinates of the courtyard: the receiver node places it through
+    the world's spherical_coordinates (parameter scenario_world, the visibility node's world) and casts it
+    through the same scene as `gnss-sim simulate`: the same fix.csv, the fix lost while the car passes."""
+    from gnss_sim_ros2.core.scene.demo_world import demo_world_path
+
+    scn = demo_world_path().parents[1] / "config" / "scenarios" / "courtyard_threats.yaml"
+    run = _cli("run", "--duration", "50", "--scenario", str(scn), "--out", str(tmp_path / "run"), "--quiet")
+    assert run.returncode == 0, run.stderr[-3000:]
+    sim = _cli("simulate", "--duration", "50", "--scenario", str(scn), "--out", str(tmp_path / "sim"), "--quiet")
+    assert sim.returncode == 0, sim.stderr[-3000:]
+    a, b = _rows(tmp_path / "run" / "fix.csv"), _rows(tmp_path / "sim" / "fix.csv")
+    assert a == b and len(a) == 51
+    on = [r for r in a if r["active_events"] == "car_jammer"]
+    assert len(on) == 31 and all(r["active_events"] == "" for r in a[:20])
+    assert any(r["status"] == "no_fix" for r in on) and all(r["status"] == "fix" for r in a[:20])

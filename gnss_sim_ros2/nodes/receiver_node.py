@@ -9,7 +9,11 @@ messages.solution.fix_to_msg: the solver's ENU covariance, which it scaled by th
 ``vel`` (geometry_msgs/TwistWithCovarianceStamped, ENU), ``status``
 (gnss_sim_msgs/ReceiverStatus), ``nmea`` (std_msgs/String, one epoch's
 sentences; nmea_msgs is not available on PyPI) and diagnostics; and writes
-the RINEX observation file epoch by epoch into ``output_dir``.  With ``rtcm``:
+the RINEX observation file epoch by epoch into ``output_dir``.  With a threat scenario (parameter ``scenario``,
+docs/SCENARIOS.md): its truth labels on ``threats_active``, the jamming indicator and AGC per band in ``status``,
+and the services ``~/threats/start`` (gnss_sim_msgs/StartThreat: one event as YAML, its name back) and
+``~/threats/stop`` (StopThreat: by name) to start and stop events while the run goes on (core/threats/live.py).
+With ``rtcm``:
 ``rtcm`` (std_msgs/UInt8MultiArray, one epoch's RTCM3 messages), also served
 on TCP port ``rtcm_tcp_port`` (core/rtcm/tcp_server.py) for outside tools.
 
@@ -57,6 +61,8 @@ class ReceiverNode(GnssSimNode):
         self.last_stamp = None
         self.tcp = None                # core.rtcm.tcp_server.RtcmTcpServer (configure .. cleanup)
         self.unfinished: list = []     # epochs observed and published, their fix not yet (process .. _finish)
+        self.threat_services: list = []  # ~/threats/start, ~/threats/stop (configure .. cleanup)
+        self.last_t = None             # GNSS time of the last epoch observed: "now" for the threat services
 
     def configure(self, p):
         from gnss_sim_msgs.msg import Observations, ReceiverStatus
@@ -78,17 +84,21 @@ class ReceiverNode(GnssSimNode):
             "nmea": self.lifecycle_publisher(String, "nmea", 100),
             "diag": self.lifecycle_publisher(DiagnosticArray, "/diagnostics", 10),
         }
-        if p["scenario"]:              # the scenario's events (core/threats): llh positions (no scene here)
+        if p["scenario"]:              # the scenario's events (core/threats) in the scene of scenario_world
             from gnss_sim_ros2.core.threats.runtime import ThreatRuntime
             from gnss_sim_ros2.core.threats.scenario import load_scenario
             from gnss_sim_ros2.core.time import GnssTime
 
             try:
-                self.chain.threats = ThreatRuntime(load_scenario(p["scenario"]),
+                self.chain.threats = ThreatRuntime(load_scenario(p["scenario"]), self._scenario_scene(p),
                                                    start=GnssTime.from_iso(p["start_time"]))
             except ValueError as exc:
                 raise ValueError(f"node {self.get_name()}: {exc}") from None
             self.pubs["threats"] = self.lifecycle_publisher(String, "threats_active", 100)
+        from gnss_sim_msgs.srv import StartThreat, StopThreat
+
+        self.threat_services = [self.create_service(StartThreat, "~/threats/start", self._srv_threat_start),
+                                self.create_service(StopThreat, "~/threats/stop", self._srv_threat_stop)]
         if p["rtcm"]:
             from std_msgs.msg import UInt8MultiArray
 
@@ -116,6 +126,9 @@ class ReceiverNode(GnssSimNode):
     def cleanup(self):
         self._finish()
         self.pubs = {}
+        for srv in self.threat_services:
+            self.destroy_service(srv)
+        self.threat_services = []
         if self.tcp is not None:
             self.tcp.close()
             self.tcp = None
@@ -154,6 +167,7 @@ class ReceiverNode(GnssSimNode):
         # the raw observations first, as a receiver outputs them before its fix (the latency ends here), then
         # the fix and the rest of the epoch: ReceiverChain.step in its two halves
         self._finish()                 # the chain's halves in order: the previous epoch's fix first
+        self.last_t = t
         obs = self.chain.observe(t, ecef, states, vis_state, att, multipath=paths)
         self.pubs["obs"].publish(encode_observations(stamp, self.params["antenna_frame"], t, obs))
         # the fix after what is already waiting in the executor: several receivers in one process (robots
@@ -177,7 +191,9 @@ class ReceiverNode(GnssSimNode):
         header = Header(stamp=Time(sec=stamp[0], nanosec=stamp[1]), frame_id=frame)
         self.pubs["fix"].publish(fix_to_msg(header, sol))
         self.pubs["vel"].publish(vel_to_msg(header, sol))
-        self.pubs["status"].publish(status_to_msg(header, obs, sol, self.chain.settings.receiver.elevation_mask_deg))
+        bands = self.chain.threats.status(t) if self.chain.threats is not None else None
+        self.pubs["status"].publish(status_to_msg(header, obs, sol, self.chain.settings.receiver.elevation_mask_deg,
+                                                  bands))
         self.pubs["nmea"].publish(nmea_to_msg(ep.nmea))
         if "threats" in self.pubs:     # the truth labels of the epoch (messages/threats.py)
             from gnss_sim_ros2.messages.threats import threats_to_msg
@@ -190,6 +206,52 @@ class ReceiverNode(GnssSimNode):
                 self.tcp.write(ep.rtcm)
         if self.chain.epochs % 10 == 1:
             self._diagnose(obs, sol)
+
+    # ------------------------------------------------------------------ threats started and stopped at run time
+    def _scenario_scene(self, p):
+        """The scene placing the scenario's world-frame events and attenuating jammers (parameter scenario_world:
+        the visibility node's world, shared with it when composed), as ``gnss-sim simulate`` has it."""
+        from gnss_sim_ros2.core.scene.demo_world import demo_world_path
+        from gnss_sim_ros2.core.visibility import load_scene
+
+        path = p["scenario_world"] or str(demo_world_path())
+        world = path.lower().endswith((".sdf", ".world"))
+        return load_scene(path if world else "", "" if world else path, shared=True)
+
+    def _threat_now_s(self) -> float:
+        """Run time [s] of the last epoch observed (0 before the first): an event started now acts from the next
+        epoch on, one stopped now is over at the next."""
+        th = self.chain.threats
+        return 0.0 if self.last_t is None else float(th.t_rel(self.last_t)[0])
+
+    def _threat_call(self, response, act):
+        if self.chain is None or self.chain.threats is None:
+            response.success, response.message = False, (
+                f"node {self.get_name()} runs without a threat scenario: give it one (parameter scenario, launch "
+                f"argument scenario:=, gnss-sim run --scenario; 'version: 1' and 'events: []' for none at the start)")
+            return response
+        try:
+            act()
+            response.success = True
+        except ValueError as exc:
+            response.success, response.message = False, str(exc)
+        return response
+
+    def _srv_threat_start(self, request, response):
+        from gnss_sim_ros2.core.threats.live import start_event
+
+        def act():
+            response.id = start_event(self.chain.threats, request.event_yaml, self._threat_now_s())
+            response.message = f"threat event {response.id!r} started"
+        return self._threat_call(response, act)
+
+    def _srv_threat_stop(self, request, response):
+        from gnss_sim_ros2.core.threats.live import stop_event
+
+        def act():
+            stop_event(self.chain.threats, request.id, self._threat_now_s())
+            response.message = f"threat event {request.id!r} stopped"
+        return self._threat_call(response, act)
 
     def _diagnose(self, obs, sol):
         status = diagnostic_status(f"{self.get_name()}: receiver",
