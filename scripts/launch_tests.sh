@@ -49,4 +49,6 @@ log "launch_test test/test_launch_quality_map.py on ROS_DOMAIN_ID=$(domain 5)"
 ROS_DOMAIN_ID=$(domain 5) "$LAYER/bin/launch_test" test/test_launch_quality_map.py
 log "launch_test test/test_launch_threats.py on ROS_DOMAIN_ID=$(domain 6)"
 ROS_DOMAIN_ID=$(domain 6) "$LAYER/bin/launch_test" test/test_launch_threats.py
+log "launch_test test/test_launch_fleet.py on ROS_DOMAIN_ID=$(domain 7)"
+ROS_DOMAIN_ID=$(domain 7) "$LAYER/bin/launch_test" test/test_launch_fleet.py
 log "passed in $((SECONDS - t0)) s"
