@@ -42,8 +42,9 @@ def reflection_amplitudes(gamma_co, gamma_cross, arrival_el_deg, sat_el_deg, pat
 
 
 def composite_errors(los_amp, excess_m, gamma_co, gamma_cross, arrival_el_deg, sat_el_deg, chip_m, lam_m,
-                     spacing_chips: float, bandwidth_chips: float, pattern: str) -> CompositeErrors:
-    """Errors of signal rows (J,) with reflected paths (J, K) (NaN excess: no path)."""
+                     spacing_chips: float, bandwidth_chips: float, pattern: str, calls=None) -> CompositeErrors:
+    """Errors of signal rows (J,) with reflected paths (J, K) (NaN excess: no path); ``calls``: (J,) labels of
+    rows computed as separate calls (dll.tracking_error), e.g. the epochs of a block."""
     excess = np.asarray(excess_m, dtype=np.float64)
     valid = np.isfinite(excess)
     amp_r, ph_g = reflection_amplitudes(gamma_co, gamma_cross, arrival_el_deg, sat_el_deg, pattern)
@@ -56,7 +57,7 @@ def composite_errors(los_amp, excess_m, gamma_co, gamma_cross, arrival_el_deg, s
     amps = np.concatenate([a0[:, None], amp_r], axis=1)
     delays = np.concatenate([np.zeros((len(a0), 1)), ex / chip[:, None]], axis=1)
     phases = np.concatenate([np.zeros((len(a0), 1)), phase_r], axis=1)
-    eps, theta, mag = dll.tracking_error(amps, delays, phases, spacing_chips, bandwidth_chips)
+    eps, theta, mag = dll.tracking_error(amps, delays, phases, spacing_chips, bandwidth_chips, calls=calls)
     nlos = (a0 <= 0) & np.any(amp_r > 0, axis=1)
     code = np.nan_to_num(eps) * chip
     phase = np.nan_to_num(theta) * lam[:, 0] / (2 * np.pi)

@@ -80,29 +80,64 @@ def _composite(tau_chips, phasor, delay_chips, bandwidth_chips):
 
 
 def tracking_error(amp, delay_chips, phase_rad, spacing_chips: float, bandwidth_chips: float = np.inf,
-                   iterations: int = 32):
+                   iterations: int = 32, calls=None):
     """(code error [chips], carrier phase error [rad], composite amplitude) of signals (N, P paths).
 
     Path 0 is usually the line of sight (delay 0; amplitude 0 when blocked); delays are relative to it.
     Rows whose amplitudes are all 0 give NaN (nothing to track).  ``iterations`` halvings of the
-    discriminator's bracket (d / 2^32)."""
+    discriminator's bracket (d / 2^32).  ``calls``: (N,) labels, rows of one label searched on the peak grid
+    their own call would use (its size set by that call's widest span of delays), so the rows of many
+    calls computed at once give each call's bits; None: one call."""
     a = np.atleast_2d(np.asarray(amp, dtype=np.float64))
     dl = np.atleast_2d(np.asarray(delay_chips, dtype=np.float64))
     ph = np.atleast_2d(np.asarray(phase_rad, dtype=np.float64))
     d = float(spacing_chips)
     if not 0 < d <= 2:
         raise ValueError(f"multipath.dll: correlator spacing {spacing_chips!r} chips must be in (0, 2]")
-    n = a.shape[0]
     # peak of |R_c| on a grid over the paths' span, then the discriminator zero next to it
     lo, hi = np.min(dl, axis=1) - 1.0, np.max(dl, axis=1) + 1.0
     # grid step below d / 4 (and 0.05 chip): the grid's peak lies within d / 2 of the true one, so the
     # discriminator changes sign inside the bracket below
     step = min(d / 4.0, 0.05)
-    n_grid = int(min(np.ceil(float(np.max(hi - lo)) / step), 4000)) + 1
-    grid = lo[:, None] + (hi - lo)[:, None] * np.linspace(0.0, 1.0, n_grid)[None, :]
+    if calls is None:
+        n_grid = np.full(len(a), _grid_points(np.max(hi - lo), step))
+    else:
+        _, call = np.unique(np.asarray(calls), return_inverse=True)
+        widest = np.full(int(call.max()) + 1, -np.inf)
+        np.maximum.at(widest, call, hi - lo)
+        n_grid = np.array([_grid_points(w, step) for w in widest.tolist()], dtype=np.int64)[call]
+    return _track(a, dl, ph, lo, hi, d, bandwidth_chips, iterations, n_grid)
+
+
+def _grid_points(span_chips, step: float) -> int:
+    """Points of the peak search grid over ``span_chips`` (at most 4001)."""
+    return int(min(np.ceil(float(span_chips) / step), 4000)) + 1
+
+
+def _peak(c, dl, lo, hi, n_grid, bandwidth_chips):
+    """(N,) the first grid point of largest |R_c| per row; the rows' grids (of their own sizes) laid end to end
+    in one evaluation (each point's value as on a rectangular grid: the same operations, element by element)."""
+    n = len(c)
+    if n == 0:
+        return np.zeros(0)
+    sizes = n_grid.tolist()
+    lin = {g: np.linspace(0.0, 1.0, g) for g in set(sizes)}
+    row = np.repeat(np.arange(n), n_grid)
+    grid = lo[row] + (hi - lo)[row] * np.concatenate([lin[g] for g in sizes])
+    mag = np.abs(_composite(grid[:, None], c[row], dl[row], bandwidth_chips)[:, 0])
+    start = np.concatenate([[0], np.cumsum(n_grid)[:-1]])
+    if np.isnan(mag).any():          # argmax's rule (the first NaN) row by row
+        return np.array([grid[s0 + np.argmax(mag[s0:s0 + g])] for s0, g in zip(start.tolist(), sizes)])
+    top = np.flatnonzero(mag == np.maximum.reduceat(mag, start)[row])
+    _, first = np.unique(row[top], return_index=True)       # the first maximum of each row, as argmax
+    return grid[top[first]]
+
+
+def _track(a, dl, ph, lo, hi, d: float, bandwidth_chips, iterations: int, n_grid):
+    """tracking_error of rows (N, P), row i's peak searched on n_grid[i] points from lo[i] to hi[i]; then the
+    discriminator's bisection."""
     c = a * np.exp(1j * ph)
-    mag = np.abs(_composite(grid, c, dl, bandwidth_chips))
-    tau_p = grid[np.arange(n), np.argmax(mag, axis=1)]
+    tau_p = _peak(c, dl, lo, hi, n_grid, bandwidth_chips)
     theta = np.angle(_composite(tau_p[:, None], c, dl, bandwidth_chips)[:, 0])
     rot = np.exp(-1j * theta)
     half = np.array([-d / 2, d / 2])

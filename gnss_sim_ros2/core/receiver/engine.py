@@ -395,27 +395,28 @@ class Receiver:
         m, sat_i, sig_seg = b.m, b.sat_i, b.sig_seg
         b.mp_code, b.mp_phase = np.zeros(m), np.zeros(m)
         ok_all = b.line_ok
+        picked = []             # per epoch with reflected paths: (its signal rows with paths, their paths)
         for e in (range(b.k_n) if multipath is not None else ()):
             j0, j1 = sig_seg[e], sig_seg[e + 1]
             paths = multipath[e]
             if j0 == j1 or paths is None or not paths.valid.any():
                 continue
-            s = slice(j0, j1)
             paths = paths.take(b.keep[b.seg_all[e]:b.seg_all[e + 1]])
-            loc = sat_i[s] - b.seg[e]
-            mp_err = self._scene_multipath(paths, loc, b.vis_j[s], b.att_j[s], b.el_j[s], b.chip[s], b.rows.lam[s])
-            if mp_err is not None:
-                rows_mp, err = mp_err
-                # composite amplitude relative to the unobstructed line of sight replaces the obstruction loss
-                b.cn0[j0 + rows_mp] += b.att_j[j0 + rows_mp] + 20.0 * np.log10(np.maximum(err.amplitude, 1e-6))
-                b.mp_code[j0 + rows_mp] = err.code_m
-                b.mp_phase[j0 + rows_mp] = err.phase_m
-                # no line of sight, a reflected path: tracked if strong enough (thresholds with hysteresis,
-                # tracking.py); REFLECTED_ONLY without the paths (a caller with only the state) stays untracked
-                nlos_rows = j0 + rows_mp[err.nlos]
-                if ok_all is b.line_ok:
-                    ok_all = b.line_ok.copy()
-                ok_all[nlos_rows] |= b.vis_j[nlos_rows] == REFLECTED_ONLY
+            loc = sat_i[j0:j1] - b.seg[e]
+            rows_mp = np.flatnonzero(paths.valid.any(axis=1)[loc])
+            if len(rows_mp):
+                picked.append((j0 + rows_mp, paths, loc[rows_mp]))
+        if picked:
+            rows, err = self._scene_multipath(b, picked)
+            # composite amplitude relative to the unobstructed line of sight replaces the obstruction loss
+            b.cn0[rows] += b.att_j[rows] + 20.0 * np.log10(np.maximum(err.amplitude, 1e-6))
+            b.mp_code[rows] = err.code_m
+            b.mp_phase[rows] = err.phase_m
+            # no line of sight, a reflected path: tracked if strong enough (thresholds with hysteresis,
+            # tracking.py); REFLECTED_ONLY without the paths (a caller with only the state) stays untracked
+            nlos_rows = rows[err.nlos]
+            ok_all = b.line_ok.copy()
+            ok_all[nlos_rows] |= b.vis_j[nlos_rows] == REFLECTED_ONLY
         b.ok_all = ok_all
 
     def _lms_channel(self, b: _Block) -> None:
@@ -530,31 +531,38 @@ class Receiver:
             ))
         return out
 
-    def _scene_multipath(self, paths, sat_i, vis_j, att_j, el_j, chip, lam):
-        """(signal rows with reflected paths, multipath.composite.CompositeErrors) or None (none this epoch)."""
-        from ..multipath.composite import composite_errors  # scipy.special: imported with multipath on only
+    def _scene_multipath(self, b: _Block, picked):
+        """(signal rows of the block with reflected paths, multipath.composite.CompositeErrors of those rows).
+
+        ``picked``: per epoch (its signal rows with paths, its ScenePaths, their satellite rows in it).  Every
+        epoch's rows in one composite_errors per front-end bandwidth and path count, each (epoch, bandwidth)
+        its own call to the DLL's peak search (``calls``): the bits of one call per epoch and bandwidth."""
+        from ..multipath.composite import CompositeErrors, composite_errors  # scipy.special: multipath on only
 
         cfg = self.cfg
-        has = paths.valid.any(axis=1)[sat_i]
-        rows_mp = np.flatnonzero(has)
-        if len(rows_mp) == 0:
-            return None
-        si = sat_i[rows_mp]
-        los = np.where((vis_j[rows_mp] == BLOCKED) | (vis_j[rows_mp] == REFLECTED_ONLY), 0.0,
-                       10.0 ** (-att_j[rows_mp] / 20.0))
-        # front-end bandwidth in chip rates per signal (C/A 1.023 Mchip/s, B1I 2.046, ...): grouped by value
-        bw_chips = cfg.frontend_bandwidth_hz * chip[rows_mp] / k.C_MPS
-        out = None
-        for bw in np.unique(bw_chips):
-            g = np.flatnonzero(bw_chips == bw)
-            e = composite_errors(los[g], paths.excess_m[si[g]], paths.gamma_co[si[g]], paths.gamma_cross[si[g]],
-                                 paths.arrival_el_deg[si[g]], el_j[rows_mp[g]], chip[rows_mp[g]], lam[rows_mp[g]],
-                                 cfg.dll_spacing_chips, float(bw), cfg.antenna)
-            if out is None:
-                out = type(e)(*(np.empty(len(rows_mp), dtype=np.asarray(v).dtype) for v in e.__dict__.values()))
-            for name, v in e.__dict__.items():
-                getattr(out, name)[g] = v
-        return rows_mp, out
+        rows = np.concatenate([p[0] for p in picked])
+        out = CompositeErrors(np.empty(len(rows)), np.empty(len(rows)), np.empty(len(rows)),
+                              np.empty(len(rows), dtype=bool))
+        width = np.array([p[1].excess_m.shape[-1] for p in picked])
+        at = np.cumsum([0] + [len(p[0]) for p in picked])
+        for w in np.unique(width).tolist():
+            ep = np.flatnonzero(width == w)
+            pos = np.concatenate([np.arange(at[e], at[e + 1]) for e in ep])
+            r = rows[pos]
+            fields = [np.concatenate([getattr(picked[e][1], f)[picked[e][2]] for e in ep])
+                      for f in ("excess_m", "gamma_co", "gamma_cross", "arrival_el_deg")]
+            call = np.repeat(ep, at[ep + 1] - at[ep])
+            los = np.where((b.vis_j[r] == BLOCKED) | (b.vis_j[r] == REFLECTED_ONLY), 0.0, 10.0 ** (-b.att_j[r] / 20.0))
+            # front-end bandwidth in chip rates per signal (C/A 1.023 Mchip/s, B1I 2.046, ...): grouped by value
+            bw_chips = cfg.frontend_bandwidth_hz * b.chip[r] / k.C_MPS
+            for bw in np.unique(bw_chips):
+                g = np.flatnonzero(bw_chips == bw)
+                rg = r[g]
+                e = composite_errors(los[g], *(f[g] for f in fields), b.el_j[rg], b.chip[rg], b.rows.lam[rg],
+                                     cfg.dll_spacing_chips, float(bw), cfg.antenna, calls=call[g])
+                for name, v in e.__dict__.items():
+                    getattr(out, name)[pos[g]] = v
+        return rows, out
 
     def _day_of_year(self, t: GnssTime) -> float:
         """prop.day_of_year(t), from a cached value at the start of t's GPS day (no datetime per epoch)."""
