@@ -85,7 +85,8 @@ class Param:
     def check(self, value, where: str):
         """Validated (and type-normalised) value; ValueError naming the parameter and ``where``."""
         kind = self.kind
-        bad = ValueError(f"{where}: parameter '{self.name}' must be {kind}, got {value!r}")
+        bad = ValueError(f"{where}: parameter '{self.name}' must be {kind}, got {value!r}"
+                         + (_yaml_bool_hint(value, self.choices) if kind.startswith("string") else ""))
         if kind == "bool":
             if not isinstance(value, bool):
                 raise bad
@@ -122,6 +123,17 @@ class Param:
         if self.check_value is not None:
             value = self.check_value(value, f"{where}: parameter '{self.name}'")
         return value
+
+
+def _yaml_bool_hint(value, choices) -> str:
+    """The hint for a string parameter given a boolean: YAML 1.1 (PyYAML, ROS 2 parameter files) reads an unquoted
+    yes/no/on/off/true/false as one (YAML 1.1 bool type, https://yaml.org/type/bool.html); '' for other values."""
+    flags = [v for v in (value if isinstance(value, (list, tuple)) else [value]) if isinstance(v, bool)]
+    if not flags:
+        return ""
+    words = ("on", "yes", "true") if flags[0] else ("off", "no", "false")
+    word = next((f"'{w}'" for w in words if w in (choices or ()) or not choices), "the word")
+    return f" (YAML 1.1 reads an unquoted {' / '.join(words)} as a boolean: write {word} in quotes)"
 
 
 def _check_box_size(value: list, where: str) -> list:
@@ -364,7 +376,7 @@ NODE_PARAMS: dict[str, list[Param]] = {
               "world or a mesh of `gnss-sim export-world` whose spherical_coordinates place world-frame positions "
               "and whose walls lie between transmitter and antenna, as offline; empty: the visibility node's "
               "mesh_file or world_file (the configuration copies it; the demo courtyard when both are empty)"),
-        Param("lms_environment", "off", "land-mobile-satellite channel layered on the scene's rays (ITU-R P.681 / "
+        Param("lms_environment", "auto", "land-mobile-satellite channel layered on the scene's rays (ITU-R P.681 / "
               "Perez-Fontan 3-state chain, Loo fading, DLR echo delays; core/multipath/lms.py): on satellites the "
               "scene leaves in sight, shadowed / blocked states and a diffuse echo (what a 3D model lacks: street "
               "furniture, vehicles, trees). off, auto (per epoch from the share of satellites the scene blocks: "

@@ -51,6 +51,38 @@ def test_bad_files_name_file_section_and_parameter(tmp_path, doc, message):
     assert str(f) in str(info.value)
 
 
+@pytest.mark.parametrize("section, line, message", [
+    ("gnss_sim_visibility", "multipath: off",
+     r"'multipath' must be string, got False \(YAML 1.1 reads an unquoted off / no / false as a boolean: "
+     r"write 'off' in quotes\)"),
+    ("gnss_sim_receiver", "lms_environment: no", r"got False .*write 'off' in quotes"),
+    ("gnss_sim_receiver", "tracking_start: yes", r"got True .*write the word in quotes"),   # no 'on' among choices
+    ("gnss_sim_rtk", "rtkrcv_path: on", r"got True .*write 'on' in quotes"),
+])
+def test_a_yaml_boolean_for_a_string_names_the_quotes(tmp_path, section, line, message):
+    """YAML 1.1 reads an unquoted off/no/yes/on as a boolean: the error says to quote the word (issue 27)."""
+    f = tmp_path / "bool.yaml"
+    f.write_text(f"{section}:\n  ros__parameters:\n    {line}\n")
+    with pytest.raises(ValueError, match=message) as info:
+        load_config(f)
+    assert str(f) in str(info.value)
+
+
+def test_the_quoted_word_is_accepted(tmp_path):
+    f = tmp_path / "quoted.yaml"
+    f.write_text("gnss_sim_visibility:\n  ros__parameters:\n    multipath: 'off'\n"
+                 "gnss_sim_receiver:\n  ros__parameters:\n    lms_environment: 'off'\n")
+    cfg = load_config(f)
+    assert cfg.node("visibility")["multipath"] == "off" and cfg.node("receiver")["lms_environment"] == "off"
+
+
+def test_a_number_for_a_string_gets_no_boolean_hint(tmp_path):
+    f = tmp_path / "num.yaml"
+    f.write_text("gnss_sim_visibility:\n  ros__parameters:\n    multipath: 3\n")
+    with pytest.raises(ValueError, match=r"must be string, got 3$"):
+        load_config(f)
+
+
 def test_missing_and_malformed_files(tmp_path):
     with pytest.raises(ValueError, match="does not exist"):
         load_config(tmp_path / "none.yaml")
