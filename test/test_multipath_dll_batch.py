@@ -29,3 +29,13 @@ def test_calls_at_once_equal_separate_calls_bit_for_bit(bandwidth):
     for k in range(3):
         assert np.array_equal(np.concatenate([s[k] for s in separate]), together[k], equal_nan=True)
     assert not np.array_equal(together[0], dll.tracking_error(a, d, p, 0.2, bandwidth)[0], equal_nan=True)
+
+
+@pytest.mark.parametrize("bandwidth", [1.564, 4.0, 31.3])
+def test_table_interpolation_equals_np_interp_bit_for_bit(bandwidth):
+    tau, r = dll._bandlimited_table(bandwidth)
+    x = np.concatenate([np.random.default_rng(5).uniform(-3.5, 3.5, 200_000), tau, np.nextafter(tau, 9),
+                        np.nextafter(tau, -9), [-np.inf, np.inf, np.nan, 0.0, -0.0, 1e300, -1e300]])
+    want = np.interp(x, tau, r, left=0.0, right=0.0)
+    got = dll.correlation(x, bandwidth)
+    assert np.array_equal(want.view(np.int64), got.view(np.int64))

@@ -62,7 +62,31 @@ def correlation(tau_chips, bandwidth_chips: float = np.inf):
     if not bandwidth_chips > 0:
         raise ValueError(f"multipath.dll: bandwidth {bandwidth_chips!r} (chip rates) must be > 0")
     tau, r = _bandlimited_table(float(bandwidth_chips))
-    return np.interp(t, tau, r, left=0.0, right=0.0)
+    return _table_interp(t, tau, r, *_table_slopes(float(bandwidth_chips)))
+
+
+@functools.lru_cache(maxsize=16)
+def _table_slopes(bandwidth_chips: float):
+    """(slope per interval, grid step) of the band-limited table, the slopes as np.interp forms them."""
+    tau, r = _bandlimited_table(bandwidth_chips)
+    return np.diff(r) / np.diff(tau), (tau[-1] - tau[0]) / (len(tau) - 1)
+
+
+def _table_interp(x, tau, r, slope, step):
+    """np.interp(x, tau, r, left=0, right=0) on the uniform table, equal to it bit for bit (test_multipath_dll_batch):
+    the interval from the grid step instead of a binary search (one step either way corrected), then np.interp's
+    operations: r[j] where x is a table point, else slope[j] (x - tau[j]) + r[j]."""
+    n = len(tau)
+    k = np.floor((x - tau[0]) / step)
+    np.clip(k, 0, n - 2, out=k)
+    j = np.nan_to_num(k).astype(np.intp)
+    j -= tau[j] > x
+    j += (tau[j + 1] <= x) & (j < n - 2)
+    np.clip(j, 0, n - 2, out=j)
+    tj, rj = tau[j], r[j]
+    v = np.where(x == tj, rj, slope[j] * (x - tj) + rj)
+    v = np.where(x == tau[-1], r[-1], v)
+    return np.where((x >= tau[0]) & (x <= tau[-1]), v, np.where(np.isnan(x), x, 0.0))
 
 
 def composite(tau_chips, amp, delay_chips, phase_rad, bandwidth_chips=np.inf):
