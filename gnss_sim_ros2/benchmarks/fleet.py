@@ -39,11 +39,11 @@ def check_counts(text: str) -> list[int]:
     return sorted(set(counts))
 
 
-def run_one(n: int, rate_hz: float, duration_s: float) -> dict:
+def run_one(n: int, rate_hz: float, duration_s: float, config: str | None = None) -> dict:
     out = Path(tempfile.mkdtemp(prefix="gnss_sim_fleet_bench_")) / "run"
     cmd = [sys.executable, "-m", "gnss_sim_ros2.cli", "run", "--realtime", "--rate", str(rate_hz), "--duration",
            str(duration_s), "--systems", "GRECJI", "--out", str(out), "--quiet", "--no-record", "--robots", str(n),
-           "--layout", "fleet"]
+           "--layout", "fleet"] + (["--config", str(Path(config).resolve())] if config else [])
     load_before = os.getloadavg()
     res = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     if res.returncode != 0:
@@ -61,12 +61,14 @@ def run_one(n: int, rate_hz: float, duration_s: float) -> dict:
             "load_before": [round(x, 2) for x in load_before], "load_after": [round(x, 2) for x in os.getloadavg()]}
 
 
-def run_fleet(counts, rate_hz: float = 10.0, duration_s: float = 60.0, log=print) -> dict:
+def run_fleet(counts, rate_hz: float = 10.0, duration_s: float = 60.0, log=print, config: str | None = None) -> dict:
+    """``config``: a gnss_sim parameter file for every run (e.g. multipath off), None: the defaults."""
     runs = []
     for n in counts:
         log(f"fleet: {n} robot(s) at {rate_hz:g} Hz for {duration_s:g} s (load {os.getloadavg()[0]:.1f}) ...")
-        runs.append(run_one(n, rate_hz, duration_s))
-    rep = {"rate_hz": rate_hz, "duration_s": duration_s, "cores": os.cpu_count(), "runs": runs}
+        runs.append(run_one(n, rate_hz, duration_s, config))
+    rep = {"rate_hz": rate_hz, "duration_s": duration_s, "cores": os.cpu_count(), "config": config or "defaults",
+           "runs": runs}
     one = next((r for r in runs if r["robots"] == 1), None)
     if one is not None:
         for r in runs:
@@ -92,7 +94,7 @@ def _target(r: dict) -> str:
 
 def fleet_table(rep: dict) -> str:
     lines = [f"fleet layout at real-time pace, {rep['rate_hz']:g} Hz for {rep['duration_s']:g} s, all systems, no "
-             f"bag, {rep['cores']} cores",
+             f"bag, {rep['cores']} cores, configuration: {rep['config']}",
              "robots | epochs | without output | p99 worst robot [ms] | p50 worst [ms] | CPU [ms/epoch] | "
              "added robot [ms, % of one] | peak [MB] | per added robot [MB] | load before -> after"]
     for r in rep["runs"]:

@@ -49,6 +49,9 @@ def add_arguments(p):
     p.add_argument("--fleet-rate", type=float, default=10.0, metavar="HZ", help="with --fleet: epoch rate [10]")
     p.add_argument("--fleet-duration", type=float, default=60.0, metavar="S",
                    help="with --fleet: simulated (= wall) seconds of each run [60]")
+    p.add_argument("--fleet-config", metavar="FILE", default=None,
+                   help="with --fleet: gnss_sim parameter file of every run (e.g. multipath: 'off' in the visibility "
+                   "section) [the defaults]")
 
 
 def run_scaling_command(args) -> int:
@@ -91,8 +94,10 @@ def run_fleet_command(args) -> int:
                              f"a rate in (0, 100] Hz and a duration of at least 1 s are needed")
         if args.plot:
             raise ValueError("--plot is not available with --fleet")
+        if args.fleet_config and not Path(args.fleet_config).is_file():
+            raise ValueError(f"option --fleet-config {args.fleet_config}: no such file")
         report = run_fleet(counts, args.fleet_rate, args.fleet_duration,
-                           log=lambda m: print(m, file=sys.stderr, flush=True))
+                           log=lambda m: print(m, file=sys.stderr, flush=True), config=args.fleet_config)
     except (ValueError, RuntimeError) as exc:
         print(f"gnss-sim bench: error: {exc}", file=sys.stderr)
         return 2

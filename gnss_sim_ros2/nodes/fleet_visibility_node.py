@@ -38,6 +38,7 @@ class FleetVisibilityNode(VisibilityNode):
         self.pubs: list = []                  # robot k's visibility publisher
         self.own_body_rows = None             # (robots, obstacle frames) bool: frame b is robot k's own body
         self.fleet_obstacle_frames: list[str] = []
+        self._head = None                     # (head epoch's bytes, antennas (N, 3), found (N,)) while TF is awaited
 
     def configure(self, p):
         n = p["fleet_robots"]
@@ -62,6 +63,7 @@ class FleetVisibilityNode(VisibilityNode):
         self.own_body_rows = np.array([[own_body(f, a) for f in self.fleet_obstacle_frames]
                                        for a in self.antenna_frames], dtype=bool).reshape(n, -1)
         self.obstacle_frames = []             # the base class's _obstacles: the models only (fleet_obstacles)
+        self._head = None
 
     def cleanup(self):
         super().cleanup()
@@ -75,16 +77,23 @@ class FleetVisibilityNode(VisibilityNode):
         n = len(self.antenna_frames)
         while self.queue:
             data, stamp, arrived = self.queue[0]
-            antennas = np.zeros((n, 3))
+            # the head epoch's antennas found so far: a TF message (every robot's player sends them) retries only
+            # the robots still waited for, not all N (N players x N lookups per message otherwise)
+            if self._head is None or self._head[0] is not data:
+                self._head = (data, np.zeros((n, 3)), np.zeros(n, dtype=bool))
+            _, antennas, found = self._head
             have = np.ones(n, dtype=bool)
-            for k, frame in enumerate(self.antenna_frames):
+            for k in np.flatnonzero(~found):
+                frame = self.antenna_frames[k]
                 try:
                     antennas[k] = np.asarray(self.tf.lookup(p["world_frame"], frame, stamp)[0])
+                    found[k] = True
                 except LookupError:
                     if not self.tf.frame_missing(frame, stamp, arrived):
                         return            # alive but behind: wait for it
                     have[k] = False
             self.queue.popleft()
+            self._head = None
             if not have.all():
                 self.dropped += int((~have).sum())
                 missing = [f for f, ok in zip(self.antenna_frames, have) if not ok]
