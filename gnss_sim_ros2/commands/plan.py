@@ -67,6 +67,9 @@ def add_arguments(parser):
                              "(default off: much faster)")
     parser.add_argument("--point", action="append", default=[], metavar="x,y",
                         help="a point (world x, y [m]) whose time line is drawn (nearest cell); repeatable")
+    parser.add_argument("--good-cn0-dbhz", type=float, default=35.0, metavar="DBHZ",
+                        help="a 'good' satellite (n_good): C/N0 predicted from the profile's link budget >= this "
+                             "[dB-Hz] (default 35)")
     parser.add_argument("--threshold", type=float, default=0.95,
                         help="area share of the best windows (default 0.95)")
     parser.add_argument("--max-rays", type=int, default=1 << 21, help="rays per cast call (memory bound)")
@@ -145,6 +148,7 @@ def _run(args, stage: Path) -> None:
     from gnss_sim_ros2.core.demo import DEMO_START
     from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris
     from gnss_sim_ros2.core.planning import area as pa
+    from gnss_sim_ros2.core.planning.predicted_cn0 import predictor_from_profile
     from gnss_sim_ros2.core.planning.quality import PlanInputs
     from gnss_sim_ros2.core.planning.ranging import budget_from_profile, tracked_systems
     from gnss_sim_ros2.core.planning.rtk_rule import RtkRule
@@ -187,7 +191,10 @@ def _run(args, stage: Path) -> None:
     excluded = ReceiverConfig(profile=args.profile).excluded_svs or ""
     sky = plan_sky(provider, times, systems, excluded)
     rule = RtkRule()
-    inp = PlanInputs(sky.pos_ecef_m, sky.system, budget, rule, int(args.max_rays))
+    if not np.isfinite(args.good_cn0_dbhz):
+        raise ValueError(f"option --good-cn0-dbhz is {args.good_cn0_dbhz}: a C/N0 in dB-Hz is needed")
+    inp = PlanInputs(sky.pos_ecef_m, sky.system, budget, rule, int(args.max_rays),
+                     predictor_from_profile(args.profile, systems), float(args.good_cn0_dbhz), sky.t_s)
     vis = VisibilityOptions(mask_deg=float(args.mask_deg), multipath=args.multipath)
     n_t = len(sky.t_s)
     print(f"{COMMAND}: {area.n_cells} cells x {n_t} time steps x {len(sky.sv)} satellites "

@@ -14,6 +14,7 @@ import numpy as np
 
 from ..time import GnssTime
 from .area import PlanArea, grid_area, ground_z_m, world_bounds_xy
+from .predicted_cn0 import predictor_from_profile
 from .quality import PlanInputs, path_quality, quality_block
 from .ranging import budget_from_profile, tracked_systems
 from .rtk_rule import RtkRule
@@ -66,7 +67,8 @@ class QualityModel:
         area = grid_area(step_m, bounds)
         ground = ground_z_m(scene, area.x_m, area.y_m)
         systems = tracked_systems(profile, systems)
-        inp = PlanInputs(np.zeros((0, 0, 3)), np.array([]), budget_from_profile(profile, systems), RtkRule())
+        inp = PlanInputs(np.zeros((0, 0, 3)), np.array([]), budget_from_profile(profile, systems), RtkRule(),
+                         cn0=predictor_from_profile(profile, systems))
         return cls(scene, area, ground, float(height_m), provider, systems,
                    ReceiverConfig(profile=profile).excluded_svs or "", inp,
                    VisibilityOptions(mask_deg=float(mask_deg), multipath="off"), float(continuity_s))
@@ -75,7 +77,8 @@ class QualityModel:
         """(PlanInputs with the satellites of ``times``, their PlanSky)."""
         sky = plan_sky(self.provider, times, self.systems, self.excluded_svs)
         i = self.inputs
-        return PlanInputs(sky.pos_ecef_m, sky.system, i.budget, i.rule, i.max_rays), sky
+        return PlanInputs(sky.pos_ecef_m, sky.system, i.budget, i.rule, i.max_rays, i.cn0, i.good_cn0_dbhz,
+                          sky.t_s), sky
 
     def grid(self, t: GnssTime) -> dict:
         """{field: (C,)} of every cell at ``t``: the cells' quality at ``t`` (the RTK arc since t - continuity_s)."""
@@ -89,4 +92,4 @@ class QualityModel:
         xy = np.asarray(xy_m, float).reshape(-1, 2)
         ant = np.stack([xy[:, 0], xy[:, 1], ground_z_m(self.scene, xy[:, 0], xy[:, 1]) + self.height_m], axis=1)
         inp, sky = self._inputs(times)
-        return path_quality(self.scene, self.vis, ant, sky.pos_ecef_m, sky.system, inp)
+        return path_quality(self.scene, self.vis, ant, sky.pos_ecef_m, sky.system, inp, t_s=sky.t_s)

@@ -20,7 +20,8 @@ ATTRS = {"n_los": ("satellites in line of sight above the mask", "1"),
          "nlos_share": ("reflected-only share of the used satellites", "1"),
          "h_acc_m": ("expected single-point horizontal accuracy, HDOP x UERE (1 sigma)", "m"),
          "n_rtk": ("continuously visible dual-frequency satellites above the AR mask", "1"),
-         "rtk": ("RTK availability indicator (proxy rule, rtk_rule.py)", "1")}
+         "rtk": ("RTK availability indicator (proxy rule, rtk_rule.py)", "1"),
+         "n_good": ("satellites with a predicted C/N0 >= the good threshold (predicted_cn0.py)", "1")}
 
 
 def plan_dataset(area, ground_z_m, height_m, times_iso, t_s, fields: dict, attrs: dict):

@@ -9,7 +9,8 @@ Per cell and time (arrays (C, T)): ``n_los`` (in line of sight above the mask), 
 foliage / a soft edge), ``n_reflected`` (reflected-only: multipath on only), ``n_blocked``; the DOPs of the
 satellites a receiver would use (line of sight, attenuated, reflected-only: solver.dops_from_az_el, one clock
 per system); ``nlos_share`` (reflected-only / used); ``h_acc_m``: HDOP x UERE, UERE the RMS of the used
-satellites' sigma (ranging.py); ``n_rtk`` and ``rtk`` (rtk_rule.py).
+satellites' sigma (ranging.py); ``n_rtk`` and ``rtk`` (rtk_rule.py); ``n_good``: satellites whose C/N0 predicted
+from the profile's link budget is >= ``good_cn0_dbhz`` (predicted_cn0.py; -1 without a predictor).
 """
 from __future__ import annotations
 
@@ -19,13 +20,14 @@ import numpy as np
 
 from ..solver import dops_from_los_enu
 from ..vocabulary import VisibilityState
+from .predicted_cn0 import DEFAULT_GOOD_CN0_DBHZ, Cn0Predictor
 from .ranging import RangingBudget
-from .rtk_rule import RtkRule
+from .rtk_rule import RtkArcs, RtkRule
 
 #: the (C, T) outputs and their dtypes
 FIELDS = {"n_los": np.int16, "n_attenuated": np.int16, "n_reflected": np.int16, "n_blocked": np.int16,
           "gdop": np.float32, "pdop": np.float32, "hdop": np.float32, "vdop": np.float32,
-          "nlos_share": np.float32, "h_acc_m": np.float32, "n_rtk": np.int16, "rtk": np.bool_}
+          "nlos_share": np.float32, "h_acc_m": np.float32, "n_rtk": np.int16, "rtk": np.bool_, "n_good": np.int16}
 #: rays per cast call (cells x times x satellites of a chunk): bounds the chunk's memory (about 200 B a ray)
 DEFAULT_MAX_RAYS = 1 << 21
 
@@ -39,6 +41,9 @@ class PlanInputs:
     budget: RangingBudget
     rule: RtkRule = field(default_factory=RtkRule)
     max_rays: int = DEFAULT_MAX_RAYS
+    cn0: Cn0Predictor | None = None    # the profile's C/N0 prediction (n_good, attenuated RTK candidates); None:
+    good_cn0_dbhz: float = DEFAULT_GOOD_CN0_DBHZ    # n_good = -1 and no attenuated satellite counts for RTK
+    t_s: np.ndarray | None = None     # (T,) seconds of the steps (RTK outages); None: no outage bridged
 
 
 def quality_block(scene, vis, antenna_world_m, inp: PlanInputs, stats=None, states_out=None) -> dict:
@@ -61,7 +66,8 @@ def quality_block(scene, vis, antenna_world_m, inp: PlanInputs, stats=None, stat
     dual = np.array([inp.budget.dual_frequency.get(s, False) for s in sysv.tolist()])
     if not dual.any():
         dual[:] = True                                # single-frequency profile: rtk_rule.py module doc
-    prev = None                                       # (C, S) RTK candidates of the previous step
+    arcs = RtkArcs(inp.rule, c, n_s)                  # RTK arcs and fixes, step to step
+    t_all, gap = _step_times(inp.t_s, n_t, inp.rule)
     mid = 0.5 * (ant.min(axis=0) + ant.max(axis=0))
     centre_ecef = scene.antenna_ecef(mid[None])[0]
     # the vertical turns by (distance / Earth radius) across the block; 0.1 deg more for the world's flatness
@@ -89,24 +95,28 @@ def quality_block(scene, vis, antenna_world_m, inp: PlanInputs, stats=None, stat
             st = np.where(above, state, -1).astype(np.int8).reshape(c, len(tt), len(cols))
             states_out[:, tt[0]:tt[-1] + 1] = -1
             states_out[:, tt[0]:tt[-1] + 1, cols] = st
-        vals, cand, los_enu = _rows_quality(state, att, v, above, sysv[cols], clock_all[cols], dual[cols], inp)
+        cn0 = _predicted_cn0(scene, inp, sysv[cols], state, att, v, above, ant_rows, sat_rows)
+        vals, cand, los_enu = _rows_quality(state, att, v, above, sysv[cols], clock_all[cols], dual[cols], inp, cn0)
         cand = cand.reshape(c, len(tt), len(cols))
         cont = np.zeros_like(cand)
-        for j in range(len(tt)):                       # continuity: in line of sight at the previous step too
+        for j in range(len(tt)):                       # unbroken arcs (rtk_rule.py)
             cur = np.zeros((c, n_s), bool)
             cur[:, cols] = cand[:, j]
-            before = cur if prev is None else prev     # the first step: no earlier step to break the arc
-            cont[:, j] = cand[:, j] & before[:, cols]
-            prev = cur
-        vals["n_rtk"], vals["rtk"] = _rtk_fields(los_enu, cont.reshape(m_rows, len(cols)), clock_all[cols], inp.rule)
+            cont[:, j] = arcs.unbroken(cur, t_all[tt[j]], gap)[:, cols]
+        n_rtk, pdop_rtk = _rtk_geometry(los_enu, cont.reshape(m_rows, len(cols)), clock_all[cols], inp.rule)
+        n_rtk, pdop_rtk = n_rtk.reshape(c, len(tt)), pdop_rtk.reshape(c, len(tt))
+        rtk = np.stack([arcs.fix(n_rtk[:, j], pdop_rtk[:, j]) for j in range(len(tt))], axis=1)
+        vals["n_rtk"], vals["rtk"] = n_rtk, rtk
+        vals["n_good"] = _n_good(cn0, inp, m_rows)
         for k, val in vals.items():
             out[k][:, tt] = np.asarray(val).reshape(c, len(tt))
     return out
 
 
-def _rows_quality(state, att, v, above, sysv, clock, dual, inp: PlanInputs):
+def _rows_quality(state, att, v, above, sysv, clock, dual, inp: PlanInputs, cn0=None):
     """Per antenna row (M rows x S satellites of one cast): the FIELDS but the RTK ones, the RTK candidates (M, S)
-    (dual-frequency, in line of sight above the AR mask) and the line-of-sight unit vectors (e, n, u)."""
+    (dual-frequency, tracked above the AR mask: rtk_rule.py; ``cn0`` the predicted C/N0 or None) and the
+    line-of-sight unit vectors (e, n, u)."""
     el, az = np.asarray(v.el_deg), np.asarray(v.az_deg)
     los = above & (state == int(VisibilityState.VISIBLE))
     attn = above & (state == int(VisibilityState.ATTENUATED))
@@ -122,29 +132,46 @@ def _rows_quality(state, att, v, above, sysv, clock, dual, inp: PlanInputs):
     with np.errstate(invalid="ignore", divide="ignore"):
         uere = np.sqrt(np.where(used, sigma**2, 0.0).sum(axis=1) / n_used)
         nlos = refl.sum(axis=1) / n_used
-    cand = los & (el >= inp.rule.ar_mask_deg) & dual
+    tracked = los
+    if cn0 is not None and inp.rule.count_attenuated:         # through foliage, strong enough to stay in lock
+        with np.errstate(invalid="ignore"):
+            tracked = los | (attn & (cn0 >= inp.cn0.tracking_cn0_dbhz))
+    cand = tracked & (el >= inp.rule.ar_mask_deg) & dual
     vals = {"n_los": los.sum(axis=1), "n_attenuated": attn.sum(axis=1), "n_reflected": refl.sum(axis=1),
             "n_blocked": blocked.sum(axis=1), "gdop": gdop, "pdop": pdop, "hdop": hdop, "vdop": vdop,
             "nlos_share": nlos, "h_acc_m": hdop * uere}
     return vals, cand, los_enu
 
 
-def _rtk_fields(los_enu, cont, clock, rule: RtkRule):
-    """(n_rtk, rtk) per row from the continuously visible candidates ``cont`` (M, S) (rtk_rule.py)."""
+def _rtk_geometry(los_enu, cont, clock, rule: RtkRule):
+    """(n_rtk, PDOP) per row of the unbroken candidates ``cont`` (M, S) (rtk_rule.py; PDOP inf under the hold
+    count)."""
     n_rtk = cont.sum(axis=1)
-    enough = np.flatnonzero(n_rtk >= rule.min_sats)                  # only those can pass: their PDOP
-    pdop_rtk = dops_from_los_enu(tuple(x[enough] for x in los_enu), cont[enough], clock)[1]
-    rtk = np.zeros(len(n_rtk), bool)
-    rtk[enough] = pdop_rtk < rule.max_pdop
-    return n_rtk, rtk
+    enough = np.flatnonzero(n_rtk >= min(rule.min_sats, rule.min_hold_sats))     # only those can pass: their PDOP
+    pdop = np.full(len(n_rtk), np.inf)
+    pdop[enough] = dops_from_los_enu(tuple(x[enough] for x in los_enu), cont[enough], clock)[1]
+    return n_rtk, np.nan_to_num(pdop, nan=np.inf)
 
 
-def path_quality(scene, vis, antenna_world_m, sat_pos_ecef_m, systems, inp: PlanInputs, states_out=None) -> dict:
+def _step_times(t_s, n: int, rule: RtkRule):
+    """(times of the n steps [s], the outage bridged [s]): ``t_s`` and the rule's, or the step index and none."""
+    if t_s is None:
+        return np.arange(n, dtype=float), 0.0
+    t = np.asarray(t_s, float).reshape(-1)
+    if len(t) != n:
+        raise ValueError(f"planning: {len(t)} step times for {n} steps")
+    return t, rule.max_outage_s
+
+
+def path_quality(scene, vis, antenna_world_m, sat_pos_ecef_m, systems, inp: PlanInputs, states_out=None,
+                 cn0_out=None, t_s=None) -> dict:
     """The FIELDS along a path: pose i at ``antenna_world_m[i]`` (P, 3) sees the satellites ``sat_pos_ecef_m[i]``
     (P, S, 3; NaN where absent) of the time it is there; one cast of P rows.  The RTK indicator's continuity is
     from one pose to the next (a carrier-phase arc held since the previous pose; the first pose: none broken).
     Values (P,) per field.  ``states_out``: a (P, S) int8 array that receives each satellite's VisibilityState
-    where it is above the mask, -1 elsewhere."""
+    where it is above the mask, -1 elsewhere.  ``cn0_out``: a (P, S) float array that receives the predicted C/N0
+    (predicted_cn0.py; NaN below the mask or absent, -inf not received; needs ``inp.cn0``).  ``t_s``: (P,) times
+    of the poses [s] (RTK outages bridged up to the rule's ``max_outage_s``); None: none bridged."""
     ant = np.asarray(antenna_world_m, float).reshape(-1, 3)
     sat_all = np.asarray(sat_pos_ecef_m, float)
     sysv = np.asarray(systems)
@@ -158,10 +185,36 @@ def path_quality(scene, vis, antenna_world_m, sat_pos_ecef_m, systems, inp: Plan
     above = present & (np.asarray(v.el_deg) >= vis.mask_deg)
     if states_out is not None:
         states_out[:] = np.where(above, state, -1)
-    vals, cand, los_enu = _rows_quality(state, att, v, above, sysv, clock, dual, inp)
-    cont = cand & np.concatenate([cand[:1], cand[:-1]], axis=0)
-    vals["n_rtk"], vals["rtk"] = _rtk_fields(los_enu, cont, clock, inp.rule)
+    cn0 = _predicted_cn0(scene, inp, sysv, state, att, v, above, ant, np.where(present[..., None], sat_all, 0.0))
+    vals, cand, los_enu = _rows_quality(state, att, v, above, sysv, clock, dual, inp, cn0)
+    arcs = RtkArcs(inp.rule, 1, len(sysv))            # the path is one row stepping pose to pose
+    t_all, gap = _step_times(t_s, len(ant), inp.rule)
+    cont = np.concatenate([arcs.unbroken(cand[i:i + 1], t_all[i], gap) for i in range(len(ant))]) if len(ant) else cand
+    n_rtk, pdop_rtk = _rtk_geometry(los_enu, cont, clock, inp.rule)
+    vals["n_rtk"] = n_rtk
+    vals["rtk"] = np.array([arcs.fix(n_rtk[i:i + 1], pdop_rtk[i:i + 1])[0] for i in range(len(ant))], bool)
+    vals["n_good"] = _n_good(cn0, inp, len(ant))
+    if cn0_out is not None:
+        if cn0 is None:
+            raise ValueError("path_quality: cn0_out needs PlanInputs.cn0 (a Cn0Predictor)")
+        cn0_out[:] = cn0
     return {k: np.asarray(vals[k]).astype(dt) for k, dt in FIELDS.items()}
+
+
+def _predicted_cn0(scene, inp: PlanInputs, sysv, state, att, v, above, ant_world_m, sat_ecef_m):
+    """(M, S) C/N0 predicted by ``inp.cn0`` (predicted_cn0.py), NaN off ``above``; None without a predictor."""
+    if inp.cn0 is None:
+        return None
+    cn0 = inp.cn0.cn0_dbhz(sysv, state, att, v, scene.antenna_ecef(ant_world_m), sat_ecef_m)
+    return np.where(above, cn0, np.nan)
+
+
+def _n_good(cn0, inp: PlanInputs, n_rows: int) -> np.ndarray:
+    """Satellites per row with a predicted C/N0 >= ``inp.good_cn0_dbhz`` (-1 without a prediction)."""
+    if cn0 is None:
+        return np.full(n_rows, -1)
+    with np.errstate(invalid="ignore"):
+        return (cn0 >= inp.good_cn0_dbhz).sum(axis=1)
 
 
 def _elevation_deg(rx_ecef_m, sat_ecef_m) -> np.ndarray:

@@ -1,0 +1,112 @@
+"""The C/N0 the receiver profile would report, predicted per satellite from the planner's cast: the planner's "good".
+
+Per antenna row and satellite above the mask (the profile's first signal of the satellite's system):
+
+- line of sight / attenuated: the receiver's own link budget, ``receiver/cn0.cn0_dbhz_from_params`` with the
+  profile's ``link_budget`` (its antenna class, or its fitted ``cn0_table_dbhz``) at the satellite's range and
+  elevation, less the cast's foliage + diffraction attenuation (the call the receiver engine makes in
+  ``_signal_strength``, not a copy of it);
+- with reflected paths (``--multipath nlos|full``): the composite amplitude of the direct signal and the scene's
+  paths relative to the unobstructed line of sight (``multipath.composite.composite_errors``, the function the
+  engine calls for its reflections) replaces the obstruction loss, as the engine does; a reflected-only satellite
+  is then as strong as its reflections;
+- blocked (or a reflected-only satellite without its paths): -inf, not received.
+
+"Good" = predicted C/N0 >= ``good_cn0_dbhz`` (``gnss-sim plan --good-cn0-dbhz``, 35 dB-Hz by default: the
+threshold the Hong Kong validation scores the real receiver with).  The prediction is the mean the link budget
+gives: the receiver's C/N0 noise (``cn0_noise_db``) and the land-mobile-satellite fading are not drawn.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..constants import C_MPS
+from ..receiver import cn0 as cn0_model
+from ..receiver import signal_tables
+from ..vocabulary import VisibilityState
+
+#: default threshold of a "good" satellite [dB-Hz] (docs/PLANNING.md, the Hong Kong validation)
+DEFAULT_GOOD_CN0_DBHZ = 35.0
+
+
+@dataclass
+class Cn0Predictor:
+    """Per system letter, the profile's first signal's link-budget parameters and the receiver's settings."""
+
+    profile: str
+    budget: cn0_model.LinkBudget
+    signal: dict                 # system -> (edge power dBW, edge elevation deg, carrier Hz, table key, chip m)
+    antenna: str
+    dll_spacing_chips: float
+    frontend_bandwidth_hz: float
+    tracking_cn0_dbhz: float     # the profile's loss-of-lock threshold (a satellite below it is not tracked)
+
+    def cn0_dbhz(self, systems, state, att_db, v, antenna_ecef_m, sat_ecef_m) -> np.ndarray:
+        """(M, S) predicted C/N0 [dB-Hz] of satellites ``systems`` (S,) for cast rows: ``state``, ``att_db``,
+        ``v`` as VisibilityOptions.cast returns them, antennas (M, 3) and satellites (M, S, 3) in ECEF.  -inf
+        where not received or the profile does not track the system; NaN below the mask (``v.el_deg``)."""
+        sysv = np.asarray(systems)
+        state = np.asarray(state)
+        el = np.asarray(v.el_deg, float)
+        rho = np.linalg.norm(np.asarray(sat_ecef_m, float) - np.asarray(antenna_ecef_m, float)[:, None, :], axis=-1)
+        out = np.full(state.shape, -np.inf)
+        blocked = (state == int(VisibilityState.BLOCKED)) | (state == int(VisibilityState.REFLECTED_ONLY))
+        paths = getattr(v, "paths", None)
+        for s in np.unique(sysv).tolist():
+            if s not in self.signal:
+                continue
+            p_edge, el_min, freq, key, chip = self.signal[s]
+            cols = np.flatnonzero(sysv == s)
+            rs, es = np.maximum(rho[:, cols], 1.0), el[:, cols]
+            keys = np.full(es.shape, key)
+            # the receiver's link budget at the unobstructed line of sight (engine._signal_strength's call)
+            open_sky = cn0_model.cn0_dbhz_from_params(p_edge, el_min, rs, es, 0.0, budget=self.budget,
+                                                      frequency_hz=freq, signal_keys=keys)
+            sub = np.where(blocked[:, cols], -np.inf, open_sky - att_db[:, cols])
+            if paths is not None:
+                sub = self._with_paths(sub, open_sky, paths, cols, blocked[:, cols], att_db[:, cols], es, chip, freq)
+            out[:, cols] = sub
+        return np.where(np.isfinite(el), out, np.nan)
+
+    def _with_paths(self, sub, open_sky, paths, cols, blocked, att, el, chip, freq):
+        """Rows with a reflected path: open-sky C/N0 + 20 log10 |composite amplitude| (engine's reflections)."""
+        from ..multipath.composite import composite_errors
+
+        ex = np.asarray(paths.excess_m)[:, cols]
+        has = np.isfinite(ex).any(axis=-1)
+        if not has.any():
+            return sub
+        r, c = np.nonzero(has)
+        los = np.where(blocked[r, c], 0.0, 10.0 ** (-att[r, c] / 20.0))
+        n = len(r)
+        e = composite_errors(los, ex[r, c], np.asarray(paths.gamma_co)[:, cols][r, c],
+                             np.asarray(paths.gamma_cross)[:, cols][r, c],
+                             np.asarray(paths.arrival_el_deg)[:, cols][r, c], el[r, c], np.full(n, chip),
+                             np.full(n, C_MPS / freq), self.dll_spacing_chips,
+                             float(self.frontend_bandwidth_hz * chip / C_MPS), self.antenna)
+        sub = sub.copy()
+        sub[r, c] = open_sky[r, c] + 20.0 * np.log10(np.maximum(e.amplitude, 1e-6))
+        return sub
+
+
+def predictor_from_profile(profile: str, systems: str) -> Cn0Predictor:
+    """The predictor of receiver profile ``profile`` (built-in name or file) for ``systems`` (its first signal of each
+    system it tracks)."""
+    from .. import signals as sig
+    from ..receiver.config import ReceiverConfig
+
+    cfg = ReceiverConfig(profile=profile)
+    out = {}
+    for s in systems:
+        codes = cfg.profile.get(s) or []
+        if not codes:
+            continue
+        code = codes[0]
+        p_edge, el_min = cn0_model.power_params(s, code)
+        key = signal_tables.signal_keys(np.array([s]), np.array([code]))[0]
+        out[s] = (float(p_edge), float(el_min), float(sig.frequency_hz(s, code, 0)), str(key),
+                  float(sig.signal(s, code).chip_length_m))
+    return Cn0Predictor(str(profile), cfg.link_budget, out, cfg.antenna, float(cfg.dll_spacing_chips),
+                        float(cfg.frontend_bandwidth_hz), float(cfg.tracking.tracking_cn0_dbhz))
