@@ -119,6 +119,18 @@ class Facets:
         bt = (d00 * d21 - d01 * d20) / den
         return (bs >= 0) & (bt >= 0) & (bs + bt <= 1)
 
+    def may_reach(self, fi, origin, u) -> np.ndarray:
+        """(S, F) bool: may the rays from ``origin`` (F, 3) along the unit directions ``u`` (S, 3) meet the
+        facets ``fi`` (F,)?  False only where a ray's line misses the facet's bounding sphere grown by 1 mm
+        (angle to the centre above asin(radius / distance)): a conservative filter, the candidates it keeps
+        go through the exact test (:meth:`inside`) as before."""
+        w = self.centroid[fi] - origin
+        dist = np.linalg.norm(w, axis=1)
+        rad = self.radius[fi] * (1.0 + 1e-6) + 1e-3
+        around = dist <= rad                                   # origin within the sphere: every direction
+        cos_min = np.sqrt(np.maximum(0.0, 1.0 - (rad / np.where(around, 1.0, dist)) ** 2))
+        return (u @ w.T >= (cos_min * dist)[None, :]) | around[None, :]
+
     def near(self, antenna_m, max_range_m: float) -> np.ndarray:
         """Indices of the facets that come within ``max_range_m`` of the antenna (3,)."""
         a = np.asarray(antenna_m, dtype=np.float64)
@@ -159,7 +171,8 @@ def find_paths(scene, facets: Facets, antenna_world_m, sat_dirs_world, *, max_ra
         h = nf @ a[i] - np.einsum("ij,ij->i", nf, facets.v0[sel])   # (F,)
         u = u_all[i, sats]                                           # (S, 3)
         c = u @ nf.T                                                 # (S, F)
-        ok = c > 1e-3
+        # R lies on the line from the antenna's image A - 2 h n along u: facets that line misses are dropped
+        ok = (c > 1e-3) & facets.may_reach(sel, a[i] - 2.0 * h[:, None] * nf, u)
         s_idx, f_idx = np.nonzero(ok)
         if len(s_idx) == 0:
             continue
@@ -274,7 +287,7 @@ def _double_paths(scene, facets: Facets, a, u_all, max_range_m, only):
         a12 = a1 - 2 * h12[:, None] * n2
         u = u_all[i, sats]
         c2 = u @ n2.T                                            # (S, P): wall 2 faces the satellite
-        s_idx, q = np.nonzero(c2 > 1e-3)
+        s_idx, q = np.nonzero((c2 > 1e-3) & facets.may_reach(f2, a12, u))       # R2 on the line A12 + t u
         if len(q) == 0:
             continue
         r2 = a12[q] + (h12[q] / c2[s_idx, q])[:, None] * u[s_idx]      # A12 lies h12 behind wall 2
