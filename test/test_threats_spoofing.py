@@ -47,14 +47,14 @@ def _spoofer_yaml(tmp_path, name, advantage_db, *, mode="simulate", systems="G",
     return str(p)
 
 
-def _run(tmp_path, name, scenario="", systems="G", extra=None, at=(LAT, LON, H)):
+def _run(tmp_path, name, scenario="", systems="G", extra=None, at=(LAT, LON, H), receiver=None):
     epochs = []
 
     def observer(t, ecef, obs, sol):
         epochs.append((obs, sol))
 
     cfg = load_config(overrides={"/**": {"systems": systems, **(extra or {})},
-                                 "receiver": {"noise": False, "scenario": scenario}})
+                                 "receiver": {"noise": False, "scenario": scenario, **(receiver or {})}})
     setup = setup_from_config(cfg, tmp_path / name, Trajectory.static(list(at), "geodetic"),
                               duration_s=float(N - 1), interval_s=1.0, observer=observer)
     res = run_simulation(setup)
@@ -190,11 +190,12 @@ def test_the_counterfeits_arrive_from_the_spoofer_for_every_satellite(tmp_path, 
     from gnss_sim_ros2.core.frames import az_el_from_ecef
     from gnss_sim_ros2.core.threats.runtime import ThreatRuntime
 
-    made, truth = [], []
+    made, truth, tracked = [], [], []
     monkeypatch.setattr(simulation, "ThreatRuntime",
                         lambda *a, **kw: made.append(ThreatRuntime(*a, **kw)) or made[-1])
     def observer(t, ecef, obs, sol):
         truth.append(made[0].spoofed(t))
+        tracked.append(set(obs.sv.tolist()))
 
     cfg = load_config(overrides={"/**": {"systems": "G"},
                                  "receiver": {"noise": False, "scenario": _spoofer_yaml(tmp_path, "sp", 3.0)}})
@@ -206,11 +207,14 @@ def test_the_counterfeits_arrive_from_the_spoofer_for_every_satellite(tmp_path, 
     assert truth[0] == {} and len(t_in) >= 5
     assert {round(v["az_deg"]) for v in t_in.values()} == {round(float(az))}
     assert {round(v["el_deg"]) for v in t_in.values()} == {round(float(el))}
-    assert all(v["captured"] and v["spoofer"] == "sp" for v in t_in.values())
+    # the spoofer sends every satellite above the horizon; captured: those the receiver tracks (above its mask)
+    assert all(v["spoofer"] == "sp" for v in t_in.values())
+    captured = {sv for sv, v in t_in.items() if v["captured"]}
+    assert captured == tracked[int(START) + 3] and len(captured) >= 5
     # fix.csv: the captured satellites per epoch (column spoofed), none outside the spoofer's window
     with open(res.fix_path, newline="") as f:
         rows = list(csv.DictReader(f))
-    assert set(rows[int(START) + 3]["spoofed"].split()) == set(t_in)
+    assert set(rows[int(START) + 3]["spoofed"].split()) == captured
     assert rows[0]["spoofed"] == "" and rows[-1]["spoofed"] == ""
 
 
@@ -296,3 +300,49 @@ def test_one_epoch_at_a_time_as_the_node_gives_the_same_spoofed_fixes(tmp_path):
     assert texts[0] == texts[1]
     rows = list(csv.DictReader(texts[1].splitlines()))
     assert np.linalg.norm(_fix_enu(rows[int(END) - 1]) - _false_enu(END - 1.0)) < 5.0
+
+
+def test_a_released_signal_is_acquired_again_through_the_acquisition_threshold(tmp_path):
+    # the spoofer stops at END: the loops lose their counterfeits; the authentic signals are not handed over below
+    # the acquisition threshold.  Default thresholds: none tracked at the release epoch, every one back at the next
+    # with a new track (LLI bit 0) and the fix on the true position; a receiver that acquires only above 60 dB-Hz
+    # (above every authentic signal here) gets none of them back
+    scn = _spoofer_yaml(tmp_path, "sp", 3.0)
+    epochs, rows = _run(tmp_path, "rel", scn)
+    end = int(END)
+    assert len(epochs[end - 1][0].sv) >= 10 and len(epochs[end][0].sv) == 0 and rows[end]["status"] == "no_fix"
+    back = epochs[end + 1][0]
+    assert len(back.sv) == len(epochs[end - 1][0].sv) and np.all(back.lli & 1)
+    assert np.linalg.norm(_fix_enu(rows[end + 1])) < 1.0
+    high, _ = _run(tmp_path, "rel60", scn, receiver={"cn0_acquire_dbhz": 60.0})
+    assert len(high[end - 1][0].sv) >= 10            # warm start, then captured: tracked above the 25 dB-Hz loss level
+    assert all(len(high[e][0].sv) == 0 for e in range(end, N))
+
+
+def test_the_captured_satellites_are_tracked_ones(tmp_path):
+    # fix.csv's spoofed column counts satellites whose counterfeit the receiver tracks: none below the elevation
+    # mask, where the spoofer also sends (it knows no mask), so captured <= tracked at every epoch
+    epochs, rows = _run(tmp_path, "mask", _spoofer_yaml(tmp_path, "sp", 3.0), extra={"elevation_mask_deg": 25.0})
+    wide, _ = _run(tmp_path, "nomask", "", extra={"elevation_mask_deg": 0.0})
+    for e in range(int(START), int(END)):
+        captured = set(rows[e]["spoofed"].split())
+        assert captured and captured <= set(epochs[e][0].sv.tolist()), e
+        assert len(set(wide[e][0].sv.tolist())) > len(captured)      # the sky has more above the horizon
+
+
+def test_a_captured_loop_stays_on_its_counterfeit_when_the_advantage_falls(tmp_path):
+    # a spoofer with EIRP enough for 3 dB at 80 m, driven to 300 m away: its counterfeits fall ~10 dB short,
+    # below the authentic signals but far above the tracking threshold; a fresh capture would not happen, the loops
+    # already on the counterfeits stay there (the drag-off moved them off the authentic code phase)
+    far = _llh([300.0, 0.0, 15.0])
+    path = f"[[{START}, {', '.join(map(str, SPOOFER))}], [{START + 5}, {', '.join(map(str, SPOOFER))}], " \
+           f"[{START + 10}, {', '.join(map(str, far))}]]"
+    p = tmp_path / "moving.yaml"
+    with open(_spoofer_yaml(tmp_path, "sp", 3.0, eirp_dbw=-55.0)) as f:
+        p.write_text(f.read().replace(f"    position: {SPOOFER}\n", f"    path: {path}\n"))
+    epochs, rows = _run(tmp_path, "moving", str(p))
+    cn0_near = np.median(epochs[int(START) + 2][0].cn0_dbhz)
+    for e in range(int(START) + 12, int(END)):
+        assert np.median(epochs[e][0].cn0_dbhz) < cn0_near - 8.0         # the counterfeits 8+ dB weaker than at 80 m
+        assert len(rows[e]["spoofed"].split()) == len(set(epochs[e][0].sv.tolist())), e
+        assert np.linalg.norm(_fix_enu(rows[e]) - _false_enu(float(e))) < 5.0, e

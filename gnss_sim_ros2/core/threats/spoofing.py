@@ -29,7 +29,11 @@ Capture.  A signal is captured when C_sp - C_auth >= the receiver's capture marg
 lower limit is a power ratio of 1, i.e. 0 dB (Wang et al., EURASIP J. Wireless Comm. and Networking 2018:50,
 eq. 4, after the code-loop analysis cited there); 3 dB covers loop noise and imperfect alignment and is the
 advantage Humphreys et al. aim at).  Then the receiver tracks the counterfeit: its C/N0 is C_sp / (N0 + I), its
-code, phase and Doppler those below; the capture and the release set the loss-of-lock flag (LLI bit 0).
+code, phase and Doppler those below; the capture and the release set the loss-of-lock flag (LLI bit 0).  A captured
+loop stays on the counterfeit while it reaches the antenna (dragged off, the authentic signal lies at another code
+phase: interference only), whatever their powers do; it is released when the counterfeit is blocked or gone, and
+then the authentic signal is acquired again through the tracking thresholds like any lost signal (not trackable at
+the release epoch, acquired from the next one at the acquisition threshold): no hand-over below that threshold.
 Otherwise both interfere: the authentic signal keeps its observables with C/N0 = C / (N0 + I).  I = kappa_m sum
 C_sp over the spoofer's signals of the same kind (system, code, carrier) at the epoch (the captured row's own
 counterfeit left out), kappa_m = int G_s^2 / (int G_s)^2 over the front end, the spectral separation coefficient of
@@ -106,8 +110,10 @@ class Spoofing:
         self.rt = runtime
         self._key = epoch_key              # epoch tag -> dict key (the runtime's)
         self.spoofers = runtime.scenario.spoofers
-        self._prev = frozenset()           # the (sv, code) captured at the last epoch seen
+        self._prev = frozenset()           # the (sv, code) captured at the last epoch seen (loss-of-lock flags)
+        self._held = frozenset()           # the (sv, code) captured at the last epoch seen (sticky capture)
         self._truth_by_t: dict = {}
+        self._truth_args = None            # what the block's truth needs once its tracking is known
 
     # ---------------------------------------------------------------- before tracking
     def signals(self, b, cfg) -> SpoofedRows | None:
@@ -118,7 +124,9 @@ class Spoofing:
         act = [(q, s, s.active(t_rel)) for q, s in enumerate(self.spoofers)]
         act = [a for a in act if a[2].any()]
         self._truth_by_t = {}
+        self._truth_args = None
         if not act or b.m == 0:
+            self._release_all(b)
             return None
         budget = cfg.link_budget
         n0_dbw = budget.noise_density_dbwhz
@@ -156,7 +164,9 @@ class Spoofing:
         best = np.argmax(c_sp, axis=0)
         c_best = c_sp[best, np.arange(b.m)]
         c_auth = np.where(b.ok_all, b.cn0 + n0_dbw, -np.inf)
-        captured = np.isfinite(c_best) & (c_best - c_auth >= cfg.spoof_capture_margin_db)
+        present = np.isfinite(c_best)
+        advantage = np.where(present, c_best - np.where(present, c_auth, 0.0), -np.inf)
+        captured, released = self._capture(b, present & (advantage >= cfg.spoof_capture_margin_db), present)
         # interference: kappa_m times the counterfeits of the row's kind at its epoch, its own left out if captured
         w_sp = np.where(np.isfinite(c_sp), 10.0 ** (c_sp / 10.0), 0.0).sum(axis=0)
         kind = np.char.add(np.char.add(systems, b.codes), np.round(b.freq).astype(np.int64).astype("<U12"))
@@ -169,15 +179,48 @@ class Spoofing:
         interference = kappa[inv] * np.maximum(per[e * len(kinds) + inv] - own, 0.0)
         carrier = np.where(captured, c_best - n0_dbw, b.cn0)
         b.cn0 = jamming.effective_cn0_dbhz(carrier, interference, n0_dbw)
-        if captured.any():
-            b.ok_all = b.ok_all | captured
+        if captured.any() or released.any():
+            b.ok_all = (b.ok_all | captured) & ~released
         out = SpoofedRows(captured, best, recv, recv_vel,
                           np.array([-s.delay_s if s.mode == "meacon" else s.false_time_offset_s for _, s, _ in act]),
                           np.array([s.mode == "meacon" for _, s, _ in act]), dist, dist_rate)
-        self._keep_truth(b, act, best, captured, az_sp, el_sp)
+        self._truth_args = (act, best, captured, az_sp, el_sp)
         return out
 
+    def _capture(self, b, takes, present):
+        """(captured, released) per signal row, epoch by epoch: a row is captured where the counterfeit takes it
+        (``takes``: its advantage reaches the capture margin) or where it was captured at the epoch before and its
+        counterfeit still reaches the antenna (``present``): the loop dragged onto the counterfeit stays on it, the
+        authentic signal, now at another code phase, is interference only (Humphreys et al. 2008, the drag-off).
+        Released: captured at the epoch before, not now (the counterfeit blocked or gone): the loop loses it and
+        the authentic signal must be acquired again through the tracking thresholds (not trackable at this
+        epoch, acquired from the next one when its C/N0 reaches the acquisition threshold)."""
+        keys = _signal_keys(b)
+        captured, released = takes.copy(), np.zeros(b.m, dtype=bool)
+        held = self._held
+        for ep in range(b.k_n):
+            j0, j1 = b.sig_seg[ep], b.sig_seg[ep + 1]
+            was = np.isin(keys[j0:j1], list(held)) if held else np.zeros(j1 - j0, dtype=bool)
+            captured[j0:j1] |= was & present[j0:j1]
+            released[j0:j1] = was & ~captured[j0:j1]
+            held = frozenset(keys[j0:j1][captured[j0:j1]].tolist())
+        self._held = held
+        return captured, released
+
+    def _release_all(self, b) -> None:
+        """No spoofer active in block ``b``: the signals captured at the epoch before are released at its first
+        epoch (:meth:`_capture`)."""
+        if self._held and b.m:
+            j1 = b.sig_seg[1]
+            released = np.zeros(b.m, dtype=bool)
+            released[:j1] = np.isin(_signal_keys(b)[:j1], list(self._held))
+            b.ok_all = b.ok_all & ~released
+        self._held = frozenset()
+
     def _keep_truth(self, b, act, best, captured, az_sp, el_sp):
+        """The block's per-epoch truth; a signal counts as captured where the receiver tracks the counterfeit
+        (``b.tracked``: below the elevation mask or the tracking thresholds no channel holds it)."""
+        captured = captured & b.tracked
         sv_j = b.rows.sv_j
         for ep, t in enumerate(b.ts):
             rows = np.arange(b.sig_seg[ep], b.sig_seg[ep + 1])
@@ -199,6 +242,9 @@ class Spoofing:
         with; loss-of-lock flags where a signal is captured or released."""
         sp = getattr(b, "spoofed", None)
         captured = sp.captured if sp is not None else np.zeros(b.m, dtype=bool)
+        if self._truth_args is not None:
+            self._keep_truth(b, *self._truth_args)
+            self._truth_args = None
         self._flag_changes(b, captured)
         if sp is None or not len(sp.rows):
             return
@@ -233,7 +279,7 @@ class Spoofing:
         reverse (the loop jumps between the authentic and the counterfeit signal)."""
         if not captured.any() and not self._prev:
             return
-        keys = np.char.add(np.asarray(b.rows.sv_j, dtype="<U3"), np.asarray(b.codes, dtype="<U2"))
+        keys = _signal_keys(b)
         prev = self._prev
         lli = None
         for ep in range(b.k_n):
@@ -253,6 +299,11 @@ class Spoofing:
     def truth(self, t) -> dict:
         """{sv: {"spoofer", "az_deg", "el_deg" (the arrival direction), "captured": [codes]}} at epoch ``t``."""
         return self._truth_by_t.get(self._key(t), {})
+
+
+def _signal_keys(b) -> np.ndarray:
+    """(M,) "G051C": each signal row's satellite and code, the tracking loop's key."""
+    return np.char.add(np.asarray(b.rows.sv_j, dtype="<U3"), np.asarray(b.codes, dtype="<U2"))
 
 
 def _velocity(rt, track, t_rel):

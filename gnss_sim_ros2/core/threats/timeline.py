@@ -31,7 +31,8 @@ class Timeline:
     obs_t_s: np.ndarray
     n_tracked: np.ndarray
     cn0_dbhz: dict
-    #: per epoch of fix.csv: satellites a spoofer has captured (its ``spoofed`` column; None without a spoofer)
+    #: per epoch of fix.csv: satellites a spoofer has captured, i.e. tracked on at least one counterfeit signal (its
+    #: ``spoofed`` column; a subset of the tracked satellites, counted like ``n_tracked``; None without a spoofer)
     n_spoofed: np.ndarray | None = None
 
     @property
@@ -119,7 +120,7 @@ def plot_timeline(tl: Timeline, path, title: str = "") -> Path:
     ax[1].plot(tl.obs_t_s, tl.n_tracked, lw=1.2, label="tracked")
     ax[1].plot(tl.t_s, tl.n_used, lw=1.2, label="used in the fix")
     if tl.n_spoofed is not None:
-        ax[1].plot(tl.t_s, tl.n_spoofed, lw=1.2, color="tab:red", label="captured by a spoofer")
+        ax[1].plot(tl.t_s, tl.n_spoofed, lw=1.2, color="tab:red", label="tracked on a spoofer's signal")
     ax[1].set_ylabel("satellites")
     ax[1].legend(loc="upper center", fontsize=8, ncol=3)
     ax[2].plot(tl.t_s, tl.h_err_m, lw=1.2, color="k")
