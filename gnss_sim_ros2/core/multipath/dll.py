@@ -140,10 +140,33 @@ def _grid_points(span_chips, step: float) -> int:
 
 def _peak(c, dl, lo, hi, n_grid, bandwidth_chips):
     """(N,) the first grid point of largest |R_c| per row; the rows' grids (of their own sizes) laid end to end
-    in one evaluation (each point's value as on a rectangular grid: the same operations, element by element)."""
+    in one evaluation per chunk of rows (each point's value as on a rectangular grid: the same operations,
+    element by element; chunks of about _PEAK_CHUNK points keep the temporaries small).  Rows grouped by their
+    number of paths with a non-zero amplitude, those paths kept in their order: a zero term adds an exact zero
+    to the sum, which changes at most the sign of a zero sum, never |R_c|."""
     n = len(c)
-    if n == 0:
-        return np.zeros(0)
+    out = np.zeros(n)
+    live = c != 0
+    count = live.sum(axis=1)
+    for k in np.unique(count).tolist():
+        rows = np.flatnonzero(count == k)
+        cols = np.argsort(~live[rows], axis=1, kind="stable")[:, :k]       # the non-zero paths, in order
+        ck, dk = np.take_along_axis(c[rows], cols, axis=1), np.take_along_axis(dl[rows], cols, axis=1)
+        ends = np.cumsum(n_grid[rows])
+        cuts = (np.flatnonzero(np.diff(ends // _PEAK_CHUNK)) + 1).tolist()
+        for r0, r1 in zip([0, *cuts], [*cuts, len(rows)]):
+            r = rows[r0:r1]
+            out[r] = _peak_rows(ck[r0:r1], dk[r0:r1], lo[r], hi[r], n_grid[r], bandwidth_chips)
+    return out
+
+
+#: grid points per evaluation of :func:`_peak`
+_PEAK_CHUNK = 16384
+
+
+def _peak_rows(c, dl, lo, hi, n_grid, bandwidth_chips):
+    """:func:`_peak` of rows evaluated at once."""
+    n = len(c)
     sizes = n_grid.tolist()
     lin = {g: np.linspace(0.0, 1.0, g) for g in set(sizes)}
     row = np.repeat(np.arange(n), n_grid)
