@@ -55,3 +55,14 @@ def test_filter_drops_rays_that_miss_the_sphere_and_keeps_those_through_the_tria
     keep = facets.may_reach(fi, origin, np.r_[toward, -toward])
     assert keep[np.arange(200), np.arange(200)].all()
     assert not keep[200 + np.arange(200), np.arange(200)].any()
+
+
+def test_near_through_the_kd_tree_equals_the_scan_of_every_facet(monkeypatch):
+    facets = facets_of(load_scene(str(demo_world_path()), ""))
+    rng = np.random.default_rng(4)
+    ant = np.c_[rng.uniform(-80, 80, 30), rng.uniform(-80, 80, 30), rng.uniform(0.5, 20, 30)]
+    scan = [facets.near(a, r) for a in ant for r in (15.0, 60.0, 100.0)]
+    monkeypatch.setattr(reflections, "TREE_MIN_FACETS", 0)
+    tree = [facets.near(a, r) for a in ant for r in (15.0, 60.0, 100.0)]
+    assert facets._tree is not None and sum(len(x) for x in scan) > 1000
+    assert all(np.array_equal(x, y) for x, y in zip(scan, tree))

@@ -38,6 +38,8 @@ from . import fresnel
 SURFACE_OFFSET_M = 0.02
 #: the antenna -> R cast must reach within this of |R - A| [m]
 REACH_TOLERANCE_M = 0.05
+#: scenes with this many facets or more find those near an antenna through a KD-tree of their centres
+TREE_MIN_FACETS = 2000
 
 
 @dataclass
@@ -97,6 +99,8 @@ class Facets:
         # barycentric solve: R - v0 = s e1 + t e2 (Gram matrix)
         d00, d01, d11 = (np.einsum("ij,ij->i", e1, e1), np.einsum("ij,ij->i", e1, e2), np.einsum("ij,ij->i", e2, e2))
         self._gram = (d00, d01, d11, d00 * d11 - d01 * d01)
+        self._plane_offset = np.einsum("ij,ij->i", self.normal, self.v0)          # n . v0 per facet
+        self._tree = None                                                         # KD-tree of the centres (near)
         names = [c.name for c in world.materials.classes]
         named = {i: fresnel.material_for_class(nm) for i, nm in enumerate(names)}
         explicit = {i: any(h in nm.lower() for h, _ in fresnel.NAME_HINTS) for i, nm in enumerate(names)}
@@ -132,11 +136,23 @@ class Facets:
         return (u @ w.T >= (cos_min * dist)[None, :]) | around[None, :]
 
     def near(self, antenna_m, max_range_m: float) -> np.ndarray:
-        """Indices of the facets that come within ``max_range_m`` of the antenna (3,)."""
+        """Indices of the facets that come within ``max_range_m`` of the antenna (3,): in front of it (plane
+        distance h in (0.05, range]) and their bounding sphere within range.  A scene of many facets first takes
+        the candidates from a KD-tree of the centres (within range + the largest radius + 1 um), then the same
+        test on those only."""
         a = np.asarray(antenna_m, dtype=np.float64)
-        h = np.einsum("ij,j->i", self.normal, a) - np.einsum("ij,ij->i", self.normal, self.v0)
-        dist = np.linalg.norm(self.centroid - a, axis=1) - self.radius
-        return np.flatnonzero((h > 0.05) & (h <= max_range_m) & (dist <= max_range_m))
+        if len(self) < TREE_MIN_FACETS:
+            cand = slice(None)
+        else:
+            if self._tree is None:
+                from scipy.spatial import cKDTree
+                self._tree = cKDTree(self.centroid)
+            reach = max_range_m + float(np.max(self.radius)) + 1e-6
+            cand = np.sort(np.asarray(self._tree.query_ball_point(a, reach), dtype=np.int64))
+        h = np.einsum("ij,j->i", self.normal[cand], a) - self._plane_offset[cand]
+        dist = np.linalg.norm(self.centroid[cand] - a, axis=1) - self.radius[cand]
+        keep = np.flatnonzero((h > 0.05) & (h <= max_range_m) & (dist <= max_range_m))
+        return keep if isinstance(cand, slice) else cand[keep]
 
 
 def search_inputs(antenna_world_m, sat_dirs_world, k: int):
