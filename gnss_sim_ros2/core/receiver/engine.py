@@ -424,6 +424,7 @@ class Receiver:
         in order (its chains have memory): C/N0 of the direct signal's state and echo, the echo's code error."""
         cfg = self.cfg
         in_sight = (b.vis == _VISIBLE_I) | (b.vis == _ATTENUATED_I)
+        sig, cols = [], []                 # per epoch: its signal rows and (level, amplitude, phase, delay) of each
         for e in range(b.k_n):
             s0, s1 = b.seg[e], b.seg[e + 1]
             share = float(np.mean(~in_sight[s0:s1])) if s1 > s0 else 0.0
@@ -437,10 +438,18 @@ class Receiver:
             pick = at[b.sat_i[j0:j1] - s0]
             sel = np.flatnonzero(pick >= 0)
             r = pick[sel]
-            code, mag = code_and_amplitude(level_db[r], amp[r], phase[r], delay_m[r], b.chip[j0 + sel],
-                                           cfg.dll_spacing_chips, cfg.frontend_bandwidth_hz)
-            b.cn0[j0 + sel] += 20.0 * np.log10(np.maximum(mag, 1e-6))
-            b.mp_code[j0 + sel] += code
+            sig.append(j0 + sel)
+            cols.append(np.stack([level_db[r], amp[r], phase[r], delay_m[r]]))
+        if not sig:
+            return
+        # the DLL of every epoch's rows in one call, each epoch's rows with the bits of their own call (calls=)
+        j = np.concatenate(sig)
+        level_db, amp, phase, delay_m = np.concatenate(cols, axis=1)
+        epoch = np.repeat(np.arange(len(sig)), [len(x) for x in sig])
+        code, mag = code_and_amplitude(level_db, amp, phase, delay_m, b.chip[j], cfg.dll_spacing_chips,
+                                       cfg.frontend_bandwidth_hz, calls=epoch)
+        b.cn0[j] += 20.0 * np.log10(np.maximum(mag, 1e-6))
+        b.mp_code[j] += code
 
     def _tracking(self, b: _Block) -> None:
         """The tracking loops, epoch by epoch in order (Tracker.update_many)."""

@@ -120,9 +120,11 @@ def _normal(u: float) -> float:
     return NormalDist().inv_cdf(min(max(float(u), 1e-12), 1 - 1e-12))
 
 
-def code_and_amplitude(level_db, amp, phase, delay_m, chip_m, spacing_chips: float, bandwidth_hz: float):
+def code_and_amplitude(level_db, amp, phase, delay_m, chip_m, spacing_chips: float, bandwidth_hz: float,
+                       calls=None):
     """(code error [m], composite amplitude) of signal rows (J,): the direct signal at ``level_db`` and the echo
-    (amplitude, phase, excess delay) through the DLL (multipath/dll.py)."""
+    (amplitude, phase, excess delay) through the DLL (multipath/dll.py); ``calls``: (J,) labels (an epoch's rows),
+    each label's rows with the bits of a call of its own (dll.tracking_error's ``calls``); None: one call."""
     chip = np.asarray(chip_m, float)
     a0 = 10.0 ** (np.asarray(level_db, float) / 20.0)
     amps = np.column_stack([a0, amp])
@@ -133,6 +135,7 @@ def code_and_amplitude(level_db, amp, phase, delay_m, chip_m, spacing_chips: flo
     bw_chips = bandwidth_hz * chip / k.C_MPS
     for bw in np.unique(bw_chips):
         g = np.flatnonzero(bw_chips == bw)
-        eps, _, m = dll.tracking_error(amps[g], delays[g], phases[g], spacing_chips, float(bw))
+        eps, _, m = dll.tracking_error(amps[g], delays[g], phases[g], spacing_chips, float(bw),
+                                       calls=None if calls is None else np.asarray(calls)[g])
         code[g], mag[g] = eps * chip[g], m
     return code, mag
