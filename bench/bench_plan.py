@@ -9,7 +9,8 @@ on a shared 2-core machine, so ``--cells`` cells spread over the area are planne
 time is extrapolated by the cell count (the work is linear in the cells: same satellites, same chunks).
 
 Printed, on the same rays:
-  * planner: rays / wall time of quality_block (casts, states, DOPs, accuracy, RTK rule: everything a cell costs);
+  * planner: rays / wall time of quality_block (casts, states, DOPs, accuracy, predicted C/N0, RTK rule: everything
+    a cell costs);
   * planner casts: rays / time inside VisibilityOptions.cast (directions, rotations, casts);
   * raw Open3D: test_occlusions on a float32 (K, 6) tensor of the same number of rays (the same antennas, the
     satellites' world directions), prepared beforehand; both timed interleaved, best of --repeat;
@@ -30,6 +31,7 @@ import numpy as np
 from gnss_sim_ros2.core.demo import DEMO_START
 from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris
 from gnss_sim_ros2.core.planning.area import grid_area, ground_z_m
+from gnss_sim_ros2.core.planning.predicted_cn0 import predictor_from_profile
 from gnss_sim_ros2.core.planning.quality import PlanInputs, quality_block
 from gnss_sim_ros2.core.planning.ranging import budget_from_profile
 from gnss_sim_ros2.core.planning.sky import plan_sky, time_steps
@@ -95,7 +97,8 @@ def main() -> int:
     times = time_steps(start, 24.0, 10.0)
     provider, _ = open_ephemeris("synthetic", start, 86400.0, "GREC")
     sky = plan_sky(provider, times, "GREC")
-    inp = PlanInputs(sky.pos_ecef_m, sky.system, budget_from_profile("ublox_f9p", "GREC"))
+    inp = PlanInputs(sky.pos_ecef_m, sky.system, budget_from_profile("ublox_f9p", "GREC"),
+                     cn0=predictor_from_profile("ublox_f9p", "GREC"), t_s=sky.t_s)     # as gnss-sim plan
     vis = VisibilityOptions(mask_deg=10.0)
     print(f"{name}: {area.n_cells:,} cells of 2 m over 1 km x 1 km; planning {len(pick):,} of them x "
           f"{len(sky.t_s)} steps x {len(sky.sv)} satellites")

@@ -72,7 +72,8 @@ def add_arguments(parser):
                              "[dB-Hz] (default 35)")
     parser.add_argument("--threshold", type=float, default=0.95,
                         help="area share of the best windows (default 0.95)")
-    parser.add_argument("--max-rays", type=int, default=1 << 21, help="rays per cast call (memory bound)")
+    parser.add_argument("--max-rays", type=int, default=1 << 18,
+                        help="rays per cast call (memory bound; default 262144)")
     cl = parser.add_mutually_exclusive_group()
     cl.add_argument("--workers", type=int, help="run the blocks on a local Dask cluster of N workers")
     cl.add_argument("--scheduler", metavar="ADDRESS", help="run the blocks on an existing Dask scheduler")

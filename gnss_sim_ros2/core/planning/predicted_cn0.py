@@ -43,52 +43,57 @@ class Cn0Predictor:
     frontend_bandwidth_hz: float
     tracking_cn0_dbhz: float     # the profile's loss-of-lock threshold (a satellite below it is not tracked)
 
-    def cn0_dbhz(self, systems, state, att_db, v, antenna_ecef_m, sat_ecef_m) -> np.ndarray:
+    def cn0_dbhz(self, systems, state, att_db, v, antenna_ecef_m, sat_ecef_m, where=None) -> np.ndarray:
         """(M, S) predicted C/N0 [dB-Hz] of satellites ``systems`` (S,) for cast rows: ``state``, ``att_db``,
         ``v`` as VisibilityOptions.cast returns them, antennas (M, 3) and satellites (M, S, 3) in ECEF.  -inf
-        where not received or the profile does not track the system; NaN below the mask (``v.el_deg``)."""
+        where not received or the profile does not track the system; NaN off ``where`` (M, S) (None: everywhere)."""
         sysv = np.asarray(systems)
         state = np.asarray(state)
         el = np.asarray(v.el_deg, float)
-        rho = np.linalg.norm(np.asarray(sat_ecef_m, float) - np.asarray(antenna_ecef_m, float)[:, None, :], axis=-1)
-        out = np.full(state.shape, -np.inf)
+        att = np.asarray(att_db, float)
+        sel = np.ones(state.shape, bool) if where is None else np.asarray(where, bool)
+        out = np.where(sel, -np.inf, np.nan)
         blocked = (state == int(VisibilityState.BLOCKED)) | (state == int(VisibilityState.REFLECTED_ONLY))
         paths = getattr(v, "paths", None)
+        has = np.isfinite(np.asarray(paths.excess_m)).any(axis=-1) if paths is not None else np.zeros_like(sel)
+        need = sel & (~blocked | has)                 # the entries with a signal: computed there only
+        sat = np.asarray(sat_ecef_m, float)
+        ant = np.asarray(antenna_ecef_m, float)
         for s in np.unique(sysv).tolist():
             if s not in self.signal:
                 continue
             p_edge, el_min, freq, key, chip = self.signal[s]
-            cols = np.flatnonzero(sysv == s)
-            rs, es = np.maximum(rho[:, cols], 1.0), el[:, cols]
-            keys = np.full(es.shape, key)
+            r, c = np.nonzero(need & (sysv == s)[None, :])
+            if not len(r):
+                continue
+            rho = np.maximum(np.linalg.norm(sat[r, c] - ant[r], axis=-1), 1.0)
+            es = el[r, c]
             # the receiver's link budget at the unobstructed line of sight (engine._signal_strength's call)
-            open_sky = cn0_model.cn0_dbhz_from_params(p_edge, el_min, rs, es, 0.0, budget=self.budget,
-                                                      frequency_hz=freq, signal_keys=keys)
-            sub = np.where(blocked[:, cols], -np.inf, open_sky - att_db[:, cols])
+            open_sky = cn0_model.cn0_dbhz_from_params(p_edge, el_min, rho, es, 0.0, budget=self.budget,
+                                                      frequency_hz=freq, signal_keys=np.full(len(r), key))
+            val = np.where(blocked[r, c], -np.inf, open_sky - att[r, c])
             if paths is not None:
-                sub = self._with_paths(sub, open_sky, paths, cols, blocked[:, cols], att_db[:, cols], es, chip, freq)
-            out[:, cols] = sub
-        return np.where(np.isfinite(el), out, np.nan)
+                val = self._with_paths(val, open_sky, paths, r, c, blocked[r, c], att[r, c], es, chip, freq)
+            out[r, c] = val
+        return out
 
-    def _with_paths(self, sub, open_sky, paths, cols, blocked, att, el, chip, freq):
-        """Rows with a reflected path: open-sky C/N0 + 20 log10 |composite amplitude| (engine's reflections)."""
+    def _with_paths(self, val, open_sky, paths, r, c, blocked, att, el, chip, freq):
+        """Entries with a reflected path: open-sky C/N0 + 20 log10 |composite amplitude| (engine's reflections)."""
         from ..multipath.composite import composite_errors
 
-        ex = np.asarray(paths.excess_m)[:, cols]
-        has = np.isfinite(ex).any(axis=-1)
-        if not has.any():
-            return sub
-        r, c = np.nonzero(has)
-        los = np.where(blocked[r, c], 0.0, 10.0 ** (-att[r, c] / 20.0))
-        n = len(r)
-        e = composite_errors(los, ex[r, c], np.asarray(paths.gamma_co)[:, cols][r, c],
-                             np.asarray(paths.gamma_cross)[:, cols][r, c],
-                             np.asarray(paths.arrival_el_deg)[:, cols][r, c], el[r, c], np.full(n, chip),
-                             np.full(n, C_MPS / freq), self.dll_spacing_chips,
+        ex = np.asarray(paths.excess_m)[r, c]
+        k = np.flatnonzero(np.isfinite(ex).any(axis=-1))
+        if not len(k):
+            return val
+        los = np.where(blocked[k], 0.0, 10.0 ** (-att[k] / 20.0))
+        n = len(k)
+        e = composite_errors(los, ex[k], np.asarray(paths.gamma_co)[r[k], c[k]],
+                             np.asarray(paths.gamma_cross)[r[k], c[k]], np.asarray(paths.arrival_el_deg)[r[k], c[k]],
+                             el[k], np.full(n, chip), np.full(n, C_MPS / freq), self.dll_spacing_chips,
                              float(self.frontend_bandwidth_hz * chip / C_MPS), self.antenna)
-        sub = sub.copy()
-        sub[r, c] = open_sky[r, c] + 20.0 * np.log10(np.maximum(e.amplitude, 1e-6))
-        return sub
+        val = val.copy()
+        val[k] = open_sky[k] + 20.0 * np.log10(np.maximum(e.amplitude, 1e-6))
+        return val
 
 
 def predictor_from_profile(profile: str, systems: str) -> Cn0Predictor:

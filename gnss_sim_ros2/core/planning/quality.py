@@ -28,8 +28,12 @@ from .rtk_rule import RtkArcs, RtkRule
 FIELDS = {"n_los": np.int16, "n_attenuated": np.int16, "n_reflected": np.int16, "n_blocked": np.int16,
           "gdop": np.float32, "pdop": np.float32, "hdop": np.float32, "vdop": np.float32,
           "nlos_share": np.float32, "h_acc_m": np.float32, "n_rtk": np.int16, "rtk": np.bool_, "n_good": np.int16}
-#: rays per cast call (cells x times x satellites of a chunk): bounds the chunk's memory (about 200 B a ray)
-DEFAULT_MAX_RAYS = 1 << 21
+#: rays per cast call (cells x times x satellites of a chunk): bounds the chunk's memory (about 200 B a ray); a
+#: quarter of a million keeps the chunk's arrays near the caches: 2,000 Hong Kong cells x 24 h took 9.4 s a block
+#: at 1 << 18 against 15.0 s at 1 << 21 (bench_plan.py, docs/BENCHMARKS.md)
+DEFAULT_MAX_RAYS = 1 << 18
+#: rays of one task's block of cells (cell_blocks): at least this x 8 (a task's fixed cost spread over its cells)
+BLOCK_BASE_RAYS = 1 << 21
 
 
 @dataclass
@@ -72,14 +76,13 @@ def quality_block(scene, vis, antenna_world_m, inp: PlanInputs, stats=None, stat
     centre_ecef = scene.antenna_ecef(mid[None])[0]
     # the vertical turns by (distance / Earth radius) across the block; 0.1 deg more for the world's flatness
     margin_deg = np.degrees(np.max(np.linalg.norm(ant - mid, axis=1)) / 6.371e6) + 0.1
-    tc = int(max(1, min(n_t, inp.max_rays // max(1, c * n_s))))
-    for t0 in range(0, n_t, tc):
-        tt = np.arange(t0, min(n_t, t0 + tc))
+    # only the satellites that can be above the mask somewhere in the block (the rest are never cast):
+    # elevation at the block's centre, less the largest tilt of the vertical across the block
+    el_c = np.nan_to_num(_elevation_deg(centre_ecef, sat_all), nan=-90.0)
+    up_all = np.isfinite(sat_all[..., 0]) & (el_c >= vis.mask_deg - margin_deg)                 # (T, S)
+    for tt in _time_windows(up_all, c, inp.max_rays):
+        cols = np.flatnonzero(up_all[tt].any(axis=0))
         present_t = np.isfinite(sat_all[tt, :, 0])                     # (Tc, S)
-        # only the satellites that can be above the mask somewhere in the block (the rest are never cast):
-        # elevation at the block's centre, less the largest tilt of the vertical across the block
-        el_c = np.nan_to_num(_elevation_deg(centre_ecef, sat_all[tt]), nan=-90.0)
-        cols = np.flatnonzero((present_t & (el_c >= vis.mask_deg - margin_deg)).any(axis=0))
         sat = np.where(np.isfinite(sat_all[tt][:, cols]), sat_all[tt][:, cols], 0.0)     # (Tc, S', 3)
         m_rows = c * len(tt)
         ant_rows = np.repeat(ant, len(tt), axis=0)                     # row = cell * Tc + time
@@ -113,24 +116,53 @@ def quality_block(scene, vis, antenna_world_m, inp: PlanInputs, stats=None, stat
     return out
 
 
+#: a chunk's times share one set of satellite columns: a step joins the chunk while the union of the satellites up
+#: stays within this factor of the most up at one step (the casts and the per-row work scale with the columns)
+WINDOW_UNION_FACTOR = 1.25
+
+
+def _time_windows(up, n_cells: int, max_rays: int) -> list[np.ndarray]:
+    """Consecutive time steps in chunks (indices): at most ``max_rays`` cells x steps x union columns, and the union
+    of the satellites ``up`` (T, S) within WINDOW_UNION_FACTOR of the largest count of one step."""
+    out, n_t = [], len(up)
+    t0 = 0
+    while t0 < n_t:
+        union, most, t1 = up[t0].copy(), int(up[t0].sum()), t0 + 1
+        while t1 < n_t:
+            u = union | up[t1]
+            n_u, most_1 = int(u.sum()), max(most, int(up[t1].sum()))
+            if n_u > WINDOW_UNION_FACTOR * most_1 or n_cells * (t1 + 1 - t0) * n_u > max_rays:
+                break
+            union, most, t1 = u, most_1, t1 + 1
+        out.append(np.arange(t0, t1))
+        t0 = t1
+    return out
+
+
 def _rows_quality(state, att, v, above, sysv, clock, dual, inp: PlanInputs, cn0=None):
     """Per antenna row (M rows x S satellites of one cast): the FIELDS but the RTK ones, the RTK candidates (M, S)
     (dual-frequency, tracked above the AR mask: rtk_rule.py; ``cn0`` the predicted C/N0 or None) and the
-    line-of-sight unit vectors (e, n, u)."""
+    line-of-sight unit vectors (e, n, u) of the used satellites (0 for the others)."""
     el, az = np.asarray(v.el_deg), np.asarray(v.az_deg)
     los = above & (state == int(VisibilityState.VISIBLE))
     attn = above & (state == int(VisibilityState.ATTENUATED))
     refl = above & (state == int(VisibilityState.REFLECTED_ONLY))
     blocked = above & (state == int(VisibilityState.BLOCKED))
     used = los | attn | refl
-    ce, el_r = np.cos(np.radians(el)), np.radians(el)
-    los_enu = (ce * np.sin(np.radians(az)), ce * np.cos(np.radians(az)), np.sin(el_r))
+    r, k = np.nonzero(used)              # the used satellites only: the DOPs weigh the others 0, sigma ignores them
+    el_u, az_u = el[r, k], az[r, k]
+    ce, el_r = np.cos(np.radians(el_u)), np.radians(el_u)
+    los_enu = tuple(np.zeros(used.shape) for _ in range(3))
+    for dst, val in zip(los_enu, (ce * np.sin(np.radians(az_u)), ce * np.cos(np.radians(az_u)), np.sin(el_r))):
+        dst[r, k] = val
     gdop, pdop, hdop, vdop, _ = dops_from_los_enu(los_enu, used, clock)
-    excess = np.where(refl, np.nan_to_num(np.asarray(v.extra_path_m, float)), 0.0)
-    sigma = inp.budget.sigma_m(sysv, el, np.where(attn, att, 0.0), excess)
+    excess = np.where(refl[r, k], np.nan_to_num(np.asarray(v.extra_path_m, float)[r, k]), 0.0)
+    var = np.zeros(used.shape)
+    var[r, k] = inp.budget.sigma_entries_m(np.asarray(sysv)[k], el_u, np.where(attn[r, k], att[r, k], 0.0),
+                                           excess) ** 2
     n_used = used.sum(axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
-        uere = np.sqrt(np.where(used, sigma**2, 0.0).sum(axis=1) / n_used)
+        uere = np.sqrt(var.sum(axis=1) / n_used)
         nlos = refl.sum(axis=1) / n_used
     tracked = los
     if cn0 is not None and inp.rule.count_attenuated:         # through foliage, strong enough to stay in lock
@@ -205,8 +237,7 @@ def _predicted_cn0(scene, inp: PlanInputs, sysv, state, att, v, above, ant_world
     """(M, S) C/N0 predicted by ``inp.cn0`` (predicted_cn0.py), NaN off ``above``; None without a predictor."""
     if inp.cn0 is None:
         return None
-    cn0 = inp.cn0.cn0_dbhz(sysv, state, att, v, scene.antenna_ecef(ant_world_m), sat_ecef_m)
-    return np.where(above, cn0, np.nan)
+    return inp.cn0.cn0_dbhz(sysv, state, att, v, scene.antenna_ecef(ant_world_m), sat_ecef_m, where=above)
 
 
 def _n_good(cn0, inp: PlanInputs, n_rows: int) -> np.ndarray:
@@ -227,7 +258,7 @@ def _elevation_deg(rx_ecef_m, sat_ecef_m) -> np.ndarray:
 
 def cell_blocks(n_cells: int, n_times: int, n_sats: int, max_rays: int = DEFAULT_MAX_RAYS,
                 min_block: int = 1) -> list[slice]:
-    """Slices of cells for one task each: about ``max_rays`` x 8 rays a block (the block then steps through
-    its times ``max_rays`` at a time), at least ``min_block`` cells."""
-    per = max(min_block, int(8 * max_rays // max(1, n_times * n_sats)))
+    """Slices of cells for one task each: about max(``max_rays``, BLOCK_BASE_RAYS) x 8 rays a block (the block
+    then steps through its times ``max_rays`` at a time), at least ``min_block`` cells."""
+    per = max(min_block, int(8 * max(max_rays, BLOCK_BASE_RAYS) // max(1, n_times * n_sats)))
     return [slice(i, min(n_cells, i + per)) for i in range(0, n_cells, per)]

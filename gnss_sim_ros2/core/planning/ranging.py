@@ -51,6 +51,14 @@ class RangingBudget:
 
     def sigma_m(self, systems, el_deg, attenuation_db=0.0, nlos_excess_m=0.0) -> np.ndarray:
         """(K, N) sigma_i [m] of satellites of ``systems`` (N,) letters at ``el_deg`` (K, N) (module doc)."""
+        el = np.asarray(el_deg, np.float64)
+        sysv = np.broadcast_to(np.asarray(systems), el.shape)
+        att = np.broadcast_to(np.asarray(attenuation_db, float), el.shape)
+        ex = np.broadcast_to(np.asarray(nlos_excess_m, float), el.shape)
+        return self.sigma_entries_m(sysv.ravel(), el.ravel(), att.ravel(), ex.ravel()).reshape(el.shape)
+
+    def sigma_entries_m(self, systems, el_deg, attenuation_db, nlos_excess_m) -> np.ndarray:
+        """sigma_i [m] of entries (K,): system letter, elevation, attenuation and NLOS excess each (K,)."""
         el = np.clip(np.asarray(el_deg, np.float64), 1.0, 90.0)
         e = el / 180.0
         obliq = 1.0 + 16.0 * (0.53 - e) ** 3                         # IS-GPS-200N 20.3.3.5.2.5
@@ -58,10 +66,10 @@ class RangingBudget:
         var = var + (TROPO_RESIDUAL_ZENITH_M / np.sin(np.radians(el))) ** 2
         var = var + self.multipath.sigma_m(el) ** 2
         sysv = np.asarray(systems)
-        cn0 = NOMINAL_LOS_CN0_DBHZ - np.broadcast_to(np.asarray(attenuation_db, float), el.shape)
+        cn0 = NOMINAL_LOS_CN0_DBHZ - np.asarray(attenuation_db, float)
         for s in np.unique(sysv).tolist():
-            cols = sysv == s
-            var[:, cols] += self.sisre_m.get(s, 1.5) ** 2 + self.thermal[s](cn0[:, cols]) ** 2
+            k = sysv == s
+            var[k] += self.sisre_m.get(s, 1.5) ** 2 + self.thermal[s](cn0[k]) ** 2
         return np.sqrt(var + np.asarray(nlos_excess_m, float) ** 2)
 
 
