@@ -16,13 +16,23 @@ from gnss_sim_ros2.core.simulation import chain_settings, setup_from_config, vis
 from gnss_sim_ros2.core.visibility import VisibilityOptions
 from gnss_sim_ros2.parameters import SHARED, SHARED_KEY, params_of
 
-#: values the generic rule below would make invalid (a rule between parameters, a format)
+REPO = Path(__file__).resolve().parents[1]
+
+#: values the generic rule below would make invalid (a rule between parameters, a format, a file that must exist)
 OTHER_VALUES = {"start_time": "2025-06-02T11:00:00", "systems": "GE", "cn0_lose_dbhz": 20.0,
-                "antenna_position": [1.0, 2.0, 3.0], "profile": "ublox_f9p"}
+                "antenna_position": [1.0, 2.0, 3.0], "profile": "ublox_f9p",
+                "scenario": str(REPO / "config" / "scenarios" / "courtyard_threats.yaml"),
+                "obstacle_models": ["bus"]}
+#: parameters another one must accompany (rules between parameters of the table)
+PARTNERS = {"obstacle_models": {"obstacle_pose_topic": "/world/demo/dynamic_pose/info"}}
 
 
-def other_value(p):
-    """A valid value of parameter ``p`` other than its default."""
+def other_value(p, tmp_path=None):
+    """A valid value of parameter ``p`` other than its default (files it names written under ``tmp_path``)."""
+    if p.name == "sky_mask_csv":
+        mask = tmp_path / "mask.csv"
+        mask.write_text("azimuth_deg,elevation_deg\n" + "".join(f"{a},{15 + a % 20}\n" for a in range(0, 360, 10)))
+        return str(mask)
     if p.name in OTHER_VALUES:
         return OTHER_VALUES[p.name]
     if p.choices:
@@ -48,9 +58,14 @@ def node_params(cfg, key: str) -> dict:
 
 def config_with(key: str, p, value):
     """The default configuration with ``p`` (of node ``key``) set to ``value``, and a world given (a node loads the
-    demo courtyard for none, as the offline run does along the player's path)."""
-    overrides = {"visibility": {"world_file": str(demo_world_path())}}
+    demo courtyard for none, as the offline run does along the player's path; a sky mask is the scene instead, of
+    a static antenna)."""
+    if p.name == "sky_mask_csv":
+        overrides = {"visibility": {"antenna_position": [22.3, 114.17, 10.0], "antenna_position_type": "llh"}}
+    else:
+        overrides = {"visibility": {"world_file": str(demo_world_path())}}
     overrides.setdefault(SHARED_KEY if p in SHARED else key, {})[p.name] = value
+    overrides.setdefault(key, {}).update(PARTNERS.get(p.name, {}))
     return load_config(None, overrides)
 
 
@@ -59,7 +74,7 @@ CASES = [(key, p) for key in ("receiver", "visibility") for p in params_of(key)]
 
 @pytest.mark.parametrize(("key", "p"), CASES, ids=[f"{k}.{p.name}" for k, p in CASES])
 def test_every_parameter_reaches_the_offline_chain_as_the_node_gets_it(tmp_path, key, p):
-    value = other_value(p)
+    value = other_value(p, tmp_path)
     cfg = config_with(key, p, value)
     rcv, vis = node_params(cfg, "receiver"), node_params(cfg, "visibility")
     assert (rcv if key == "receiver" else vis)[p.name] == value          # the node gets the value set

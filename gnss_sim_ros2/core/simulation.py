@@ -161,7 +161,7 @@ def setup_from_config(cfg, out_dir: Path, trajectory: Trajectory | None = None, 
         from .visibility.sky_mask import check_mask_options, mask_scene, static_antenna_ecef
 
         trajectory, ecef = static_antenna_ecef(vis["antenna_position"], vis["antenna_position_type"], trajectory)
-        vis["multipath"] = check_mask_options(VisibilityOptions.from_params(vis), "parameter 'sky_mask_csv'").multipath
+        check_mask_options(VisibilityOptions.from_params(vis), "parameter 'sky_mask_csv'")
         extra["scene"] = mask_scene(vis["sky_mask_csv"], ecef)
     if trajectory is None:
         trajectory = antenna_path(robot_path(trj), trj["antenna_offset_m"])

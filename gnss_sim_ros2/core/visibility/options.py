@@ -47,7 +47,7 @@ class VisibilityOptions:
                    foliage=sw["foliage"], use_visuals=bool(p.get("use_visuals", False)),
                    keep_dynamic=bool(p.get("keep_dynamic_models", False)),
                    strict_world=bool(p.get("strict_world", True)),
-                   multipath=p.get("multipath") or sw.get("multipath", "off"),
+                   multipath=_multipath_mode(p, sw),
                    multipath_range_m=float(p.get("multipath_range_m", 100.0)),
                    multipath_max_paths=int(p.get("multipath_max_paths", 3)),
                    multipath_diffraction=bool(p.get("multipath_diffraction", False)),
@@ -80,3 +80,10 @@ class VisibilityOptions:
             state, edge_db = cast_paths(self, scene, antenna_world_m, sat_ecef_m, v, state)
             att = att + edge_db
         return state, att, v
+
+
+def _multipath_mode(p: dict, switches: dict) -> str:
+    """Parameter multipath, else the preset's; ``auto`` (the scene decides) is off on a sky mask (parameter
+    sky_mask_csv), which has no walls: one rule for the visibility node and the offline run."""
+    mode = p.get("multipath") or switches.get("multipath", "off")
+    return "off" if mode == "auto" and p.get("sky_mask_csv") else mode
