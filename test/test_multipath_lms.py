@@ -177,3 +177,29 @@ def test_street_canyon_with_the_layer_batch_equals_epoch_by_epoch(tmp_path, tmp_
     off_setup = dataclasses.replace(setup.with_params(lms_environment="off"), out_dir=tmp_path / "off")
     _, off = _record(off_setup, batch=True)
     assert any(not np.array_equal(x[0].pseudorange_m, y[0].pseudorange_m) for x, y in zip(a, off))   # it acted
+
+
+
+def test_repeated_rows_go_through_the_dll_once_with_the_bits_of_every_row():
+    """code_and_amplitude computes rows equal in every input and call label once: its result equals the DLL of
+    every row (the private _code_and_amplitude, nothing merged) bit for bit, with repeated rows anywhere in the
+    order and rows equal but for their call label (whose call may search a wider grid) kept apart."""
+    from gnss_sim_ros2.core.receiver import lms_channel
+
+    rng = np.random.default_rng(5)
+    n = 60
+    rows = np.column_stack([rng.normal(-3.0, 4.0, n), rng.rayleigh(0.2, n), rng.uniform(-np.pi, np.pi, n),
+                            rng.exponential(25.0, n), rng.choice([293.05, 29.305, 146.53], n),
+                            rng.integers(0, 5, n)])
+    rows[0, 3] = 400.0                                        # call rows[0, 5]'s grid is wider than the others'
+    relabelled = rows[:20].copy()
+    relabelled[:, 5] = (relabelled[:, 5] + 1) % 5               # the same inputs in another call
+    every = np.vstack([rows, rows[rng.integers(0, n, 90)], relabelled])[rng.permutation(n + 110)]
+    assert len(np.unique(every, axis=0)) < len(every)           # repeated rows there are
+    for lab in (every[:, 5].astype(int), None):
+        want = lms_channel._code_and_amplitude(*every[:, :5].T, 0.1, 4e6, lab)
+        got = lms_channel.code_and_amplitude(*every[:, :5].T, 0.1, 4e6, calls=lab)
+        for w, g in zip(want, got):
+            assert np.array_equal(w.view(np.int64), g.view(np.int64))
+    empty = lms_channel.code_and_amplitude(*(np.empty(0) for _ in range(5)), 0.1, 4e6, calls=np.empty(0, int))
+    assert empty[0].shape == (0,) and empty[1].shape == (0,)

@@ -124,11 +124,33 @@ def code_and_amplitude(level_db, amp, phase, delay_m, chip_m, spacing_chips: flo
                        calls=None):
     """(code error [m], composite amplitude) of signal rows (J,): the direct signal at ``level_db`` and the echo
     (amplitude, phase, excess delay) through the DLL (multipath/dll.py); ``calls``: (J,) labels (an epoch's rows),
-    each label's rows with the bits of a call of its own (dll.tracking_error's ``calls``); None: one call."""
+    each label's rows with the bits of a call of its own (dll.tracking_error's ``calls``); None: one call.
+
+    Rows equal bit for bit in every input and label (a satellite's signals of one chip rate in one epoch: the
+    same state, echo and DLL bandwidth) go through the DLL once, the first of them in the rows' order: a row's
+    result depends on its own inputs and its call's widest delay span only, which a repeated row leaves as it is."""
     chip = np.asarray(chip_m, float)
-    a0 = 10.0 ** (np.asarray(level_db, float) / 20.0)
+    cols = [np.asarray(x, float) for x in (level_db, amp, phase, delay_m)]
+    label = np.zeros(len(chip), np.int64) if calls is None else np.unique(np.asarray(calls), return_inverse=True)[1]
+    if len(chip) == 0:
+        return np.empty(0), np.empty(0)
+    bits = np.column_stack([label.astype(float).reshape(-1), chip, *cols]).view(np.int64)
+    _, first, back = np.unique(bits, axis=0, return_index=True, return_inverse=True)
+    order = np.argsort(first)                     # the distinct rows in the order they come
+    rank = np.empty(len(order), np.int64)
+    rank[order] = np.arange(len(order))
+    keep = first[order]
+    code, mag = _code_and_amplitude(*(c[keep] for c in cols), chip[keep], spacing_chips, bandwidth_hz,
+                                    None if calls is None else label.reshape(-1)[keep])
+    back = rank[back.reshape(-1)]
+    return code[back], mag[back]
+
+
+def _code_and_amplitude(level_db, amp, phase, delay_m, chip, spacing_chips: float, bandwidth_hz: float, calls):
+    """:func:`code_and_amplitude` of distinct rows."""
+    a0 = 10.0 ** (level_db / 20.0)
     amps = np.column_stack([a0, amp])
-    delays = np.column_stack([np.zeros(len(a0)), np.asarray(delay_m, float) / chip])
+    delays = np.column_stack([np.zeros(len(a0)), delay_m / chip])
     phases = np.column_stack([np.zeros(len(a0)), phase])
     code = np.empty(len(a0))
     mag = np.empty(len(a0))
@@ -136,6 +158,6 @@ def code_and_amplitude(level_db, amp, phase, delay_m, chip_m, spacing_chips: flo
     for bw in np.unique(bw_chips):
         g = np.flatnonzero(bw_chips == bw)
         eps, _, m = dll.tracking_error(amps[g], delays[g], phases[g], spacing_chips, float(bw),
-                                       calls=None if calls is None else np.asarray(calls)[g])
+                                       calls=None if calls is None else calls[g])
         code[g], mag[g] = eps * chip[g], m
     return code, mag
