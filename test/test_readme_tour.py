@@ -27,7 +27,7 @@ REPO_ROOT = Path(__file__).resolve().parents[1]
 SECTION = "A 5-minute tour"
 #: options whose value is a path the command writes
 OUTPUT_OPTIONS = ("--out", "--csv", "--png", "-o")
-#: per command [s]: the longest (make demo) takes about 25 s once set up, longer on a loaded machine
+#: per command [s]: the longest (make demo) takes a few minutes on a loaded machine (145 s at load 6)
 TIMEOUT_S = 600
 
 pytestmark = pytest.mark.slow
