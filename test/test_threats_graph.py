@@ -1,6 +1,7 @@
 """A scenario through the ROS graph (``gnss-sim run --scenario``) and offline (``gnss-sim simulate
---scenario``): one chain, one answer -- every output fault, a clock jump and a jammer give the same fix.csv,
-truth labels included, and the bag records /gnss/threats/active."""
+--scenario``): one chain, one answer -- every fault kind (output faults, a clock jump, the satellite faults on G10,
+a satellite the demo tracks from the start) and a jammer give the same fix.csv, truth labels included, and the bag
+records /gnss/threats/active.  What each kind does is tested offline in test_threats_faults.py."""
 from __future__ import annotations
 
 import csv
@@ -29,6 +30,9 @@ events:
     bandwidth_hz: 10.0e6
     start_s: 17
     end_s: 20
+  - {type: fault, name: step, kind: satellite_clock_step_m, satellite: G10, step_m: 25.0, start_s: 21, end_s: 23}
+  - {type: fault, name: ramp, kind: satellite_ramp_mps, satellite: G10, ramp_mps: 3.0, start_s: 23, end_s: 25}
+  - {type: fault, name: eph, kind: bad_ephemeris, satellite: G10, error_m: 50.0, start_s: 25, end_s: 27}
 """
 
 
@@ -47,20 +51,22 @@ def _rows(path):
 def test_run_and_simulate_apply_one_scenario_alike(tmp_path):
     scn = tmp_path / "scenario.yaml"
     scn.write_text(SCENARIO)
-    run = _cli("run", "--duration", "22", "--scenario", str(scn), "--out", str(tmp_path / "run"), "--quiet")
+    run = _cli("run", "--duration", "28", "--scenario", str(scn), "--out", str(tmp_path / "run"), "--quiet")
     assert run.returncode == 0, run.stderr[-3000:]
-    sim = _cli("simulate", "--duration", "22", "--scenario", str(scn), "--out", str(tmp_path / "sim"), "--quiet")
+    sim = _cli("simulate", "--duration", "28", "--scenario", str(scn), "--out", str(tmp_path / "sim"), "--quiet")
     assert sim.returncode == 0, sim.stderr[-3000:]
     a, b = _rows(tmp_path / "run" / "fix.csv"), _rows(tmp_path / "sim" / "fix.csv")
-    assert a == b and len(a) == 23
+    assert a == b and len(a) == 29
     labels = [r["active_events"] for r in a]
     assert labels[3:6] == ["shift"] * 3 and labels[7:10] == ["frozen"] * 3 and labels[11:13] == ["dead"] * 2
-    assert labels[14:16] == ["jump"] * 2 and labels[17:20] == ["ppd"] * 3 and labels[0] == labels[21] == ""
+    assert labels[14:16] == ["jump"] * 2 and labels[17:20] == ["ppd"] * 3 and labels[0] == labels[20] == ""
+    assert labels[21:23] == ["step"] * 2 and labels[23:25] == ["ramp"] * 2 and labels[25:27] == ["eph"] * 2
+    assert labels[27] == ""
     assert all(r["status"] == "no_fix" and r["n_sats"] == "0" for r in a[11:13])           # off
     assert len({(r["lat_deg"], r["lon_deg"]) for r in a[6:10]}) == 1                        # stuck: epoch 6's
     assert max(int(r["n_sats"]) for r in a[17:20]) < min(int(r["n_sats"]) for r in a[:3])  # L1 jammed
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
-    assert summary["bag_messages"]["/gnss/threats/active"] == 23
+    assert summary["bag_messages"]["/gnss/threats/active"] == 29
 
 
 @pytest.mark.slow
