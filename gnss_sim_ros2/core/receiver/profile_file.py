@@ -121,19 +121,24 @@ def read(source: str | Path | Mapping, owner: type) -> ReceiverProfile:
 
 @functools.lru_cache(maxsize=32)
 def _read_file(path: str, _mtime_ns: int, _size: int, owner: type) -> ReceiverProfile:
+    where = f"receiver profile {path}"
+    doc, node = read_yaml(path, where, _loader(), ProfileError)
+    return _validate(doc, node, where, Path(path).stem, path, owner)
+
+
+def read_yaml(path, where: str, loader, error: type[ValueError]):
+    """(document, node tree with line marks) of a YAML file read with ``loader``; ``error`` (a ValueError
+    subclass) naming ``where`` when the file cannot be read or is not YAML (profiles, scenario files)."""
     import yaml
 
-    where = f"receiver profile {path}"
     try:
         text = Path(path).read_text()
     except (OSError, UnicodeDecodeError) as exc:
-        raise ProfileError(f"{where}: cannot be read: {exc}") from None
+        raise error(f"{where}: cannot be read: {exc}") from None
     try:
-        node = yaml.compose(text, Loader=_loader())
-        doc = yaml.load(text, Loader=_loader())
+        return yaml.load(text, Loader=loader), yaml.compose(text, Loader=loader)
     except yaml.YAMLError as exc:
-        raise ProfileError(f"{where}: not valid YAML: {exc}") from None
-    return _validate(doc, node, where, Path(path).stem, path, owner)
+        raise error(f"{where}: not valid YAML: {exc}") from None
 
 
 @functools.lru_cache(maxsize=1)

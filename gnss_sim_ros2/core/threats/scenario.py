@@ -44,7 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..receiver.profile_file import _line, _loader, _path_text
+from ..receiver.profile_file import _line, _loader, _path_text, read_yaml
 from ..vocabulary import SYSTEMS
 
 SCHEMA_VERSION = 1
@@ -179,17 +179,7 @@ def load_scenario(path) -> Scenario:
     """The validated scenario of a YAML file; :class:`ScenarioError` naming file, line and key."""
     p = Path(path).expanduser()
     where = f"scenario {p}"
-    try:
-        text = p.read_text()
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ScenarioError(f"{where}: cannot be read: {exc}") from None
-    import yaml
-
-    try:
-        node = yaml.compose(text, Loader=_scenario_loader())
-        doc = yaml.load(text, Loader=_scenario_loader())
-    except yaml.YAMLError as exc:
-        raise ScenarioError(f"{where}: not valid YAML: {exc}") from None
+    doc, node = read_yaml(p, where, _scenario_loader(), ScenarioError)
     return parse_scenario(doc, node, where, source=str(p.resolve()))
 
 
