@@ -110,16 +110,7 @@ class FleetVisibilityNode(VisibilityNode):
         from gnss_sim_ros2.core.visibility.moving_obstacles import MovingBoxes
 
         p = self.params
-        base, rot, present = [], [], []
-        for b, frame in enumerate(self.fleet_obstacle_frames):
-            try:
-                tr, r = self.tf.lookup(p["world_frame"], frame, stamp)
-            except LookupError:
-                self.obstacles_missing += 1
-                continue
-            base.append(np.asarray(tr, dtype=float))
-            rot.append(r.as_matrix())
-            present.append(b)
+        base, rot, present = self._frame_poses(self.fleet_obstacle_frames, stamp)
         m = len(robots)
         boxes = None
         if present:

@@ -192,6 +192,22 @@ class VisibilityNode(GnssSimNode):
                                                tf.header.stamp.sec + tf.header.stamp.nanosec * 1e-9,
                                                (tr.x, tr.y, tr.z), (q.x, q.y, q.z, q.w))
 
+    def _frame_poses(self, frames, stamp):
+        """(origins (B, 3) list, rotation matrices list, indices into ``frames``) of the obstacle ``frames`` TF
+        has at ``stamp`` in world_frame; a frame it lacks blocks nothing this epoch and is counted
+        (obstacles_missing), without waiting for it."""
+        base, rot, present = [], [], []
+        for b, frame in enumerate(frames):
+            try:
+                tr, r = self.tf.lookup(self.params["world_frame"], frame, stamp)
+            except LookupError:
+                self.obstacles_missing += 1
+                continue
+            base.append(np.asarray(tr, dtype=float))
+            rot.append(r.as_matrix())
+            present.append(b)
+        return base, rot, present
+
     def _obstacles(self, stamp):
         """The moving boxes at ``stamp`` (core.visibility.moving_obstacles.MovingBoxes, one antenna row), or None."""
         if not self.obstacle_frames and self.model_poses is None:
@@ -199,16 +215,8 @@ class VisibilityNode(GnssSimNode):
         from gnss_sim_ros2.core.visibility.moving_obstacles import MovingBoxes
 
         p = self.params
-        base, rot, size = [], [], []
-        for frame in self.obstacle_frames:
-            try:
-                tr, r = self.tf.lookup(p["world_frame"], frame, stamp)
-            except LookupError:
-                self.obstacles_missing += 1
-                continue
-            base.append(np.asarray(tr, dtype=float))
-            rot.append(r.as_matrix())
-            size.append(p["obstacle_box_size_m"])
+        base, rot, present = self._frame_poses(self.obstacle_frames, stamp)
+        size = [p["obstacle_box_size_m"]] * len(present)
         if self.model_poses is not None:
             known = self.model_poses.frames()
             for model in p["obstacle_models"]:
