@@ -1,5 +1,6 @@
 """What the launch tests share: a probe node in the test process (a simulated /clock, the
-fixes, lifecycle and composition service calls), the ``ros2`` command line, RINEX epochs."""
+fixes, lifecycle and composition service calls), the ``ros2`` command line, RINEX epochs, the launch of
+sim.launch.py with a configuration file of the test's own, the checks of the robot launch tests."""
 from __future__ import annotations
 
 import os
@@ -8,15 +9,21 @@ import threading
 import time
 from pathlib import Path
 
+import launch
+import launch_testing.actions
 import launch_testing.asserts
+import numpy as np
 import rclpy
+import yaml
+from ament_index_python.packages import get_package_share_directory
 from builtin_interfaces.msg import Time
+from launch.launch_description_sources import PythonLaunchDescriptionSource
 from lifecycle_msgs.msg import Transition
 from lifecycle_msgs.srv import ChangeState, GetState
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import NavSatFix
+from sensor_msgs.msg import NavSatFix, NavSatStatus
 
 from gnss_sim_ros2 import graph
 
@@ -146,6 +153,59 @@ class RobotFixes:
     def all_reached(self, t_s: float) -> bool:
         """Every robot has a fix stamped t_s or later."""
         return all(f and stamp_s(f[-1].header.stamp) >= t_s for f in self.copy().values())
+
+
+def sim_launch_description(out: Path, params: dict[str, dict], arguments: dict[str, str]) -> launch.LaunchDescription:
+    """`ros2 launch gnss_sim sim.launch.py` with ``arguments``, ``config:=`` out/config.yaml (written from
+    ``params``: node name -> its ros__parameters) and ``output_dir:=`` out/out; then ReadyToTest."""
+    cfg = out / "config.yaml"
+    cfg.write_text(yaml.safe_dump({node: {"ros__parameters": p} for node, p in params.items()}))
+    sim = launch.actions.IncludeLaunchDescription(
+        PythonLaunchDescriptionSource(os.path.join(get_package_share_directory("gnss_sim"), "launch",
+                                                   "sim.launch.py")),
+        launch_arguments={**arguments, "config": str(cfg), "output_dir": str(out / "out")}.items())
+    return launch.LaunchDescription([sim, launch_testing.actions.ReadyToTest()])
+
+
+class RobotLaunchCase:
+    """The running part of a robot launch test (mixed into its ``unittest.TestCase``, whose class sets SPEED
+    and ROBOTS): the probe publishing /clock at SPEED x, each robot's fixes, and the checks they share."""
+
+    SPEED: float
+    ROBOTS: int
+
+    @classmethod
+    def setUpClass(cls):
+        cls.probe = Probe(cls.SPEED)
+        cls.robot_fixes = RobotFixes(cls.probe, cls.ROBOTS)
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.probe.close()
+
+    def assert_all_active(self, node_paths, timeout_s: float = 180.0):
+        """Every node in node_paths answers and is active within timeout_s."""
+        probe = self.probe
+        ok = probe.wait_for(lambda: all(probe.state_or_none(n) == "active" for n in node_paths), timeout_s)
+        self.assertTrue(ok, {n: probe.state_or_none(n) for n in node_paths})
+
+    def robot_fixes_until(self, run_s: float, timeout_s: float) -> dict[int, list[NavSatFix]]:
+        """Each robot's fixes once every robot has one stamped run_s or later (within timeout_s), none on
+        /gnss/fix, each robot's 1 s apart."""
+        got = self.probe.wait_for(lambda: self.robot_fixes.all_reached(run_s), timeout_s)
+        fixes = self.robot_fixes.copy()
+        self.assertTrue(got, {k: len(f) for k, f in fixes.items()})
+        self.assertEqual(self.probe.fixes_copy(), [], "fixes on /gnss/fix: the robots' topics are their own")
+        for k in range(self.ROBOTS):
+            t = np.array([stamp_s(f.header.stamp) for f in fixes[k]])
+            self.assertTrue(np.allclose(np.diff(t), 1.0, atol=1e-6), f"robot{k}: fix intervals {np.diff(t)}")
+        return fixes
+
+    def valid_fixes(self, fixes: list[NavSatFix], k: int) -> list[NavSatFix]:
+        """Robot k's fixes with a position (status not NO_FIX), checked to be more than 80 % of them."""
+        valid = [f for f in fixes if f.status.status != NavSatStatus.STATUS_NO_FIX]
+        self.assertGreater(len(valid), 0.8 * len(fixes), f"robot{k}")
+        return valid
 
 
 def check_robot_rinex(case, out: Path, robots: int, marker: str, min_epochs: int):

@@ -22,17 +22,11 @@ import pytest
 pytest.importorskip("launch_testing", reason="launch_testing is not installed here: `make test` runs this file "
                     "with launch_test in .venv-launch (../shared/ros2-tools); on a ROS install: launch_test FILE")
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # launch_helpers (launch_test adds no path)
-import launch  # noqa: E402
 import launch_testing  # noqa: E402
-import launch_testing.actions  # noqa: E402
 import numpy as np  # noqa: E402
 import pymap3d  # noqa: E402
-import yaml  # noqa: E402
-from ament_index_python.packages import get_package_share_directory  # noqa: E402
 from composition_interfaces.srv import ListNodes  # noqa: E402
-from launch.launch_description_sources import PythonLaunchDescriptionSource  # noqa: E402
-from launch_helpers import ExitsCleanly, Probe, RobotFixes, check_robot_rinex, stamp_s  # noqa: E402
-from sensor_msgs.msg import NavSatStatus  # noqa: E402
+from launch_helpers import ExitsCleanly, RobotLaunchCase, check_robot_rinex, sim_launch_description, stamp_s  # noqa: E402,E501
 
 from gnss_sim_ros2 import graph  # noqa: E402
 
@@ -48,33 +42,17 @@ MARKER = "LTFL"
 
 @pytest.mark.launch_test
 def generate_test_description():
-    cfg = OUT / "config.yaml"
-    cfg.write_text(yaml.safe_dump({"/**": {"ros__parameters": {"rate_hz": 1.0, "marker_name": MARKER,
-                                                               "systems": "GE"}},
-                                   "gnss_sim_trajectory_player": {"ros__parameters": {
-                                       "convoy_spacing_s": SPACING_S}}}))
-    sim = launch.actions.IncludeLaunchDescription(
-        PythonLaunchDescriptionSource(os.path.join(get_package_share_directory("gnss_sim"), "launch",
-                                                   "sim.launch.py")),
-        launch_arguments={"robots": str(ROBOTS), "composed": "fleet", "config": str(cfg),
-                          "output_dir": str(OUT / "out")}.items())
-    return launch.LaunchDescription([sim, launch_testing.actions.ReadyToTest()])
+    return sim_launch_description(OUT, {"/**": {"rate_hz": 1.0, "marker_name": MARKER, "systems": "GE"},
+                                        "gnss_sim_trajectory_player": {"convoy_spacing_s": SPACING_S}},
+                                  {"robots": str(ROBOTS), "composed": "fleet"})
 
 
-class TestFleetLayout(unittest.TestCase):
-    @classmethod
-    def setUpClass(cls):
-        cls.probe = Probe(SPEED)
-        cls.robot_fixes = RobotFixes(cls.probe, ROBOTS)
-
-    @classmethod
-    def tearDownClass(cls):
-        cls.probe.close()
+class TestFleetLayout(RobotLaunchCase, unittest.TestCase):
+    SPEED, ROBOTS = SPEED, ROBOTS
 
     def test_1_one_container_one_visibility_one_receiver_every_node_active(self):
         probe = self.probe
-        ok = probe.wait_for(lambda: all(probe.state_or_none(n) == "active" for n in NODE_PATHS), 180.0)
-        self.assertTrue(ok, {n: probe.state_or_none(n) for n in NODE_PATHS})
+        self.assert_all_active(NODE_PATHS)
         listed = probe.call(ListNodes, "/gnss_sim_container/_container/list_nodes", ListNodes.Request())
         self.assertEqual(set(listed.full_node_names), {f"/{p}" for p in NODE_PATHS})
         self.assertEqual(sum(1 for n in NODE_PATHS if "visibility" in n), 1)
@@ -82,18 +60,12 @@ class TestFleetLayout(unittest.TestCase):
         probe.start_clock()
 
     def test_2_every_robot_its_fixes_on_the_epoch_grid(self):
-        got = self.probe.wait_for(lambda: self.robot_fixes.all_reached(RUN_S), RUN_S / SPEED + 120.0)
-        fixes = self.robot_fixes.copy()
-        self.assertTrue(got, {k: len(f) for k, f in fixes.items()})
-        self.assertEqual(self.probe.fixes_copy(), [], "fixes on /gnss/fix: the robots' topics are their own")
+        fixes = self.robot_fixes_until(RUN_S, RUN_S / SPEED + 120.0)
         last = {}
         for k in range(ROBOTS):
             t = np.array([stamp_s(f.header.stamp) for f in fixes[k]])
-            self.assertTrue(np.allclose(np.diff(t), 1.0, atol=1e-6), f"robot{k}: fix intervals {np.diff(t)}")
             self.assertTrue(np.allclose(t, np.round(t)), f"robot{k}: stamps off the 1 Hz grid {t}")
-            valid = [f for f in fixes[k] if f.status.status != NavSatStatus.STATUS_NO_FIX]
-            self.assertGreater(len(valid), 0.8 * len(fixes[k]), f"robot{k}")
-            last[k] = valid[-1]
+            last[k] = self.valid_fixes(fixes[k], k)[-1]
         # the convoy: robot k + 1 is SPACING_S metres from robot k (fixes good to a few metres)
         a, b = last[0], last[ROBOTS - 1]
         e, n, _ = pymap3d.geodetic2enu(b.latitude, b.longitude, b.altitude, a.latitude, a.longitude, a.altitude)

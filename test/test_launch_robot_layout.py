@@ -22,15 +22,9 @@ import pytest
 pytest.importorskip("launch_testing", reason="launch_testing is not installed here: `make test` runs this file "
                     "with launch_test in .venv-launch (../shared/ros2-tools); on a ROS install: launch_test FILE")
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # launch_helpers (launch_test adds no path)
-import launch  # noqa: E402
 import launch_testing  # noqa: E402
-import launch_testing.actions  # noqa: E402
-import numpy as np  # noqa: E402
-import yaml  # noqa: E402
-from ament_index_python.packages import get_package_share_directory  # noqa: E402
 from composition_interfaces.srv import ListNodes  # noqa: E402
-from launch.launch_description_sources import PythonLaunchDescriptionSource  # noqa: E402
-from launch_helpers import ExitsCleanly, Probe, RobotFixes, check_robot_rinex, stamp_s  # noqa: E402
+from launch_helpers import ExitsCleanly, RobotLaunchCase, check_robot_rinex, sim_launch_description  # noqa: E402
 
 from gnss_sim_ros2 import graph  # noqa: E402
 
@@ -45,31 +39,16 @@ MARKER = "LTRL"
 
 @pytest.mark.launch_test
 def generate_test_description():
-    cfg = OUT / "config.yaml"
-    cfg.write_text(yaml.safe_dump({"/**": {"ros__parameters": {"rate_hz": 1.0, "marker_name": MARKER,
-                                                               "systems": "GE"}}}))
-    sim = launch.actions.IncludeLaunchDescription(
-        PythonLaunchDescriptionSource(os.path.join(get_package_share_directory("gnss_sim"), "launch",
-                                                   "sim.launch.py")),
-        launch_arguments={"robots": str(ROBOTS), "composed": "robot", "config": str(cfg),
-                          "output_dir": str(OUT / "out")}.items())
-    return launch.LaunchDescription([sim, launch_testing.actions.ReadyToTest()])
+    return sim_launch_description(OUT, {"/**": {"rate_hz": 1.0, "marker_name": MARKER, "systems": "GE"}},
+                                  {"robots": str(ROBOTS), "composed": "robot"})
 
 
-class TestRobotLayout(unittest.TestCase):
-    @classmethod
-    def setUpClass(cls):
-        cls.probe = Probe(SPEED)
-        cls.robot_fixes = RobotFixes(cls.probe, ROBOTS)
-
-    @classmethod
-    def tearDownClass(cls):
-        cls.probe.close()
+class TestRobotLayout(RobotLaunchCase, unittest.TestCase):
+    SPEED, ROBOTS = SPEED, ROBOTS
 
     def test_1_each_container_its_nodes_every_node_active(self):
         probe = self.probe
-        ok = probe.wait_for(lambda: all(probe.state_or_none(n) == "active" for n in NODE_PATHS), 180.0)
-        self.assertTrue(ok, {n: probe.state_or_none(n) for n in NODE_PATHS})
+        self.assert_all_active(NODE_PATHS)
         expected = {"/gnss_sim_container": {"/gnss_sim_ephemeris"}}
         for k in range(ROBOTS):
             expected[f"/robot{k}/{graph.ROBOT_CONTAINER}"] = {f"/{s.path}" for s in SPECS if s.robot == k}
@@ -80,13 +59,7 @@ class TestRobotLayout(unittest.TestCase):
         probe.start_clock()
 
     def test_2_each_robot_its_fixes(self):
-        got = self.probe.wait_for(lambda: self.robot_fixes.all_reached(RUN_S), RUN_S / SPEED + 90.0)
-        fixes = self.robot_fixes.copy()
-        self.assertTrue(got, {k: len(f) for k, f in fixes.items()})
-        self.assertEqual(self.probe.fixes_copy(), [], "fixes on /gnss/fix: the robots' topics are their own")
-        for k in range(ROBOTS):
-            t = np.array([stamp_s(f.header.stamp) for f in fixes[k]])
-            self.assertTrue(np.allclose(np.diff(t), 1.0, atol=1e-6), f"robot{k}: fix intervals {np.diff(t)}")
+        self.robot_fixes_until(RUN_S, RUN_S / SPEED + 90.0)
 
 
 @launch_testing.post_shutdown_test()
