@@ -19,7 +19,6 @@ import argparse
 import copy
 import os
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -27,6 +26,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
+from gnss_sim_ros2.benchmarks.timing import median_best_ms as timed_ms  # noqa: E402
 from gnss_sim_ros2.core import frames  # noqa: E402
 from gnss_sim_ros2.core.multipath.scene_paths import world_directions  # noqa: E402
 from gnss_sim_ros2.core.scene.demo_world import demo_world_path  # noqa: E402
@@ -40,17 +40,6 @@ from gnss_sim_ros2.core.visibility.moving_obstacles import (  # noqa: E402
 
 ANTENNA_WORLD_M = np.array([0.0, 0.0, 1.5])
 BOX_SIZE_M = np.array([4.5, 1.8, 1.5])
-
-
-def timed_ms(fn, repeat: int) -> tuple[float, float]:
-    """(median, best) wall time of ``fn`` [ms]: on a loaded machine the best is the quiet machine's figure."""
-    fn()
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return 1e3 * float(np.median(times)), 1e3 * float(np.min(times))
 
 
 def fmt(t) -> str:

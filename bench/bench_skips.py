@@ -28,7 +28,6 @@ import argparse
 import dataclasses
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
@@ -37,6 +36,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from gnss_sim_ros2.benchmarks.presets import shared_data_dir  # noqa: E402
+from gnss_sim_ros2.benchmarks.timing import best_s  # noqa: E402
 from gnss_sim_ros2.config_file import load_config  # noqa: E402
 from gnss_sim_ros2.core.demo import DEMO_START  # noqa: E402
 from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris  # noqa: E402
@@ -58,15 +58,6 @@ from gnss_sim_ros2.core.trajectory import demo_trajectory  # noqa: E402
 from gnss_sim_ros2.core.visibility import load_scene  # noqa: E402
 
 START = GnssTime.from_iso(DEMO_START)
-
-
-def best(fn, repeats):
-    out = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        out.append(time.perf_counter() - t0)
-    return min(out)
 
 
 def line(name, with_skip, without, unit="s"):
@@ -122,15 +113,15 @@ def main() -> int:
     w = scene.world
     opaque = w.material == w.materials.index("opaque")
     bare = Scene(dataclasses.replace(w, triangles=w.triangles[opaque], material=w.material[opaque], parts=[]))
-    t_fol = best(lambda: scene.visibility_ecef(world, sat, mask_deg=10.0), rep)
-    t_bare = best(lambda: bare.visibility_ecef(world, sat, mask_deg=10.0), rep)
-    t_touch = best(lambda: scene.visibility_ecef(world, sat, mask_deg=10.0, foliage="touch"), rep)
+    t_fol = best_s(lambda: scene.visibility_ecef(world, sat, mask_deg=10.0), rep)
+    t_bare = best_s(lambda: bare.visibility_ecef(world, sat, mask_deg=10.0), rep)
+    t_touch = best_s(lambda: scene.visibility_ecef(world, sat, mask_deg=10.0, foliage="touch"), rep)
     print(f"1. foliage ({w.class_counts()})")
     line("scene without foliage: occlusion test only", t_bare, t_fol)
     line("foliage 'touch' (any-hit) instead of 'path' (multi-hit)", t_touch, t_fol)
 
     # 2. below the horizon / mask
-    t_all = best(lambda: scene.visibility_ecef(world, sat, mask_deg=-90.0), rep)
+    t_all = best_s(lambda: scene.visibility_ecef(world, sat, mask_deg=-90.0), rep)
     print("2. satellites below the mask / horizon")
     line("raycast only above the 10 deg mask (vs every satellite)", t_fol, t_all)
     cfg = ReceiverConfig(systems="GRECJI")
@@ -142,8 +133,8 @@ def main() -> int:
         for k in range(n):
             rx.epoch(tt[k], ecef[k], states[k])
 
-    line("receiver fed satellites above the horizon (vs all)", best(lambda: feed(above), rep),
-         best(lambda: feed(per_epoch), rep))
+    line("receiver fed satellites above the horizon (vs all)", best_s(lambda: feed(above), rep),
+         best_s(lambda: feed(per_epoch), rep))
 
     # 3. systems
     def chain(systems):
@@ -152,8 +143,8 @@ def main() -> int:
             rx.epoch(tt[k], ecef[k], provider.states(tt[k], systems=systems))
 
     print("3. systems not tracked")
-    line("GPS+Galileo only (vs GRECJI): states + receiver", best(lambda: chain("GE"), rep),
-         best(lambda: chain("GRECJI"), rep))
+    line("GPS+Galileo only (vs GRECJI): states + receiver", best_s(lambda: chain("GE"), rep),
+         best_s(lambda: chain("GRECJI"), rep))
 
     # 4. ephemeris span
     from gnss_sim_ros2.core.ephemeris.broadcast import BroadcastEphemeris
@@ -172,16 +163,16 @@ def main() -> int:
     small = BroadcastEphemeris.from_files(files, start=lo, end=hi)
     print(f"4. ephemeris span ({label}: {big.n_kep + len(big.glonass_rec['toe_sec'])} records, "
           f"{small.n_kep + len(small.glonass_rec['toe_sec'])} kept for 1 h + 4 h margins)")
-    line("read for the span only (vs the whole file)", best(lambda: BroadcastEphemeris.from_files(
-        files, start=lo, end=hi), rep), best(lambda: BroadcastEphemeris.from_files(files), rep))
+    line("read for the span only (vs the whole file)", best_s(lambda: BroadcastEphemeris.from_files(
+        files, start=lo, end=hi), rep), best_s(lambda: BroadcastEphemeris.from_files(files), rep))
     grid = t0 + np.arange(0.0, 3600.0, 1.0)
 
     def evaluate(p):
         for k in range(0, 3600, 10):
             p.states(grid[k])
 
-    line("360 epochs of states from the span's records (vs all)", best(lambda: evaluate(small), rep),
-         best(lambda: evaluate(big), rep))
+    line("360 epochs of states from the span's records (vs all)", best_s(lambda: evaluate(small), rep),
+         best_s(lambda: evaluate(big), rep))
 
     # 5. mesh crop
     c = city()
@@ -191,15 +182,15 @@ def main() -> int:
         sc.visibility_ecef(world[:1], sat[:1], mask_deg=10.0)
         return sc
 
-    t_build_full = best(lambda: build_and_query(c), rep)
-    t_build_cut = best(lambda: build_and_query(crop_world_mesh(c, a_world, 10.0, 0.2)[0]), rep)
+    t_build_full = best_s(lambda: build_and_query(c), rep)
+    t_build_cut = best_s(lambda: build_and_query(crop_world_mesh(c, a_world, 10.0, 0.2)[0]), rep)
     cropped, dropped = crop_world_mesh(c, a_world, 10.0, 0.2)
     full, cut = Scene(c), Scene(cropped)
     print(f"5. mesh crop: city of {len(c.triangles)} triangles, {dropped} dropped "
           f"({len(cropped.triangles)} kept) for the demo path and a 10 deg mask")
     line("scene build + first query (crop included)", t_build_cut, t_build_full)
-    tf = best(lambda: full.visibility_ecef(world, sat, mask_deg=10.0), rep)
-    tc = best(lambda: cut.visibility_ecef(world, sat, mask_deg=10.0), rep)
+    tf = best_s(lambda: full.visibility_ecef(world, sat, mask_deg=10.0), rep)
+    tc = best_s(lambda: cut.visibility_ecef(world, sat, mask_deg=10.0), rep)
     line(f"visibility of {n} epochs", tc, tf)
     same = np.array_equal(full.visibility_ecef(world, sat, mask_deg=10.0).state,
                           cut.visibility_ecef(world, sat, mask_deg=10.0).state)

@@ -1,0 +1,31 @@
+"""Wall-clock timing of a call repeated in one process, for the benchmark scripts (bench/*.py)."""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+
+def wall_times_s(fn, repeat: int, warmup: bool = False) -> np.ndarray:
+    """Wall time [s] (time.perf_counter) of each of ``repeat`` calls of ``fn``; with ``warmup`` one untimed call
+    first (caches, lazy builds)."""
+    if warmup:
+        fn()
+    times = np.empty(repeat)
+    for i in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        times[i] = time.perf_counter() - t0
+    return times
+
+
+def best_s(fn, repeat: int) -> float:
+    """The shortest of ``repeat`` wall times [s]: other processes on a shared machine only ever add time."""
+    return float(np.min(wall_times_s(fn, repeat)))
+
+
+def median_best_ms(fn, repeat: int) -> tuple[float, float]:
+    """(median, best) wall time of ``fn`` [ms] after one untimed call: on a loaded machine the best is the quiet
+    machine's figure."""
+    times = wall_times_s(fn, repeat, warmup=True)
+    return 1e3 * float(np.median(times)), 1e3 * float(np.min(times))
