@@ -133,6 +133,10 @@ def frame_group(frame: str) -> str:
     return frame[:frame.rfind("/") + 1]
 
 
+def _stamp_of_step(step: tuple[float, float]) -> float:
+    return step[0]
+
+
 class FrameWait:
     """The missing-frame rule of an epoch that waits for its antenna's transform (issue 25: a loaded machine
     is the normal case, so wall time alone proves nothing). It keys on the data:
@@ -169,7 +173,7 @@ class FrameWait:
     def reached_at(self, frame: str, t_s: float) -> float | None:
         """Wall time at which TF of ``frame``'s group first reached ``t_s`` (1 ns tolerance); None: not yet."""
         steps = self.reached.get(frame_group(frame), [])
-        i = bisect.bisect_left([s for s, _ in steps], t_s - 1e-9)
+        i = bisect.bisect_left(steps, t_s - 1e-9, key=_stamp_of_step)   # O(log n): asked per robot per pass
         return steps[i][1] if i < len(steps) else None
 
     def missing(self, frame: str, t_s: float, waiting_since_s: float, now_s: float, tf_publishers: int) -> bool:

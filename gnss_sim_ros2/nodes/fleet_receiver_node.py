@@ -20,8 +20,12 @@ import sys
 
 from gnss_sim_ros2.graph import FLEET_NODE_NAMES, fleet_topic
 from gnss_sim_ros2.graph_params import fleet_robot_params, robot_namespace
+from gnss_sim_ros2.messages.conversions import states_from_cdr
 from gnss_sim_ros2.nodes.common import GnssSimNode, run_node
 from gnss_sim_ros2.nodes.receiver_node import ReceiverNode
+
+#: SatelliteStates messages kept decoded: epochs whose robots' visibility is still awaited (a late robot's TF)
+DECODED_KEPT = 8
 
 
 class RobotReceiver:
@@ -71,6 +75,9 @@ class RobotReceiver:
     def destroy_service(self, srv):
         return self.node.destroy_service(srv)
 
+    def _decode_states(self, data: bytes):
+        return self.node.decoded_states(data)
+
 
 for _name, _fn in vars(ReceiverNode).items():      # ReceiverNode's own methods, ROS's ones left to the node
     if inspect.isfunction(_fn) and _name not in ("__init__", "activate") and _name not in vars(RobotReceiver):
@@ -84,6 +91,18 @@ class FleetReceiverNode(GnssSimNode):
         super().__init__(node_name=node_name or FLEET_NODE_NAMES["receiver"], **kwargs)
         self.robots: list[RobotReceiver] = []
         self._shared: dict = {}
+        #: the last SatelliteStates messages decoded (id -> (bytes, states_from_cdr)): one decode for every robot
+        self._decoded: dict = {}
+
+    def decoded_states(self, data: bytes):
+        """states_from_cdr of ``data`` (the one message object every robot's pairing holds), decoded once: the
+        robots read the same arrays (the chain does not write into the states)."""
+        hit = self._decoded.get(id(data))
+        if hit is None or hit[0] is not data:
+            hit = self._decoded[id(data)] = (data, states_from_cdr(data))
+            while len(self._decoded) > DECODED_KEPT:
+                del self._decoded[next(iter(self._decoded))]
+        return hit[1]
 
     def shared_publisher(self, msg_type, topic: str, qos):
         if topic not in self._shared:
@@ -117,6 +136,7 @@ class FleetReceiverNode(GnssSimNode):
             r.cleanup()
         self.robots = []
         self._shared = {}
+        self._decoded = {}
 
 
 def main(args=None):

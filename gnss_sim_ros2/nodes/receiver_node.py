@@ -160,7 +160,7 @@ class ReceiverNode(GnssSimNode):
 
     def process(self, states_data: bytes, vis_data: bytes):
         """One epoch from the serialised SatelliteStates and Visibility of one stamp."""
-        stamp, t, states, iono = states_from_cdr(states_data)
+        stamp, t, states, iono = self._decode_states(states_data)
         self.chain.set_iono_coefficients(iono)
         # below the horizon = not in the visibility message: blocked, no attenuation
         ecef, vis_state, att, paths = chain_inputs_from_visibility(visibility_from_cdr(vis_data), states.sv)
@@ -177,6 +177,10 @@ class ReceiverNode(GnssSimNode):
             self.executor.create_task(self._finish)
         else:
             self._finish()
+
+    def _decode_states(self, data: bytes):
+        """states_from_cdr of a SatelliteStates message (the fleet node decodes one once for all its robots)."""
+        return states_from_cdr(data)
 
     def _finish(self):
         """The second half of the epochs observed (ReceiverChain.finish) and their messages, in order."""

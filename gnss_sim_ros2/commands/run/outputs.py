@@ -4,6 +4,7 @@ missing-frame rule), and with --rtk rtkrcv's fixes, headings and their quality."
 from __future__ import annotations
 
 import time
+from itertools import islice
 
 import numpy as np
 
@@ -156,12 +157,12 @@ class RobotOutputs:
 
     def answered(self, t_s: float, every: bool = False) -> bool:
         """The receiver's status of the epoch at t_s came (``every``: searched among all, else the last 3)."""
-        stamps = self.status if every else list(self.status)[-3:]
+        stamps = self.status if every else islice(reversed(self.status), 3)   # not a copy of all: asked per pass
         return any(abs(s - t_s) < 1e-6 for s in stamps)
 
     def cast(self, t_s: float) -> bool:
         """The visibility of the epoch at t_s came (the antenna's TF was there)."""
-        return any(abs(s - t_s) < 1e-6 for s in list(self.truth)[-3:])
+        return any(abs(s - t_s) < 1e-6 for s in islice(reversed(self.truth), 3))
 
     def epochs_answered(self, n_epochs: int, period: float) -> int:
         return len({int(round(t / period)) for t in self.status} & set(range(n_epochs)))
