@@ -47,15 +47,23 @@ def _rows(path):
         return list(csv.DictReader(f))
 
 
+def _fix_rows_run_and_simulate(tmp_path, scenario, duration_s: int):
+    """The fix.csv rows of `gnss-sim run` (the ROS graph) and of `gnss-sim simulate` (offline) of one scenario, in
+    tmp_path/run and tmp_path/simulate; each command checked to exit 0."""
+    rows = []
+    for command in ("run", "simulate"):
+        p = _cli(command, "--duration", str(duration_s), "--scenario", str(scenario), "--out", str(tmp_path / command),
+                 "--quiet")
+        assert p.returncode == 0, f"{command}: {p.stderr[-3000:]}"
+        rows.append(_rows(tmp_path / command / "fix.csv"))
+    return rows
+
+
 @pytest.mark.slow
 def test_run_and_simulate_apply_one_scenario_alike(tmp_path):
     scn = tmp_path / "scenario.yaml"
     scn.write_text(SCENARIO)
-    run = _cli("run", "--duration", "28", "--scenario", str(scn), "--out", str(tmp_path / "run"), "--quiet")
-    assert run.returncode == 0, run.stderr[-3000:]
-    sim = _cli("simulate", "--duration", "28", "--scenario", str(scn), "--out", str(tmp_path / "sim"), "--quiet")
-    assert sim.returncode == 0, sim.stderr[-3000:]
-    a, b = _rows(tmp_path / "run" / "fix.csv"), _rows(tmp_path / "sim" / "fix.csv")
+    a, b = _fix_rows_run_and_simulate(tmp_path, scn, 28)
     assert a == b and len(a) == 29
     labels = [r["active_events"] for r in a]
     assert labels[3:6] == ["shift"] * 3 and labels[7:10] == ["frozen"] * 3 and labels[11:13] == ["dead"] * 2
@@ -77,11 +85,7 @@ def test_world_frame_jammer_is_placed_alike_in_the_graph_and_offline(tmp_path):
     from gnss_sim_ros2.core.scene.demo_world import demo_world_path
 
     scn = demo_world_path().parents[1] / "config" / "scenarios" / "courtyard_threats.yaml"
-    run = _cli("run", "--duration", "50", "--scenario", str(scn), "--out", str(tmp_path / "run"), "--quiet")
-    assert run.returncode == 0, run.stderr[-3000:]
-    sim = _cli("simulate", "--duration", "50", "--scenario", str(scn), "--out", str(tmp_path / "sim"), "--quiet")
-    assert sim.returncode == 0, sim.stderr[-3000:]
-    a, b = _rows(tmp_path / "run" / "fix.csv"), _rows(tmp_path / "sim" / "fix.csv")
+    a, b = _fix_rows_run_and_simulate(tmp_path, scn, 50)
     assert a == b and len(a) == 51
     on = [r for r in a if r["active_events"] == "car_jammer"]
     assert len(on) == 31 and all(r["active_events"] == "" for r in a[:20])
