@@ -33,3 +33,39 @@ def skill(predicted, observed, considered=None) -> dict:
             "hss": (pc - e) / (1.0 - e) if e < 1.0 else float("nan"),
             "hit_rate": a / (a + c) if a + c else float("nan"),
             "false_alarm_ratio": b / (a + b) if a + b else float("nan"), "p_pred": pp, "p_obs": po}
+
+
+def count_agreement(predicted, observed, considered=None, tolerances=(0, 1, 2)) -> dict:
+    """Per-epoch agreement of the NUMBER of good satellites: ``predicted`` and ``observed`` booleans of shape
+    (epochs, satellites), counted per epoch over the ``considered`` entries (all by default); an epoch without any
+    considered entry is left out.  Furukawa, Kubo and El-Mowafy (ION ITM 2020, pp. 763-771) score this way: the
+    number of predicted and measured satellites with good signal quality "in agreement at least 87.8 % of the
+    time" (per epoch, not per satellite-epoch).
+
+    Returns n_epochs; mean_predicted, mean_observed (counts per epoch); constant, the reference forecast: the
+    observed median count rounded half up (always answering it, the base rate of a count); and per tolerance k
+    (0: equal) ``within[k]``, the share of epochs with |predicted - observed| <= k, ``base_within[k]`` the same for
+    the constant, ``skill[k]`` = (within - base_within) / (1 - base_within) (the generic skill score over a
+    reference forecast, Wilks, Statistical Methods in the Atmospheric Sciences; nan when the base is perfect)."""
+    p = np.asarray(predicted, bool)
+    o = np.asarray(observed, bool)
+    if p.shape != o.shape or p.ndim != 2:
+        raise ValueError(f"count_agreement: predicted {p.shape} and observed {o.shape} must be the same "
+                         "(epochs, satellites) shape")
+    m = np.ones(p.shape, bool) if considered is None else np.asarray(considered, bool)
+    if m.shape != p.shape:
+        raise ValueError(f"count_agreement: considered {m.shape} differs from {p.shape}")
+    rows = m.any(axis=1)
+    if not rows.any():
+        raise ValueError("count_agreement: no epoch to score")
+    n_pred = np.sum(p & m, axis=1)[rows]
+    n_obs = np.sum(o & m, axis=1)[rows]
+    constant = int(np.floor(np.median(n_obs) + 0.5))
+    within, base, gain = {}, {}, {}
+    for k in tolerances:
+        within[k] = float(np.mean(np.abs(n_pred - n_obs) <= k))
+        base[k] = float(np.mean(np.abs(constant - n_obs) <= k))
+        gain[k] = (within[k] - base[k]) / (1.0 - base[k]) if base[k] < 1.0 else float("nan")
+    return {"n_epochs": int(rows.sum()), "mean_predicted": float(n_pred.mean()),
+            "mean_observed": float(n_obs.mean()), "constant": constant,
+            "within": within, "base_within": base, "skill": gain}
