@@ -125,6 +125,23 @@ def test_dops_are_the_solvers():
     assert np.isnan(dops_from_az_el(az[keep][None], el[keep][None], few, clock4)[0][0])
 
 
+def test_dops_do_not_depend_on_the_satellites_order():
+    """The clock groups summed as runs of columns (satellites sorted by system, the planner's order) give the DOPs
+    of the same satellites shuffled (groups interleaved: the one-hot product)."""
+    from gnss_sim_ros2.core.solver import dops_from_az_el
+
+    rng = np.random.default_rng(1)
+    az, el = rng.uniform(0, 360, (200, 20)), rng.uniform(10, 85, (200, 20))
+    used = rng.random((200, 20)) < 0.6
+    clock = np.sort(rng.integers(0, 3, 20))
+    p = rng.permutation(20)
+    assert np.any(np.diff(clock[p]) < 0)
+    runs = np.array(dops_from_az_el(az, el, used, clock))
+    shuffled = np.array(dops_from_az_el(az[:, p], el[:, p], used[:, p], clock[p]))
+    assert np.isfinite(runs).sum() > 500
+    np.testing.assert_allclose(runs, shuffled, rtol=1e-9)
+
+
 @pytest.mark.parametrize("heading_deg", [0.0, 37.0])
 def test_geojson_back_to_world_within_a_centimetre(tmp_path, heading_deg):
     """Cell corners written as GeoJSON lon/lat/h (as rounded in the file) come back to world x, y within 1 cm."""

@@ -248,14 +248,12 @@ def dops_from_los_enu(los_enu, used, clock_index=None):
     k, n = use.shape
     ci = np.zeros(n, np.int64) if clock_index is None else np.asarray(clock_index, np.int64)
     g = int(ci.max(initial=0)) + 1
-    onehot = np.zeros((n, g))
-    onehot[np.arange(n), ci] = 1.0
     w = use.astype(np.float64)
     h = tuple(-np.asarray(c, np.float64) * w for c in los_enu)             # design rows, unused satellites 0
-    cnt = w @ onehot                                                         # (K, G) satellites per clock
+    cnt = _clock_group_sums(w, ci, g)                                        # (K, G) satellites per clock
     present = cnt > 0
     inv_n = np.divide(1.0, cnt, out=np.zeros_like(cnt), where=present)
-    mean = [hi @ onehot * inv_n for hi in h]                                 # (K, G) each: mean_g h
+    mean = [_clock_group_sums(hi, ci, g) * inv_n for hi in h]                # (K, G) each: mean_g h
     sc = {}
     for i in range(3):
         for j in range(i, 3):
@@ -283,6 +281,23 @@ def dops_from_los_enu(los_enu, used, clock_index=None):
     out = np.stack([gdop, pdop, hdop, vdop, tdop])
     out[:, ~good] = np.nan
     return tuple(out)
+
+
+def _clock_group_sums(x, ci, g: int) -> np.ndarray:
+    """(K, G) sums of the columns of ``x`` (K, N) per clock group ``ci`` (N,): one pass of np.add.reduceat when the
+    groups are runs of columns (satellites sorted by system, as the planner's are), else a product with the
+    one-hot matrix (a BLAS call, whose threads contend on a loaded machine)."""
+    k, n = x.shape
+    out = np.zeros((k, g))
+    if n == 0:
+        return out
+    starts = np.flatnonzero(np.r_[True, ci[1:] != ci[:-1]])
+    if len(np.unique(ci[starts])) == len(starts):              # every group one run of columns
+        out[:, ci[starts]] = np.add.reduceat(x, starts, axis=1)
+        return out
+    onehot = np.zeros((n, g))
+    onehot[np.arange(n), ci] = 1.0
+    return x @ onehot
 
 
 #: ||N||_F ||N^-1||_F below which a normal matrix passes the geometry check without its eigenvalues

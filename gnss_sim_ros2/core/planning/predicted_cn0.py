@@ -43,9 +43,9 @@ class Cn0Predictor:
     frontend_bandwidth_hz: float
     tracking_cn0_dbhz: float     # the profile's loss-of-lock threshold (a satellite below it is not tracked)
 
-    def cn0_dbhz(self, systems, state, att_db, v, antenna_ecef_m, sat_ecef_m, where=None) -> np.ndarray:
+    def cn0_dbhz(self, systems, state, att_db, v, range_m, where=None) -> np.ndarray:
         """(M, S) predicted C/N0 [dB-Hz] of satellites ``systems`` (S,) for cast rows: ``state``, ``att_db``,
-        ``v`` as VisibilityOptions.cast returns them, antennas (M, 3) and satellites (M, S, 3) in ECEF.  -inf
+        ``v`` as VisibilityOptions.cast returns them, ``range_m`` (M, S) antenna-satellite distances.  -inf
         where not received or the profile does not track the system; NaN off ``where`` (M, S) (None: everywhere)."""
         sysv = np.asarray(systems)
         state = np.asarray(state)
@@ -57,16 +57,17 @@ class Cn0Predictor:
         paths = getattr(v, "paths", None)
         has = np.isfinite(np.asarray(paths.excess_m)).any(axis=-1) if paths is not None else np.zeros_like(sel)
         need = sel & (~blocked | has)                 # the entries with a signal: computed there only
-        sat = np.asarray(sat_ecef_m, float)
-        ant = np.asarray(antenna_ecef_m, float)
+        rng = np.asarray(range_m, float)
         for s in np.unique(sysv).tolist():
             if s not in self.signal:
                 continue
             p_edge, el_min, freq, key, chip = self.signal[s]
-            r, c = np.nonzero(need & (sysv == s)[None, :])
+            cols = np.flatnonzero(sysv == s)                  # the system's columns only: no (M, S) pass per system
+            r, cc = np.nonzero(need[:, cols])
             if not len(r):
                 continue
-            rho = np.maximum(np.linalg.norm(sat[r, c] - ant[r], axis=-1), 1.0)
+            c = cols[cc]
+            rho = np.maximum(rng[r, c], 1.0)
             es = el[r, c]
             # the receiver's link budget at the unobstructed line of sight (engine._signal_strength's call)
             open_sky = cn0_model.cn0_dbhz_from_params(p_edge, el_min, rho, es, 0.0, budget=self.budget,

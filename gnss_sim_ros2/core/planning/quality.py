@@ -74,6 +74,7 @@ def quality_block(scene, vis, antenna_world_m, inp: PlanInputs, stats=None, stat
     t_all, gap = _step_times(inp.t_s, n_t, inp.rule)
     mid = 0.5 * (ant.min(axis=0) + ant.max(axis=0))
     centre_ecef = scene.antenna_ecef(mid[None])[0]
+    cell_ecef = scene.antenna_ecef(ant) if inp.cn0 is not None else None      # (C, 3): once per cell, not per row
     # the vertical turns by (distance / Earth radius) across the block; 0.1 deg more for the world's flatness
     margin_deg = np.degrees(np.max(np.linalg.norm(ant - mid, axis=1)) / 6.371e6) + 0.1
     # only the satellites that can be above the mask somewhere in the block (the rest are never cast):
@@ -98,7 +99,10 @@ def quality_block(scene, vis, antenna_world_m, inp: PlanInputs, stats=None, stat
             st = np.where(above, state, -1).astype(np.int8).reshape(c, len(tt), len(cols))
             states_out[:, tt[0]:tt[-1] + 1] = -1
             states_out[:, tt[0]:tt[-1] + 1, cols] = st
-        cn0 = _predicted_cn0(scene, inp, sysv[cols], state, att, v, above, ant_rows, sat_rows)
+        cn0 = None
+        if inp.cn0 is not None:       # distances per cell x time x satellite by broadcasting, not per row
+            rng = _ranges_m(cell_ecef[:, None, None, :], sat[None]).reshape(m_rows, len(cols))
+            cn0 = _predicted_cn0(inp, sysv[cols], state, att, v, above, rng)
         vals, cand, los_enu = _rows_quality(state, att, v, above, sysv[cols], clock_all[cols], dual[cols], inp, cn0)
         cand = cand.reshape(c, len(tt), len(cols))
         cont = np.zeros_like(cand)
@@ -149,20 +153,18 @@ def _rows_quality(state, att, v, above, sysv, clock, dual, inp: PlanInputs, cn0=
     refl = above & (state == int(VisibilityState.REFLECTED_ONLY))
     blocked = above & (state == int(VisibilityState.BLOCKED))
     used = los | attn | refl
-    r, k = np.nonzero(used)              # the used satellites only: the DOPs weigh the others 0, sigma ignores them
-    el_u, az_u = el[r, k], az[r, k]
-    ce, el_r = np.cos(np.radians(el_u)), np.radians(el_u)
-    los_enu = tuple(np.zeros(used.shape) for _ in range(3))
-    for dst, val in zip(los_enu, (ce * np.sin(np.radians(az_u)), ce * np.cos(np.radians(az_u)), np.sin(el_r))):
-        dst[r, k] = val
+    # unit lines of sight of every entry, dense (no gather / scatter): the DOPs weigh the unused ones 0
+    el_r, az_r = np.radians(el), np.radians(az)
+    ce = np.cos(el_r)
+    los_enu = (ce * np.sin(az_r), ce * np.cos(az_r), np.sin(el_r))
     gdop, pdop, hdop, vdop, _ = dops_from_los_enu(los_enu, used, clock)
+    r, k = np.nonzero(used)              # the used satellites only: sigma ignores the others
     excess = np.where(refl[r, k], np.nan_to_num(np.asarray(v.extra_path_m, float)[r, k]), 0.0)
-    var = np.zeros(used.shape)
-    var[r, k] = inp.budget.sigma_entries_m(np.asarray(sysv)[k], el_u, np.where(attn[r, k], att[r, k], 0.0),
-                                           excess) ** 2
+    sig = inp.budget.sigma_of_columns_m(sysv, k, el[r, k], np.where(attn[r, k], att[r, k], 0.0), excess)
+    var_sum = np.bincount(r, weights=sig * sig, minlength=len(used))
     n_used = used.sum(axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
-        uere = np.sqrt(var.sum(axis=1) / n_used)
+        uere = np.sqrt(var_sum / n_used)
         nlos = refl.sum(axis=1) / n_used
     tracked = los
     if cn0 is not None and inp.rule.count_attenuated:         # through foliage, strong enough to stay in lock
@@ -217,7 +219,10 @@ def path_quality(scene, vis, antenna_world_m, sat_pos_ecef_m, systems, inp: Plan
     above = present & (np.asarray(v.el_deg) >= vis.mask_deg)
     if states_out is not None:
         states_out[:] = np.where(above, state, -1)
-    cn0 = _predicted_cn0(scene, inp, sysv, state, att, v, above, ant, np.where(present[..., None], sat_all, 0.0))
+    cn0 = None
+    if inp.cn0 is not None:
+        rng = _ranges_m(scene.antenna_ecef(ant)[:, None, :], np.where(present[..., None], sat_all, 0.0))
+        cn0 = _predicted_cn0(inp, sysv, state, att, v, above, rng)
     vals, cand, los_enu = _rows_quality(state, att, v, above, sysv, clock, dual, inp, cn0)
     arcs = RtkArcs(inp.rule, 1, len(sysv))            # the path is one row stepping pose to pose
     t_all, gap = _step_times(t_s, len(ant), inp.rule)
@@ -233,11 +238,15 @@ def path_quality(scene, vis, antenna_world_m, sat_pos_ecef_m, systems, inp: Plan
     return {k: np.asarray(vals[k]).astype(dt) for k, dt in FIELDS.items()}
 
 
-def _predicted_cn0(scene, inp: PlanInputs, sysv, state, att, v, above, ant_world_m, sat_ecef_m):
-    """(M, S) C/N0 predicted by ``inp.cn0`` (predicted_cn0.py), NaN off ``above``; None without a predictor."""
-    if inp.cn0 is None:
-        return None
-    return inp.cn0.cn0_dbhz(sysv, state, att, v, scene.antenna_ecef(ant_world_m), sat_ecef_m, where=above)
+def _predicted_cn0(inp: PlanInputs, sysv, state, att, v, above, range_m):
+    """(M, S) C/N0 predicted by ``inp.cn0`` (predicted_cn0.py) at distances ``range_m`` (M, S), NaN off ``above``."""
+    return inp.cn0.cn0_dbhz(sysv, state, att, v, range_m, where=above)
+
+
+def _ranges_m(rx_ecef_m, sat_ecef_m) -> np.ndarray:
+    """Distances [m] between receivers and satellites (ECEF, broadcast against each other, last axis xyz)."""
+    d = sat_ecef_m - rx_ecef_m
+    return np.sqrt(d[..., 0] ** 2 + d[..., 1] ** 2 + d[..., 2] ** 2)
 
 
 def _n_good(cn0, inp: PlanInputs, n_rows: int) -> np.ndarray:

@@ -59,17 +59,32 @@ class RangingBudget:
 
     def sigma_entries_m(self, systems, el_deg, attenuation_db, nlos_excess_m) -> np.ndarray:
         """sigma_i [m] of entries (K,): system letter, elevation, attenuation and NLOS excess each (K,)."""
+        letters, column = np.unique(np.asarray(systems), return_inverse=True)
+        return self.sigma_of_columns_m(letters, column, el_deg, attenuation_db, nlos_excess_m)
+
+    def sigma_of_columns_m(self, column_systems, column, el_deg, attenuation_db, nlos_excess_m) -> np.ndarray:
+        """sigma_i [m] of entries (K,) whose system is ``column_systems[column]`` (a satellite column's letter, no
+        string per entry); elevation, attenuation and NLOS excess each (K,).  The thermal term of an unattenuated
+        entry is its system's at the nominal C/N0, computed once."""
         el = np.clip(np.asarray(el_deg, np.float64), 1.0, 90.0)
         e = el / 180.0
         obliq = 1.0 + 16.0 * (0.53 - e) ** 3                         # IS-GPS-200N 20.3.3.5.2.5
         var = (self.iono_frac * NOMINAL_ZENITH_IONO_L1_M * obliq) ** 2
         var = var + (TROPO_RESIDUAL_ZENITH_M / np.sin(np.radians(el))) ** 2
         var = var + self.multipath.sigma_m(el) ** 2
-        sysv = np.asarray(systems)
-        cn0 = NOMINAL_LOS_CN0_DBHZ - np.asarray(attenuation_db, float)
-        for s in np.unique(sysv).tolist():
-            k = sysv == s
-            var[k] += self.sisre_m.get(s, 1.5) ** 2 + self.thermal[s](cn0[k]) ** 2
+        col_sys = np.asarray(column_systems).reshape(-1).tolist()
+        col = np.asarray(column, np.int64)
+        att = np.asarray(attenuation_db, float)
+        sisre2 = np.array([self.sisre_m.get(s, 1.5) ** 2 for s in col_sys])
+        th2 = {s: float(self.thermal[s](np.array([NOMINAL_LOS_CN0_DBHZ]))[0]) ** 2 for s in set(col_sys)}
+        weak = att != 0.0
+        var = var + sisre2[col] + np.where(weak, 0.0, np.array([th2[s] for s in col_sys])[col])
+        w = np.flatnonzero(weak)
+        if len(w):
+            letter = np.array(col_sys)[col[w]]
+            for s in np.unique(letter).tolist():
+                k = w[letter == s]
+                var[k] += self.thermal[s](NOMINAL_LOS_CN0_DBHZ - att[k]) ** 2
         return np.sqrt(var + np.asarray(nlos_excess_m, float) ** 2)
 
 
