@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..markdown_table import md_table as _md_table
 from .fit import dll_noise_m
 from .reading import Recording
 from .signal_stats import RecordingStats
@@ -21,11 +22,6 @@ def _interp(table: dict | None, key: str, el: float) -> float:
     if not table:
         return math.nan
     return float(np.interp(el, table["el_deg"], table[key]))
-
-
-def _md_table(header, rows) -> list[str]:
-    return (["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
-            + ["| " + " | ".join(str(c) for c in r) + " |" for r in rows] + [""])
 
 
 def write_figures(stats: RecordingStats, profile: dict, out_dir) -> dict[str, Path]:

@@ -13,6 +13,7 @@ import math
 
 import numpy as np
 
+from ..markdown_table import md_table
 from .signal_stats import RecordingStats
 
 #: a bin needs this many samples on each side to be compared
@@ -99,20 +100,16 @@ def summary_lines(cmp: dict) -> list[str]:
     for k_, r in cmp["signals"].items():
         rows.append([k_, r["real_signal"] or "-", r["n_sim"], r["n_real"], f(r["jaccard"], 3),
                      f(r.get("code_sigma_sim_m"), 3), f(r.get("code_sigma_real_m"), 3), f(r.get("code_ratio"))])
-    L += ["| signal | real | triples sim | triples real | Jaccard | code noise sim [m] | code noise real [m] | "
-          "ratio sim/real |", "|---|---|---|---|---|---|---|---|"]
-    L += ["| " + " | ".join(str(c) for c in r) + " |" for r in rows] + [""]
+    L += md_table(["signal", "real", "triples sim", "triples real", "Jaccard", "code noise sim [m]",
+                   "code noise real [m]", "ratio sim/real"], rows)
     bins = next((r["el_centres_deg"] for r in cmp["signals"].values() if "el_centres_deg" in r), None)
     if bins:
         w = cmp["bin_deg"] / 2
         L += [f"Mean C/N0 simulated minus real [dB] per {cmp['bin_deg']:g}-degree elevation bin ('-': fewer than "
               f"{MIN_BIN_SAMPLES} samples on a side):", ""]
-        L += ["| signal | " + " | ".join(f"{c - w:g}-{c + w:g}" for c in bins) + " |",
-              "|---|" + "---|" * len(bins)]
-        for k_, r in cmp["signals"].items():
-            if "cn0_diff_db" in r and any(v is not None for v in r["cn0_diff_db"]):
-                L.append(f"| {k_} | " + " | ".join(f(v, 1) for v in r["cn0_diff_db"]) + " |")
-        L.append("")
+        L += md_table(["signal"] + [f"{c - w:g}-{c + w:g}" for c in bins],
+                      [[k_] + [f(v, 1) for v in r["cn0_diff_db"]] for k_, r in cmp["signals"].items()
+                       if "cn0_diff_db" in r and any(v is not None for v in r["cn0_diff_db"])])
     lf = cmp["lli_first"]
     for side in ("sim", "real"):
         d = lf[side]

@@ -1,4 +1,5 @@
-"""The comparison report's Markdown: one number format and one table layout (report.py, canyon_report.py)."""
+"""The comparison report's Markdown: one number format (report.py, canyon_report.py); the table layout is
+core/markdown_table.py, shared with the calibration report."""
 from __future__ import annotations
 
 import math
@@ -9,10 +10,3 @@ def fmt(v, digits=3) -> str:
     if v is None or (isinstance(v, float) and not math.isfinite(v)):
         return "-"
     return f"{0.0 if abs(v) < 0.5 * 10.0**-digits else v:.{digits}f}"
-
-
-def md_table(header: list[str], rows: list[list]) -> list[str]:
-    """Lines of a Markdown table (header, separator, rows) and a blank line."""
-    out = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
-    out += ["| " + " | ".join(str(c) for c in r) + " |" for r in rows]
-    return out + [""]
