@@ -22,6 +22,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from gnss_sim_ros2.benchmarks.timing import mean_per_call_s  # noqa: E402
 from gnss_sim_ros2.core.ephemeris.broadcast import BroadcastEphemeris  # noqa: E402
 from gnss_sim_ros2.core.time import GnssTime  # noqa: E402
 
@@ -60,10 +61,7 @@ def main():
     tw = t0 + 12 * 3600.0
     n_all = len(wide.states(tw))
     reps = 2000
-    tic = time.perf_counter()
-    for k in range(reps):
-        wide.states(tw + 0.001 * k)
-    per_all = (time.perf_counter() - tic) / reps
+    per_all = mean_per_call_s(lambda k: wide.states(tw + 0.001 * k), reps)
     print(f"states(t), one epoch, all {n_all} satellites of the files (wide windows): {per_all * 1e3:.3f} ms "
           f"per call ({per_all / n_all * 1e6:.2f} us per satellite)")
 
@@ -73,22 +71,13 @@ def main():
     n_sat = best[0]
     for _ in range(50):
         eph.states(t)
-    tic = time.perf_counter()
-    for k in range(reps):
-        eph.states(t + 0.001 * k)
-    per = (time.perf_counter() - tic) / reps
+    per = mean_per_call_s(lambda k: eph.states(t + 0.001 * k), reps)
     print(f"states(t), one epoch, {n_sat} satellites: {per * 1e3:.3f} ms per call "
           f"({per / n_sat * 1e6:.2f} us per satellite)")
     glo = eph.states(t, systems="R")
-    tic = time.perf_counter()
-    for k in range(reps):
-        eph.states(t + 0.001 * k, systems="R")
-    per_r = (time.perf_counter() - tic) / reps
+    per_r = mean_per_call_s(lambda k: eph.states(t + 0.001 * k, systems="R"), reps)
     kep = eph.states(t, systems="GECJI")
-    tic = time.perf_counter()
-    for k in range(reps):
-        eph.states(t + 0.001 * k, systems="GECJI")
-    per_k = (time.perf_counter() - tic) / reps
+    per_k = mean_per_call_s(lambda k: eph.states(t + 0.001 * k, systems="GECJI"), reps)
     print(f"  of which Keplerian only ({len(kep)} sat): {per_k * 1e3:.3f} ms; GLONASS only ({len(glo)} sat): "
           f"{per_r * 1e3:.3f} ms")
 

@@ -29,3 +29,12 @@ def median_best_ms(fn, repeat: int) -> tuple[float, float]:
     machine's figure."""
     times = wall_times_s(fn, repeat, warmup=True)
     return 1e3 * float(np.median(times)), 1e3 * float(np.min(times))
+
+
+def mean_per_call_s(fn, calls: int) -> float:
+    """Mean wall time [s] of one call of ``fn(k)`` over ``calls`` calls in a row, k = 0 .. calls - 1 (a call that
+    must not hit a cache can use k, e.g. an instant shifted by k ms)."""
+    t0 = time.perf_counter()
+    for k in range(calls):
+        fn(k)
+    return (time.perf_counter() - t0) / calls
