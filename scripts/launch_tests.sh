@@ -37,18 +37,11 @@ t0=$SECONDS
 log "pytest (ros2 CLI, container, signals) on ROS_DOMAIN_ID=$(domain 0)"
 ROS_DOMAIN_ID=$(domain 0) "$LAYER/bin/python" -m pytest -q -p no:cacheprovider \
   test/test_component_container.py test/test_launch_cli.py
-log "launch_test test/test_launch_sim.py on ROS_DOMAIN_ID=$(domain 1)"
-ROS_DOMAIN_ID=$(domain 1) "$LAYER/bin/launch_test" test/test_launch_sim.py
-log "launch_test test/test_launch_rtk.py on ROS_DOMAIN_ID=$(domain 2)"
-ROS_DOMAIN_ID=$(domain 2) "$LAYER/bin/launch_test" test/test_launch_rtk.py
-log "launch_test test/test_launch_robots.py on ROS_DOMAIN_ID=$(domain 3)"
-ROS_DOMAIN_ID=$(domain 3) "$LAYER/bin/launch_test" test/test_launch_robots.py
-log "launch_test test/test_launch_robot_layout.py on ROS_DOMAIN_ID=$(domain 4)"
-ROS_DOMAIN_ID=$(domain 4) "$LAYER/bin/launch_test" test/test_launch_robot_layout.py
-log "launch_test test/test_launch_quality_map.py on ROS_DOMAIN_ID=$(domain 5)"
-ROS_DOMAIN_ID=$(domain 5) "$LAYER/bin/launch_test" test/test_launch_quality_map.py
-log "launch_test test/test_launch_threats.py on ROS_DOMAIN_ID=$(domain 6)"
-ROS_DOMAIN_ID=$(domain 6) "$LAYER/bin/launch_test" test/test_launch_threats.py
-log "launch_test test/test_launch_fleet.py on ROS_DOMAIN_ID=$(domain 7)"
-ROS_DOMAIN_ID=$(domain 7) "$LAYER/bin/launch_test" test/test_launch_fleet.py
+# each launch test file in turn, on domains 1, 2, ... (a failure stops the script: set -e)
+n=0
+for name in sim rtk robots robot_layout quality_map threats fleet; do
+  n=$((n + 1))
+  log "launch_test test/test_launch_$name.py on ROS_DOMAIN_ID=$(domain $n)"
+  ROS_DOMAIN_ID=$(domain $n) "$LAYER/bin/launch_test" "test/test_launch_$name.py"
+done
 log "passed in $((SECONDS - t0)) s"
