@@ -18,6 +18,7 @@ from __future__ import annotations
 import inspect
 import sys
 
+from gnss_sim_ros2.core.receiver.epoch_pairing import EpochPairing
 from gnss_sim_ros2.graph import FLEET_NODE_NAMES, fleet_topic
 from gnss_sim_ros2.graph_params import fleet_robot_params, robot_namespace
 from gnss_sim_ros2.messages.conversions import states_from_cdr
@@ -38,9 +39,7 @@ class RobotReceiver:
         self.node, self.k, self.robots, self.params = node, k, robots, params
         self.chain = None
         self.pubs: dict = {}
-        self.states: dict = {}
-        self.vis: dict = {}
-        self.last_stamp = None
+        self.pairing = EpochPairing()
         self.tcp = None
         self.unfinished: list = []
         self.threat_services: list = []

@@ -36,6 +36,7 @@ from geometry_msgs.msg import TwistWithCovarianceStamped
 from sensor_msgs.msg import NavSatFix
 from std_msgs.msg import Header, String
 
+from gnss_sim_ros2.core.receiver.epoch_pairing import EpochPairing
 from gnss_sim_ros2.messages.conversions import (
     chain_inputs_from_visibility,
     encode_observations,
@@ -56,9 +57,7 @@ class ReceiverNode(GnssSimNode):
         super().__init__(**kwargs)
         self.chain = None              # core.receiver.chain.ReceiverChain (configure .. cleanup)
         self.pubs: dict = {}
-        self.states: dict[tuple, object] = {}
-        self.vis: dict[tuple, object] = {}
-        self.last_stamp = None
+        self.pairing = EpochPairing()  # the states and visibility bytes by stamp (sec, nanosec) until both came
         self.tcp = None                # core.rtcm.tcp_server.RtcmTcpServer (configure .. cleanup)
         self.unfinished: list = []     # epochs observed and published, their fix not yet (process .. _finish)
         self.threat_services: list = []  # ~/threats/start, ~/threats/stop (configure .. cleanup)
@@ -75,7 +74,7 @@ class ReceiverNode(GnssSimNode):
             raise ValueError(f"node {self.get_name()}: {exc}") from None
         self.chain = ReceiverChain(settings, None, nmea=True, comment="gnss_sim receiver node",
                                    rtcm=True if p["rtcm"] else None)
-        self.last_stamp = None
+        self.pairing.reset()
         self.pubs = {
             "obs": self.lifecycle_publisher(Observations, "observations", 100),
             "fix": self.lifecycle_publisher(NavSatFix, "fix", 100),
@@ -120,8 +119,7 @@ class ReceiverNode(GnssSimNode):
 
     def deactivate(self):
         self._finish()                 # the fix of an epoch whose observations went out, while publishers are on
-        self.states.clear()
-        self.vis.clear()
+        self.pairing.clear()
 
     def cleanup(self):
         self._finish()
@@ -135,28 +133,16 @@ class ReceiverNode(GnssSimNode):
         if self.chain is not None:
             self.chain.close()       # RINEX closed with its last epoch
             self.chain = None
-        self.last_stamp = None
+        self.pairing.reset()
 
     # ------------------------------------------------------------------
     def _on_states(self, data: bytes):
-        self.states[stamp_of(data)] = data      # keyed by (sec, nanosec) of the header stamp
-        self._match()
+        for s, v in self.pairing.add_states(stamp_of(data), data):     # keyed by (sec, nanosec) of the stamp
+            self.process(s, v)
 
     def _on_vis(self, data: bytes):
-        self.vis[stamp_of(data)] = data
-        self._match()
-
-    def _match(self):
-        for key in sorted(set(self.states) & set(self.vis)):
-            s, v = self.states.pop(key), self.vis.pop(key)
-            if self.last_stamp is not None and key <= self.last_stamp:
-                continue
-            self.last_stamp = key
+        for s, v in self.pairing.add_visibility(stamp_of(data), data):
             self.process(s, v)
-        # anything older than the last processed epoch will never pair
-        for d in (self.states, self.vis):
-            for key in [k for k in d if self.last_stamp is not None and k <= self.last_stamp]:
-                del d[key]
 
     def process(self, states_data: bytes, vis_data: bytes):
         """One epoch from the serialised SatelliteStates and Visibility of one stamp."""
