@@ -23,6 +23,7 @@ from ..vocabulary import VisibilityState
 from .predicted_cn0 import DEFAULT_GOOD_CN0_DBHZ, Cn0Predictor
 from .ranging import RangingBudget
 from .rtk_rule import RtkArcs, RtkRule
+from .sight_lines import AntennaAxes
 
 #: the (C, T) outputs and their dtypes
 FIELDS = {"n_los": np.int16, "n_attenuated": np.int16, "n_reflected": np.int16, "n_blocked": np.int16,
@@ -74,7 +75,7 @@ def quality_block(scene, vis, antenna_world_m, inp: PlanInputs, stats=None, stat
     t_all, gap = _step_times(inp.t_s, n_t, inp.rule)
     mid = 0.5 * (ant.min(axis=0) + ant.max(axis=0))
     centre_ecef = scene.antenna_ecef(mid[None])[0]
-    cell_ecef = scene.antenna_ecef(ant) if inp.cn0 is not None else None      # (C, 3): once per cell, not per row
+    axes = AntennaAxes.of(scene, ant)                 # each cell's ECEF point and ENU axes, once (not per row)
     # the vertical turns by (distance / Earth radius) across the block; 0.1 deg more for the world's flatness
     margin_deg = np.degrees(np.max(np.linalg.norm(ant - mid, axis=1)) / 6.371e6) + 0.1
     # only the satellites that can be above the mask somewhere in the block (the rest are never cast):
@@ -99,11 +100,9 @@ def quality_block(scene, vis, antenna_world_m, inp: PlanInputs, stats=None, stat
             st = np.where(above, state, -1).astype(np.int8).reshape(c, len(tt), len(cols))
             states_out[:, tt[0]:tt[-1] + 1] = -1
             states_out[:, tt[0]:tt[-1] + 1, cols] = st
-        cn0 = None
-        if inp.cn0 is not None:       # distances per cell x time x satellite by broadcasting, not per row
-            rng = _ranges_m(cell_ecef[:, None, None, :], sat[None]).reshape(m_rows, len(cols))
-            cn0 = _predicted_cn0(inp, sysv[cols], state, att, v, above, rng)
-        vals, cand, los_enu = _rows_quality(state, att, v, above, sysv[cols], clock_all[cols], dual[cols], inp, cn0)
+        rng, los_enu = axes.to_satellites(sat, per_time=True)        # cell x time x satellite, broadcast
+        cn0 = _predicted_cn0(inp, sysv[cols], state, att, v, above, rng)
+        vals, cand = _rows_quality(state, att, v, above, los_enu, sysv[cols], clock_all[cols], dual[cols], inp, cn0)
         cand = cand.reshape(c, len(tt), len(cols))
         cont = np.zeros_like(cand)
         for j in range(len(tt)):                       # unbroken arcs (rtk_rule.py)
@@ -143,20 +142,16 @@ def _time_windows(up, n_cells: int, max_rays: int) -> list[np.ndarray]:
     return out
 
 
-def _rows_quality(state, att, v, above, sysv, clock, dual, inp: PlanInputs, cn0=None):
-    """Per antenna row (M rows x S satellites of one cast): the FIELDS but the RTK ones, the RTK candidates (M, S)
-    (dual-frequency, tracked above the AR mask: rtk_rule.py; ``cn0`` the predicted C/N0 or None) and the
-    line-of-sight unit vectors (e, n, u) of the used satellites (0 for the others)."""
-    el, az = np.asarray(v.el_deg), np.asarray(v.az_deg)
+def _rows_quality(state, att, v, above, los_enu, sysv, clock, dual, inp: PlanInputs, cn0=None):
+    """Per antenna row (M rows x S satellites of one cast; ``los_enu`` their unit lines of sight (e, n, u), each
+    (M, S), sight_lines.py): the FIELDS but the RTK ones and the RTK candidates (M, S) (dual-frequency, tracked
+    above the AR mask: rtk_rule.py; ``cn0`` the predicted C/N0 or None)."""
+    el = np.asarray(v.el_deg)
     los = above & (state == int(VisibilityState.VISIBLE))
     attn = above & (state == int(VisibilityState.ATTENUATED))
     refl = above & (state == int(VisibilityState.REFLECTED_ONLY))
     blocked = above & (state == int(VisibilityState.BLOCKED))
     used = los | attn | refl
-    # unit lines of sight of every entry, dense (no gather / scatter): the DOPs weigh the unused ones 0
-    el_r, az_r = np.radians(el), np.radians(az)
-    ce = np.cos(el_r)
-    los_enu = (ce * np.sin(az_r), ce * np.cos(az_r), np.sin(el_r))
     gdop, pdop, hdop, vdop, _ = dops_from_los_enu(los_enu, used, clock)
     r, k = np.nonzero(used)              # the used satellites only: sigma ignores the others
     excess = np.where(refl[r, k], np.nan_to_num(np.asarray(v.extra_path_m, float)[r, k]), 0.0)
@@ -174,7 +169,7 @@ def _rows_quality(state, att, v, above, sysv, clock, dual, inp: PlanInputs, cn0=
     vals = {"n_los": los.sum(axis=1), "n_attenuated": attn.sum(axis=1), "n_reflected": refl.sum(axis=1),
             "n_blocked": blocked.sum(axis=1), "gdop": gdop, "pdop": pdop, "hdop": hdop, "vdop": vdop,
             "nlos_share": nlos, "h_acc_m": hdop * uere}
-    return vals, cand, los_enu
+    return vals, cand
 
 
 def _rtk_geometry(los_enu, cont, clock, rule: RtkRule):
@@ -219,11 +214,10 @@ def path_quality(scene, vis, antenna_world_m, sat_pos_ecef_m, systems, inp: Plan
     above = present & (np.asarray(v.el_deg) >= vis.mask_deg)
     if states_out is not None:
         states_out[:] = np.where(above, state, -1)
-    cn0 = None
-    if inp.cn0 is not None:
-        rng = _ranges_m(scene.antenna_ecef(ant)[:, None, :], np.where(present[..., None], sat_all, 0.0))
-        cn0 = _predicted_cn0(inp, sysv, state, att, v, above, rng)
-    vals, cand, los_enu = _rows_quality(state, att, v, above, sysv, clock, dual, inp, cn0)
+    rng, los_enu = AntennaAxes.of(scene, ant).to_satellites(np.where(present[..., None], sat_all, 0.0),
+                                                            per_time=False)
+    cn0 = _predicted_cn0(inp, sysv, state, att, v, above, rng)
+    vals, cand = _rows_quality(state, att, v, above, los_enu, sysv, clock, dual, inp, cn0)
     arcs = RtkArcs(inp.rule, 1, len(sysv))            # the path is one row stepping pose to pose
     t_all, gap = _step_times(t_s, len(ant), inp.rule)
     cont = np.concatenate([arcs.unbroken(cand[i:i + 1], t_all[i], gap) for i in range(len(ant))]) if len(ant) else cand
@@ -239,14 +233,11 @@ def path_quality(scene, vis, antenna_world_m, sat_pos_ecef_m, systems, inp: Plan
 
 
 def _predicted_cn0(inp: PlanInputs, sysv, state, att, v, above, range_m):
-    """(M, S) C/N0 predicted by ``inp.cn0`` (predicted_cn0.py) at distances ``range_m`` (M, S), NaN off ``above``."""
+    """(M, S) C/N0 predicted by ``inp.cn0`` (predicted_cn0.py) at distances ``range_m`` (M, S), NaN off ``above``;
+    None without a predictor."""
+    if inp.cn0 is None:
+        return None
     return inp.cn0.cn0_dbhz(sysv, state, att, v, range_m, where=above)
-
-
-def _ranges_m(rx_ecef_m, sat_ecef_m) -> np.ndarray:
-    """Distances [m] between receivers and satellites (ECEF, broadcast against each other, last axis xyz)."""
-    d = sat_ecef_m - rx_ecef_m
-    return np.sqrt(d[..., 0] ** 2 + d[..., 1] ** 2 + d[..., 2] ** 2)
 
 
 def _n_good(cn0, inp: PlanInputs, n_rows: int) -> np.ndarray:

@@ -67,8 +67,8 @@ class RangingBudget:
         string per entry); elevation, attenuation and NLOS excess each (K,).  The thermal term of an unattenuated
         entry is its system's at the nominal C/N0, computed once."""
         el = np.clip(np.asarray(el_deg, np.float64), 1.0, 90.0)
-        e = el / 180.0
-        obliq = 1.0 + 16.0 * (0.53 - e) ** 3                         # IS-GPS-200N 20.3.3.5.2.5
+        x = 0.53 - el / 180.0
+        obliq = 1.0 + 16.0 * (x * x * x)                            # IS-GPS-200N 20.3.3.5.2.5 (cube: no pow)
         var = (self.iono_frac * NOMINAL_ZENITH_IONO_L1_M * obliq) ** 2
         var = var + (TROPO_RESIDUAL_ZENITH_M / np.sin(np.radians(el))) ** 2
         var = var + self.multipath.sigma_m(el) ** 2

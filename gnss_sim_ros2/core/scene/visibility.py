@@ -222,7 +222,8 @@ class Scene:
             if d.shape[-1] != 3 or d.ndim not in (2, 3):
                 raise ValueError(f"sat_dirs_enu: expected (N, 3) or (M, N, 3), got {d.shape}")
             d = np.broadcast_to(d, (m,) + d.shape[-2:]) if d.ndim == 2 else d
-            norm = np.linalg.norm(d, axis=-1, keepdims=True)
+            # |d| as np.linalg.norm computes it ((x x + y y) + z z, bit for bit) without its (M, N, 3) temporary
+            norm = np.sqrt(d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1] + d[..., 2] * d[..., 2])[..., None]
             if np.any(norm == 0):
                 raise ValueError("sat_dirs_enu: zero direction vector")
             d = d / norm
