@@ -1,6 +1,7 @@
 """With default settings the scene decides what is modelled (issue 27): near walls the reflection model
-(multipath auto) and the land-mobile-satellite layer (lms_environment auto) run; an open field pays nothing for
-either and writes what a run with both off writes."""
+(multipath auto) runs; the land-mobile-satellite layer is the user's choice about the world (lms_environment, default
+off; auto: from the share of the sky the walls block); an open field pays nothing for either and writes what a run
+with both off writes."""
 from __future__ import annotations
 
 import numpy as np
@@ -18,7 +19,9 @@ DURATION_S = 30.0
 
 def test_the_defaults_are_auto():
     cfg = load_config()
-    assert cfg.node("receiver")["lms_environment"] == "auto"
+    # off: what a 3D model lacks is not in its geometry (lms_channel.py: the demo courtyard blocks more of the sky
+    # than the Hong Kong drive the layer was fitted on)
+    assert cfg.node("receiver")["lms_environment"] == "off"
     assert cfg.node("receiver")["preset"] == "balanced" and cfg.node("visibility")["multipath"] in ("", "auto")
 
 
@@ -59,19 +62,20 @@ def test_an_open_field_pays_nothing_and_writes_what_off_writes(tmp_path, monkeyp
     scene = canyon_scene(walls=False, latitude_deg=LAT)
     off = _run(tmp_path, scene, "off", multipath="off", lms_environment="off")
     calls = _count_calls(monkeypatch)
-    defaults = _run(tmp_path, scene, "defaults")
+    defaults = _run(tmp_path, scene, "defaults", lms_environment="auto")
     assert calls == {"lms_draws": 0, "path_search": 0}
     assert defaults[0] == off[0] and defaults[1] == off[1]
 
 
-def test_a_street_canyon_gets_both_models_by_default(tmp_path, monkeypatch):
+def test_a_street_canyon_gets_the_reflections_by_default_and_the_layer_with_auto(tmp_path, monkeypatch):
     scene = canyon_scene(latitude_deg=LAT)
     off = _run(tmp_path, scene, "off", multipath="off", lms_environment="off")
     calls = _count_calls(monkeypatch)
     defaults = _run(tmp_path, scene, "defaults")
-    assert calls["lms_draws"] > 0 and calls["path_search"] > 0
+    assert calls["lms_draws"] == 0 and calls["path_search"] > 0
     assert defaults[0] != off[0]
     # the layer on its own changes the observations too (reflections the same in both)
-    only_mp = _run(tmp_path, scene, "mp_only", lms_environment="off")
-    assert only_mp[0] != defaults[0]
+    with_lms = _run(tmp_path, scene, "lms_auto", lms_environment="auto")
+    assert calls["lms_draws"] > 0
+    assert with_lms[0] != defaults[0]
 

@@ -150,6 +150,22 @@ def test_in_a_canyon_only_the_satellites_in_sight_get_the_layer(states):
     assert set(obs.sv[common][changed]) <= in_sight
 
 
+def test_foliage_the_scene_models_is_not_shadowed_twice(states):
+    """Satellites seen through the scene's foliage (attenuated) count as in sight for the class (opaque blocking
+    only) and draw nothing: the scene already shadows them (lms_channel.py)."""
+    n = len(states)
+    kind = np.arange(n) % 3
+    vis = np.choose(kind, [int(VisibilityState.BLOCKED), int(VisibilityState.VISIBLE),
+                           int(VisibilityState.ATTENUATED)])
+    rx, _ = _obs(states, vis, lms_environment="auto")
+    sv = np.asarray(states.sv)
+    assert rx.lms._rng and set(rx.lms._rng) <= set(sv[kind == 1])
+    # no wall, two thirds of the sky through foliage: an open field for the layer, nothing drawn
+    rx, _ = _obs(states, np.where(kind == 1, int(VisibilityState.VISIBLE), int(VisibilityState.ATTENUATED)),
+                 lms_environment="auto")
+    assert rx.lms._rng == {}
+
+
 def test_street_canyon_with_the_layer_batch_equals_epoch_by_epoch(tmp_path, tmp_path_factory):
     """The layer has memory (its chains): the offline blocks and a node's epoch-by-epoch chain draw alike (the
     two-wall canyon of test_simulation_batch, auto: its walls make it urban, blocks of 25)."""

@@ -423,12 +423,15 @@ class Receiver:
         """The land-mobile-satellite layer (lms_channel.py) on the satellites the scene leaves in sight, epoch by epoch
         in order (its chains have memory): C/N0 of the direct signal's state and echo, the echo's code error."""
         cfg = self.cfg
+        # the share the scene blocks counts opaque blocking only (foliage in sight); the layer acts on clear lines
+        # of sight only: a line through the scene's foliage already carries its shadowing (lms_channel.py)
         in_sight = (b.vis == _VISIBLE_I) | (b.vis == _ATTENUATED_I)
+        clear = b.vis == _VISIBLE_I
         sig, cols = [], []                 # per epoch: its signal rows and (level, amplitude, phase, delay) of each
         for e in range(b.k_n):
             s0, s1 = b.seg[e], b.seg[e + 1]
             share = float(np.mean(~in_sight[s0:s1])) if s1 > s0 else 0.0
-            out = self.lms.epoch(b.rx_ep[e], b.dt_ep[e], b.svs[s0:s1], b.el[s0:s1], in_sight[s0:s1], share)
+            out = self.lms.epoch(b.rx_ep[e], b.dt_ep[e], b.svs[s0:s1], b.el[s0:s1], clear[s0:s1], share)
             if out is None:
                 continue
             rows, level_db, amp, phase, delay_m = out
