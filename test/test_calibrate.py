@@ -25,7 +25,6 @@ from gnss_sim_ros2.core.calibration.fit import (
     table_thresholds,
 )
 from gnss_sim_ros2.core.calibration.reading import read_recording
-from gnss_sim_ros2.core.calibration.signal_compare import compare_statistics
 from gnss_sim_ros2.core.calibration.signal_stats import (
     RecordingStats,
     SignalStats,
@@ -35,6 +34,7 @@ from gnss_sim_ros2.core.calibration.signal_stats import (
     remove_arc_means,
     signal_statistics,
 )
+from gnss_sim_ros2.core.comparison.signal_compare import compare_statistics
 from gnss_sim_ros2.core.rinex.obs_read import load_rinex
 from gnss_sim_ros2.core.rinex.obs_table import ObsTable
 

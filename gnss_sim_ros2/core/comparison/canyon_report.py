@@ -7,10 +7,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..calibration.signal_compare import summary_lines
 from ..markdown_table import md_table as _table
 from .canyon import LOS_TAIL_M
 from .markdown import fmt as _f  # one number format for the whole report
+from .signal_compare import summary_lines
 from .statistics import GROSS_LIMITS, TAIL_THRESHOLDS_M, summary_stats
 
 #: the canyon figures beside report.md (signals.json stays as issue 26 wrote it)

@@ -33,7 +33,7 @@ Method (:func:`compare`):
   from the navigation data): seen by both / only simulated / only real and
   the Jaccard index |both| / |union| over (epoch, satellite) pairs.
 * Signals: per-signal statistics of both files (core/calibration/signal_stats.py, the ones ``gnss-sim
-  calibrate`` fits to) compared by core/calibration/signal_compare.py: Jaccard of (epoch, satellite, signal)
+  calibrate`` fits to) compared by core/comparison/signal_compare.py: Jaccard of (epoch, satellite, signal)
   triples above the mask, C/N0 per 10-degree bin, code noise by the multipath combination, LLI at the first
   epoch (needs elevations: ``nav_paths``).
 * Positions: single point solutions of both files with the same solver
@@ -56,7 +56,6 @@ import numpy as np
 
 from .. import constants as k
 from ..calibration.reading import elevations_deg
-from ..calibration.signal_compare import compare_statistics
 from ..calibration.signal_stats import RecordingStats, signal_statistics
 from ..ephemeris.broadcast import BroadcastEphemeris
 from ..receiver.outputs import write_navigation
@@ -65,6 +64,7 @@ from ..rinex.obs_table import EPOCH_MATCH_NS, ObsTable, match_epochs
 from .canyon import Canyon, canyon_split
 from .pairing import SignalPair, pair_signals
 from .rtklib import rtklib_solutions
+from .signal_compare import compare_statistics
 from .sources import load_observations
 from .spp import Solutions, spp_solutions
 from .statistics import (
@@ -270,7 +270,7 @@ def _kind_diffs(c: str, sim: ObsTable, real: ObsTable, pairs, svs, i_sim, i_real
 
 def _signal_statistics(cmp: Comparison, i_sim, i_real) -> None:
     """Per-signal statistics of both files over the common epochs (10-degree bins, the comparison's mask) and
-    their comparison (core/calibration/signal_compare.py); with a scene also over the line-of-sight and the NLOS
+    their comparison (core/comparison/signal_compare.py); with a scene also over the line-of-sight and the NLOS
     satellite-epochs of each file (:attr:`Comparison.signals_split`).  The real file's matched epochs carry the
     simulated time labels (epochs matched within ``epoch_tol_ms`` are one epoch)."""
     col = {s: j for j, s in enumerate(cmp.sv.tolist())}

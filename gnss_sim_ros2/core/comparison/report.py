@@ -7,12 +7,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..calibration.signal_compare import summary_lines
 from ..markdown_table import md_table as _md_table
 from .canyon_report import canyon_lines
 from .compare import Comparison
 from .markdown import fmt as _f
 from .pairing import unpaired_signals
+from .signal_compare import summary_lines
 from .statistics import DESCRIPTION, GROSS_LIMITS, TAIL_THRESHOLDS_M, UNITS, enu_errors_m
 
 #: the per-signal statistics of both sides and their comparison, beside report.md

@@ -13,8 +13,8 @@ import math
 
 import numpy as np
 
+from ..calibration.signal_stats import RecordingStats
 from ..markdown_table import md_table
-from .signal_stats import RecordingStats
 
 #: a bin needs this many samples on each side to be compared
 MIN_BIN_SAMPLES = 10
