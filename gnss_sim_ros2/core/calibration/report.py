@@ -8,14 +8,11 @@ from pathlib import Path
 
 import numpy as np
 
+from ..markdown_table import fmt
 from ..markdown_table import md_table as _md_table
 from .fit import dll_noise_m
 from .reading import Recording
 from .signal_stats import RecordingStats
-
-
-def _f(v, digits=1) -> str:
-    return "-" if v is None or not np.isfinite(v) else f"{v:.{digits}f}"
 
 
 def _interp(table: dict | None, key: str, el: float) -> float:
@@ -129,13 +126,15 @@ def write_report(rec: Recording, stats: RecordingStats, profile: dict, notes: li
     cn0_tab = profile.get("link_budget", {}).get("cn0_table_dbhz", {})
     mp_tab = profile.get("code_multipath_m", {})
     for key, st in stats.signals.items():
-        rows.append([key, _f(_interp(cn0_tab.get(key), "cn0_dbhz", 10.0)),
-                     _f(_interp(cn0_tab.get(key), "cn0_dbhz", 45.0)), _f(_interp(cn0_tab.get(key), "cn0_dbhz", 90.0)),
-                     st.mp_partner and f"L{st.mp_partner}" or "-", _f(st.mp_all_sigma_m, 3),
-                     _f(_interp(mp_tab.get(key), "sigma_m", 10.0), 3), _f(_interp(mp_tab.get(key), "sigma_m", 45.0), 3),
-                     _f(np.median(st.rise_el_deg)) if st.rise_el_deg.size else "-",
-                     _f(np.median(st.set_el_deg)) if st.set_el_deg.size else "-",
-                     _f(st.cn0_scatter_db, 2)])
+        rows.append([key, fmt(_interp(cn0_tab.get(key), "cn0_dbhz", 10.0), 1),
+                     fmt(_interp(cn0_tab.get(key), "cn0_dbhz", 45.0), 1),
+                     fmt(_interp(cn0_tab.get(key), "cn0_dbhz", 90.0), 1),
+                     st.mp_partner and f"L{st.mp_partner}" or "-", fmt(st.mp_all_sigma_m, 3),
+                     fmt(_interp(mp_tab.get(key), "sigma_m", 10.0), 3),
+                     fmt(_interp(mp_tab.get(key), "sigma_m", 45.0), 3),
+                     fmt(np.median(st.rise_el_deg), 1) if st.rise_el_deg.size else "-",
+                     fmt(np.median(st.set_el_deg), 1) if st.set_el_deg.size else "-",
+                     fmt(st.cn0_scatter_db, 2)])
     L += ["## Per signal", ""]
     L += _md_table(["signal", "C/N0 10 deg", "C/N0 45 deg", "C/N0 90 deg", "MP with", "MP sigma [m]",
                     "multipath 10 deg [m]", "multipath 45 deg [m]", "median rise [deg]", "median set [deg]",

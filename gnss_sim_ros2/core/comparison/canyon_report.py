@@ -7,9 +7,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..markdown_table import fmt as _f  # one number format for the whole report
 from ..markdown_table import md_table as _table
 from .canyon import LOS_TAIL_M
-from .markdown import fmt as _f  # one number format for the whole report
 from .signal_compare import summary_lines
 from .statistics import GROSS_LIMITS, TAIL_THRESHOLDS_M, summary_stats
 

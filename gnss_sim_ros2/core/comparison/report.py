@@ -7,10 +7,10 @@ from pathlib import Path
 
 import numpy as np
 
+from ..markdown_table import fmt as _f
 from ..markdown_table import md_table as _md_table
 from .canyon_report import canyon_lines
 from .compare import Comparison
-from .markdown import fmt as _f
 from .pairing import unpaired_signals
 from .signal_compare import summary_lines
 from .statistics import DESCRIPTION, GROSS_LIMITS, TAIL_THRESHOLDS_M, UNITS, enu_errors_m
