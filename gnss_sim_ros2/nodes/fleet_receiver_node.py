@@ -4,14 +4,20 @@
 (graph_params.robot_node_params: seed + k, RINEX in output_dir/robot<k>, frames robot<k>/...; one robot: the
 node's own), each its own core/receiver/chain.ReceiverChain (noise streams, clock, tracking state, RINEX file),
 publishing on its own topics (/robot<k>/gnss/observations, fix, vel, status, nmea, ...).  One subscription to
-``satellite_states`` serves all; robot k's ``visibility`` (the fleet visibility node's, one per robot) pairs with
-it by stamp.  Each robot is a RobotReceiver running the receiver node's own methods (nodes/receiver_node.py:
-configure, pairing, the observations then the fix of an epoch, cleanup) on its chain, so a fleet's robot k
-gives what robot k's own receiver node gives, byte for byte (test_fleet_layout).
+``satellite_states`` serves all, and each message is decoded once for every robot (``decoded_states``: the robots
+read the same arrays); robot k's ``visibility`` (the fleet visibility node's, one per robot) pairs with it by
+stamp in robot k's core/receiver/epoch_pairing.EpochPairing.  Each robot is a RobotReceiver running the receiver
+node's own methods (nodes/receiver_node.py: configure, the observations then the fix of an epoch, cleanup) on its
+chain, so a fleet's robot k gives what robot k's own receiver node gives, byte for byte (test_fleet_layout).
 
 The robots' chains are stepped one after the other inside the node (a loop over robots, not one numpy step over
-robots x satellites x signals): what the fleet saves is the per-robot visibility cast, the executor's and the
-middleware's per-node work, not the receiver's arithmetic (docs/BENCHMARKS.md, fleet figures).
+robots x satellites x signals): what the fleet pays once is the states' decoding, the per-robot visibility cast,
+the executor's and the middleware's per-node work; per robot it still pays the receiver's arithmetic (observables,
+the fix: solver.solve_pvt_many over robots would not give each robot's bits), its visibility decoded, its messages
+encoded and published (docs/BENCHMARKS.md, fleet figures).  A robot's fix half is an executor task
+(ReceiverNode.process) queued behind the visibility callbacks already waiting, so the robots' observations of an
+epoch go out before their fixes when the executor holds them together (4 robots: robot 0's fix after robot 3's
+observations at the median).
 """
 from __future__ import annotations
 
