@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..calibration.reading import elevations_deg, gnss_times
 from .statistics import tails
 
 #: tracked/not agreement per satellite-epoch quoted in issue 27 as the published anchor
@@ -140,7 +141,8 @@ class Canyon:
 
 def _view(obs_path, times, truth_ecef_m, eph, scene, systems, mask_deg, codes, svs, ground_height_m):
     """:func:`~.drive_check.file_view` of one file on ``times`` x ``svs`` (epochs without a truth: nothing)."""
-    from ..calibration.reading import gnss_times
+    # in the function: drive_check reaches open3d (scene/raycast.py, about 1.2 s to import), which a comparison
+    # without a scene never needs
     from .drive_check import Drive, file_view, place_on_ground
 
     e, a = len(times), len(svs)
@@ -174,8 +176,6 @@ def canyon_split(sim_path, real_path, scene, scene_name: str, eph, times, truth_
     own truth ((E, 3) ECEF, NaN where none); ``codes_*``: system -> band + attribute of its reference signal;
     ``ground_height_m``: place each truth point that high above the scene's ground (a model whose heights are not
     ellipsoidal), else the truth as it is."""
-    from ..calibration.reading import elevations_deg
-
     if scene.spherical is None:
         raise ValueError(f"{scene_name or 'the scene'}: no spherical_coordinates (geodetic origin): cannot place the "
                          "truth in it")
