@@ -24,15 +24,10 @@ import pytest
 pytest.importorskip("launch_testing", reason="launch_testing is not installed here: `make test` runs this file "
                     "with launch_test in .venv-launch (../shared/ros2-tools); on a ROS install: launch_test FILE")
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # launch_helpers (launch_test adds no path)
-import launch  # noqa: E402
 import launch_testing  # noqa: E402
-import launch_testing.actions  # noqa: E402
-import yaml  # noqa: E402
-from ament_index_python.packages import get_package_share_directory  # noqa: E402
 from geometry_msgs.msg import PoseStamped  # noqa: E402
 from gnss_sim_msgs.srv import PathQuality  # noqa: E402
-from launch.launch_description_sources import PythonLaunchDescriptionSource  # noqa: E402
-from launch_helpers import NODES, ExitsCleanly, Probe  # noqa: E402
+from launch_helpers import NODES, ExitsCleanly, Probe, sim_launch_description  # noqa: E402
 from nav_msgs.msg import OccupancyGrid  # noqa: E402
 from nav_msgs.msg import Path as NavPath  # noqa: E402
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
@@ -46,14 +41,8 @@ OUT = Path(tempfile.mkdtemp(prefix="gnss_sim_launch_quality_map_"))
 
 @pytest.mark.launch_test
 def generate_test_description():
-    cfg = OUT / "config.yaml"
-    cfg.write_text(yaml.safe_dump({"/**": {"ros__parameters": {"rate_hz": 1.0, "marker_name": "LQMP"}},
-                                   "gnss_sim_quality_map": {"ros__parameters": {"grid_step_m": STEP_M}}}))
-    sim = launch.actions.IncludeLaunchDescription(
-        PythonLaunchDescriptionSource(os.path.join(get_package_share_directory("gnss_sim"), "launch",
-                                                   "sim.launch.py")),
-        launch_arguments={"quality_map": "true", "config": str(cfg), "output_dir": str(OUT / "out")}.items())
-    return launch.LaunchDescription([sim, launch_testing.actions.ReadyToTest()])
+    return sim_launch_description(OUT, {"/**": {"rate_hz": 1.0, "marker_name": "LQMP"},
+                                        "gnss_sim_quality_map": {"grid_step_m": STEP_M}}, {"quality_map": "true"})
 
 
 class TestQualityMapLaunch(unittest.TestCase):

@@ -24,14 +24,9 @@ import pytest
 pytest.importorskip("launch_testing", reason="launch_testing is not installed here: `make test` runs this file "
                     "with launch_test in .venv-launch (../shared/ros2-tools); on a ROS install: launch_test FILE")
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # launch_helpers (launch_test adds no path)
-import launch  # noqa: E402
 import launch_testing  # noqa: E402
-import launch_testing.actions  # noqa: E402
 import numpy as np  # noqa: E402
-import yaml  # noqa: E402
-from ament_index_python.packages import get_package_share_directory  # noqa: E402
-from launch.launch_description_sources import PythonLaunchDescriptionSource  # noqa: E402
-from launch_helpers import NODES, ExitsCleanly, Probe, stamp_s  # noqa: E402
+from launch_helpers import NODES, ExitsCleanly, Probe, sim_launch_description, stamp_s  # noqa: E402
 from sensor_msgs.msg import NavSatFix, NavSatStatus  # noqa: E402
 from std_msgs.msg import UInt8MultiArray  # noqa: E402
 from test_rtk_engine import rtkrcv_and_faketime  # noqa: E402
@@ -56,13 +51,7 @@ def _rtkrcv_children_of_the_container() -> set[int]:
 
 @pytest.mark.launch_test
 def generate_test_description():
-    cfg = OUT / "config.yaml"
-    cfg.write_text(yaml.safe_dump({"/**": {"ros__parameters": {"rate_hz": 1.0, "marker_name": "LTRK"}}}))
-    sim = launch.actions.IncludeLaunchDescription(
-        PythonLaunchDescriptionSource(os.path.join(get_package_share_directory("gnss_sim"), "launch",
-                                                   "sim.launch.py")),
-        launch_arguments={"rtk": "true", "config": str(cfg), "output_dir": str(OUT / "out")}.items())
-    return launch.LaunchDescription([sim, launch_testing.actions.ReadyToTest()])
+    return sim_launch_description(OUT, {"/**": {"rate_hz": 1.0, "marker_name": "LTRK"}}, {"rtk": "true"})
 
 
 class TestRtkLaunch(unittest.TestCase):

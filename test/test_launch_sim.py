@@ -28,16 +28,11 @@ import pytest
 pytest.importorskip("launch_testing", reason="launch_testing is not installed here: `make test` runs this file "
                     "with launch_test in .venv-launch (../shared/ros2-tools); on a ROS install: launch_test FILE")
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # launch_helpers (launch_test adds no path)
-import launch  # noqa: E402
 import launch_testing  # noqa: E402
-import launch_testing.actions  # noqa: E402
 import launch_testing.asserts  # noqa: E402
 import numpy as np  # noqa: E402
 import pymap3d  # noqa: E402
-import yaml  # noqa: E402
-from ament_index_python.packages import get_package_share_directory  # noqa: E402
-from launch.launch_description_sources import PythonLaunchDescriptionSource  # noqa: E402
-from launch_helpers import NODES, Probe, rinex_obs_epochs, ros2, stamp_s  # noqa: E402
+from launch_helpers import NODES, Probe, rinex_obs_epochs, ros2, sim_launch_description, stamp_s  # noqa: E402
 from sensor_msgs.msg import NavSatStatus  # noqa: E402
 
 RATE_HZ = 2.0
@@ -48,32 +43,25 @@ MAX_JUMP_M = 10.0            # the CI owner's bound between consecutive epochs
 WALL_WINDOW_S = 8.0          # wall-clock run: fixes counted over this span
 WARMUP_S = 6.0               # wall-clock run: after the first fix, before counting (> tf_timeout_s)
 MIN_EPOCH_SHARE = 0.98       # RINEX: epochs of the 0.5 s grid written (a loaded 2-core CI may drop one at 4x)
-RUNS = {}                    # composed -> (output_dir, marker)
+RUNS = {}                    # composed -> (run folder: config.yaml, out/ the output_dir, extra/; marker)
 CLI = ("--no-daemon", "--spin-time", "5")
 
 
-def _run_files(composed: str):
+def _run(composed: str) -> tuple[Path, str]:
     if composed not in RUNS:
-        out = Path(tempfile.mkdtemp(prefix=f"gnss_sim_launch_{'co' if composed == 'true' else 'pp'}_"))
-        marker = "LTCO" if composed == "true" else "LTPP"
-        cfg = out / "config.yaml"
-        # the defaults (lms_environment off since issue 27's class rule: with auto the courtyard counted as urban and
-        # the receiver under the canopy jumped 42.7 m at 95.5-96.0 s; docs/VALIDATION.md)
-        cfg.write_text(yaml.safe_dump({"/**": {"ros__parameters": {"rate_hz": RATE_HZ, "marker_name": marker}}}))
-        RUNS[composed] = (out / "rinex", marker, cfg)
+        root = Path(tempfile.mkdtemp(prefix=f"gnss_sim_launch_{'co' if composed == 'true' else 'pp'}_"))
+        RUNS[composed] = (root, "LTCO" if composed == "true" else "LTPP")
     return RUNS[composed]
 
 
 @pytest.mark.launch_test
 @launch_testing.parametrize("composed, sim_clock", [("true", "true"), ("false", "false")])
 def generate_test_description(composed, sim_clock):
-    out, _marker, cfg = _run_files(composed)
-    sim = launch.actions.IncludeLaunchDescription(
-        PythonLaunchDescriptionSource(os.path.join(get_package_share_directory("gnss_sim"), "launch",
-                                                   "sim.launch.py")),
-        launch_arguments={"composed": composed, "use_sim_time": sim_clock, "config": str(cfg),
-                          "output_dir": str(out)}.items())
-    return launch.LaunchDescription([sim, launch_testing.actions.ReadyToTest()])
+    root, marker = _run(composed)
+    # the defaults (lms_environment off since issue 27's class rule: with auto the courtyard counted as urban and
+    # the receiver under the canopy jumped 42.7 m at 95.5-96.0 s; docs/VALIDATION.md)
+    return sim_launch_description(root, {"/**": {"rate_hz": RATE_HZ, "marker_name": marker}},
+                                  {"composed": composed, "use_sim_time": sim_clock})
 
 
 class TestRunningLaunch(unittest.TestCase):
@@ -148,8 +136,8 @@ class TestRunningLaunch(unittest.TestCase):
         self.assertIn("/gnss_sim_container", lines)
         for n in NODES:
             self.assertTrue(any(ln.endswith(f"/{n}") for ln in lines), listing)
-        out, _, _ = _run_files(composed)
-        extra_out = out.parent / "extra"
+        root, _ = _run(composed)
+        extra_out = root / "extra"
         loaded = ros2("component", "load", *CLI, "/gnss_sim_container", "gnss_sim", "gnss_sim::ReceiverNode",
                       "-n", "gnss_sim_receiver_extra", "-r", "fix:=/gnss_extra/fix",
                       "-p", f"output_dir:={extra_out}", "-p", "marker_name:=XTRA", "-p", "use_sim_time:=true")
@@ -200,7 +188,8 @@ class TestAfterSigint(unittest.TestCase):
 
     def test_rinex_under_marker_at_rate(self, composed):
         """One observation file per configure (the cycle configures twice), each on the 0.5 s grid."""
-        out, marker, _ = _run_files(composed)
+        root, marker = _run(composed)
+        out = root / "out"
         files = sorted(out.glob(f"{marker}*_MO.rnx"))
         self.assertEqual(len(files), 2, sorted(p.name for p in out.iterdir()))
         last_end = -1.0
