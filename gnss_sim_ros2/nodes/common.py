@@ -123,8 +123,19 @@ class GnssSimNode(LifecycleNode):
         return pub
 
     def active_timer(self, period_s: float, callback, clock=None):
-        """A timer (activate), destroyed by the base class after ``deactivate()``."""
-        timer = self.create_timer(period_s, self.speaking(callback), clock=clock)
+        """A timer (activate), destroyed by the base class after ``deactivate()``. A tick the executor had
+        already queued when the timer was destroyed is dropped: rclpy's EventsExecutor delivered one after a
+        shutdown transition (test_launch_sim's lifecycle cycle: the ephemeris node's tick with no time mapping)."""
+        holder: list = []
+
+        @functools.wraps(callback)
+        def while_owned(*args, **kwargs):
+            if holder and any(e is holder[0] for e in self._owned_active):
+                return callback(*args, **kwargs)
+            return None
+
+        timer = self.create_timer(period_s, self.speaking(while_owned), clock=clock)
+        holder.append(timer)
         self._owned_active.append(timer)
         return timer
 
