@@ -1,8 +1,9 @@
 """Land-mobile-satellite (LMS) channel model: what a 3D model lacks (street furniture, vehicles, trees, facade
 detail, its registration error) as a statistical layer per environment class.
 
-Structure (the state-based statistical LMS models ITU-R P.681 recommends, after Perez-Fontan et al., "Statistical
-modeling of the LMS channel", IEEE Trans. Veh. Technol. 50(6), 2001, 1549-1567):
+Structure: the three-state model of Perez-Fontan et al., "Statistical modeling of the LMS channel", IEEE Trans. Veh.
+Technol. 50(6), 2001, 1549-1567 (ITU-R P.681-11 sec. 6 recommends a two-state good/bad semi-Markov model with Loo
+fading instead, as MathWorks' p681LMSChannel documentation describes it: the structure here is the 2001 paper's):
 
 - three states per satellite: 0 line of sight (A), 1 shadowed (B), 2 blocked / deep shadow (C), a Markov chain in
   the distance travelled with state probabilities W_i and mean state lengths D_i [m] per class and elevation band.
@@ -16,11 +17,16 @@ modeling of the LMS channel", IEEE Trans. Veh. Technol. 50(6), 2001, 1549-1567):
   ION GNSS 2005: echo delays exponentially distributed, echo power decaying with delay).
 
 What the scene's rays already give (buildings: blockage, reflections) is not in these classes: they apply to
-satellites the scene leaves in sight.  Loo triplets (alpha, psi, MP) of the states: representative of the L-band
-tables of Perez-Fontan et al. 2001 (urban / suburban / open, 40-60 deg; from memory of the published tables,
-rounded: check against the document before quoting them); the published W count the buildings a 3D model casts,
-so W of a scene's line-of-sight satellites, the state lengths and the echo delay are fitted on the Hong Kong drive
-(docs/VALIDATION.md "Urban canyons", a drive: per class, never per site).
+satellites the scene leaves in sight.  Loo triplets (alpha, psi, MP) of the states: representative values, NOT
+checked against the published tables (written from memory of the L-band urban / suburban / open tables of
+Perez-Fontan et al. 2001, 40-60 deg, rounded; do not quote them as the paper's).  Sources searched for the tables,
+none holding them: the paper's text (only its first page stored), ITU-R P.681 (table of contents only; its sec. 6
+model is the two-state one), MathWorks p681LMSChannel pages (no tables), public code (three-state LMS simulators
+carry illustrative sets, one intermediate-tree-shadow set without band or source, DVB-SH preset names without
+values, SNS3's Ka-band set without source: none the L-band urban / suburban / open rows).  The published W count
+the buildings a 3D model casts, so W of a scene's line-of-sight satellites, the state lengths and the echo power
+and delay are fitted on the Hong Kong drive (docs/VALIDATION.md "Urban canyons", a drive: per class, never per
+site; the MP and delay values below include that fit, a grid that chose echo delay x0.5 and power +2 dB).
 """
 from __future__ import annotations
 
