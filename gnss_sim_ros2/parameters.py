@@ -377,7 +377,8 @@ NODE_PARAMS: dict[str, list[Param]] = {
               "and whose walls lie between transmitter and antenna, as offline; empty: the visibility node's "
               "mesh_file or world_file (the configuration copies it; the demo courtyard when both are empty)"),
         Param("lms_environment", "off", "land-mobile-satellite channel layered on the scene's rays (Perez-Fontan "
-              "et al. 2001 3-state chain in ITU-R P.681's environment classes, Loo fading, DLR echo delays; core/multipath/lms.py): on satellites with a "
+              "et al. 2001 3-state chain in ITU-R P.681's environment classes, Loo fading, DLR echo delays; "
+              "core/multipath/lms.py): on satellites with a "
               "clear line of sight, shadowed / blocked states and a diffuse echo (what a 3D model lacks: street "
               "furniture, vehicles, trees). A choice about the world, not found in its geometry: off (default; a "
               "world that models its detail, as the demo courtyard), auto (a city model of building blocks only, as "
