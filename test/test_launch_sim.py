@@ -159,8 +159,12 @@ class TestRunningLaunch(unittest.TestCase):
             for n in order:
                 self.assertTrue(probe.transition(n, name), f"{n}: {name}")
                 self.assertEqual(probe.state(n), goal)
-        for n in NODES:  # no publisher of the graph's topics survives cleanup
-            self.assertFalse({p for p in probe.publishers_of(n) if p.startswith("/gnss/")}, n)
+        def graph_topics(n):
+            return {p for p in probe.publishers_of(n) if p.startswith("/gnss/")}
+
+        for n in NODES:  # no publisher of the graph's topics survives cleanup (as soon as discovery tells the probe)
+            probe.wait_for(lambda n=n: not graph_topics(n), 10.0)
+            self.assertFalse(graph_topics(n), n)
         quiet_from = len(probe.fixes_copy())
         time.sleep(2.0)
         self.assertEqual(len(probe.fixes_copy()), quiet_from, "fixes published while the nodes were unconfigured")
