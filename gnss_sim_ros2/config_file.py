@@ -104,6 +104,14 @@ def load_config(path: str | Path | None = None, overrides: dict[str, dict] | Non
     for key in NODE_NAMES:
         cfg.values[key] = validate_node(key, cfg.values[key], f"{where}: {NODE_NAMES[key]}", options)
     rx, vis = cfg.values["receiver"], cfg.values["visibility"]
+    if rx["scenario"]:        # an event after the run's end: said, not silently dropped (a shortened run is legal)
+        import logging
+
+        from gnss_sim_ros2.core.threats.scenario import load_scenario
+
+        dur = "option --duration" if options and options.get("duration_s") else "parameter 'duration_s'"
+        for msg in load_scenario(rx["scenario"]).never_active(cfg.values["ephemeris"]["duration_s"], dur):
+            logging.getLogger(__name__).warning(msg)
     if rx["scenario"] and not rx["scenario_world"]:   # the receiver places the scenario in the visibility's scene
         rx["scenario_world"] = vis["mesh_file"] or vis["world_file"]
     return cfg

@@ -189,7 +189,7 @@ def _check_sky_mask(value: str, where: str) -> str:
     try:
         read_sky_mask(value)
     except ValueError as exc:
-        raise ValueError(f"{where}: parameter 'sky_mask_csv': {exc}") from None
+        raise ValueError(f"{where}: {exc}") from None      # ``where`` names the parameter (Param.check)
     return str(Path(value).resolve())
 
 

@@ -28,6 +28,18 @@ WORLD_OFFSET_HELP = ("a known georeference error applied on purpose: the world m
                      "(e, n): give -e,-n,0); printed when set")
 
 
+def check_scene_options(args) -> None:
+    """calibrate / compare: ValueError naming the option for --world-offset without a scene to move (it was
+    ignored without a word) and a --strong-cn0-dbhz that is not a C/N0 (NaN made every signal weak)."""
+    import math
+
+    if getattr(args, "world_offset", None) and not (getattr(args, "world", None) or getattr(args, "mesh", None)):
+        raise ValueError("option --world-offset moves the scene of --world / --mesh, and neither is given")
+    strong = getattr(args, "strong_cn0_dbhz", None)
+    if strong is not None and not (math.isfinite(strong) and 0.0 <= strong <= 100.0):
+        raise ValueError(f"option --strong-cn0-dbhz is {strong}: a C/N0 in 0..100 dB-Hz is needed")
+
+
 def world_offset_scene(scene, text, command: str):
     """``scene`` moved by ``--world-offset E,N,U`` (None or empty: unchanged), checked by the parameter table as
     world_offset_enu_m (errors name the option) and printed on stderr, never applied silently."""

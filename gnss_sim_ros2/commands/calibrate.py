@@ -20,7 +20,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from gnss_sim_ros2.commands import WORLD_OFFSET_HELP, fail, parse_triple, world_offset_scene
+from gnss_sim_ros2.commands import WORLD_OFFSET_HELP, check_scene_options, fail, parse_triple, world_offset_scene
 
 NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 #: --fit-offset: the registration's elevation mask is at least this [deg] (low satellites see far walls the model
@@ -134,6 +134,7 @@ def run(args) -> int:
             raise ValueError(f"option --mask-deg {args.mask_deg!r}: must be in [0, 90)")
         pos = parse_triple(args.position_ecef, "option --position-ecef (ECEF X,Y,Z [m])") \
             if args.position_ecef else None
+        check_scene_options(args)
         scene, scene_name = _scene(args)
         if args.fit_offset and scene is None:
             raise ValueError("option --fit-offset: needs the scene of the recording (--world SDF or --mesh FILE)")

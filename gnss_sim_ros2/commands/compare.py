@@ -27,6 +27,7 @@ uncertainty, as a "Registration" section of report.md and ``registration.json``:
 """
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 from gnss_sim_ros2.commands import WORLD_OFFSET_HELP, fail, parse_triple
@@ -76,7 +77,13 @@ FIT_MASK_DEG = 15.0
 
 def _check_fit_options(args) -> None:
     """ValueError naming the option for a --fit-offset combination that cannot work."""
+    from gnss_sim_ros2.commands import check_scene_options
+
+    check_scene_options(args)
     scene = getattr(args, "world", None) or getattr(args, "mesh", None)
+    h = args.antenna_height_m
+    if h is not None and not (math.isfinite(h) and 0.0 <= h <= 100.0):     # -5 m ended as a non-finite position
+        raise ValueError(f"option --antenna-height-m is {h}: a height 0..100 m above the ground is needed")
     if not getattr(args, "fit_offset", False):
         if args.antenna_height_m is not None and not scene:
             raise ValueError("option --antenna-height-m: only used with --world / --mesh")

@@ -111,15 +111,27 @@ def run(args) -> int:
 
 
 def _check_options(args) -> None:
-    from gnss_sim_ros2.core.planning.area import check_step
-    from gnss_sim_ros2.parameters import param
+    from gnss_sim_ros2.core.frames import HEIGHT_SPAN_M
+    from gnss_sim_ros2.core.planning.area import check_plan_size, check_step
+    from gnss_sim_ros2.parameters import MAX_DURATION_S, param
 
     check_step(args.step_m)
     for opt, val in (("--hours", args.hours), ("--every-min", args.every_min)):
         if not (np.isfinite(val) and val > 0):
             raise ValueError(f"option {opt} is {val}: a value > 0 is needed")
-    if not (np.isfinite(args.height_m) and args.height_m >= 0):
-        raise ValueError(f"option --height-m is {args.height_m}: a height >= 0 m is needed")
+    if args.hours * 3600.0 > MAX_DURATION_S:       # the ephemerides are prepared for the whole window
+        raise ValueError(f"option --hours is {args.hours:g}: the maximum is {MAX_DURATION_S / 3600.0:g} h "
+                         f"(MAX_DURATION_S, a month)")
+    check_plan_size(1, int(args.hours * 60.0 / args.every_min) + 1)   # before the time steps are built
+    if not (np.isfinite(args.height_m) and 0 <= args.height_m <= HEIGHT_SPAN_M[1]):
+        raise ValueError(f"option --height-m is {args.height_m}: a height 0..{HEIGHT_SPAN_M[1]:g} m above the "
+                         f"ground is needed")
+    if not (np.isfinite(args.good_cn0_dbhz) and 0.0 <= args.good_cn0_dbhz <= 100.0):
+        raise ValueError(f"option --good-cn0-dbhz is {args.good_cn0_dbhz}: a C/N0 in 0..100 dB-Hz is needed")
+    if args.workers is not None and args.workers < 1:           # 0 would silently run without a cluster
+        raise ValueError(f"option --workers is {args.workers}: at least 1 worker")
+    if args.start is not None:
+        param("ephemeris", "start_time").check(args.start, "option --start")
     if not 0.0 < args.threshold <= 1.0:
         raise ValueError(f"option --threshold is {args.threshold}: an area share in (0, 1] is needed")
     if args.max_rays < 1:
@@ -129,6 +141,9 @@ def _check_options(args) -> None:
         raise ValueError("option --sky-mask needs --origin LAT,LON,H (where the mask was measured)")
     if args.origin and not args.sky_mask:
         raise ValueError("option --origin goes with --sky-mask only (a world or mesh has its own origin)")
+    if args.sky_mask and (args.polygon is not None or args.path):     # they were ignored / misreported
+        raise ValueError(f"option {'--path' if args.path else '--polygon'}: a sky mask is the sky of one point "
+                         f"(--origin), it has no area")
     bad = sorted(set(args.systems) - set("GRECJI"))
     if bad or not args.systems:
         raise ValueError(f"option --systems {args.systems!r}: RINEX letters from GRECJI")
@@ -148,6 +163,7 @@ def _run(args, stage: Path) -> None:
     from gnss_sim_ros2.commands.export_world import strict_world
     from gnss_sim_ros2.core.demo import DEMO_START
     from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris
+    from gnss_sim_ros2.core.frames import check_receiver_position
     from gnss_sim_ros2.core.planning import area as pa
     from gnss_sim_ros2.core.planning.predicted_cn0 import predictor_from_profile
     from gnss_sim_ros2.core.planning.quality import PlanInputs
@@ -161,8 +177,10 @@ def _run(args, stage: Path) -> None:
 
     t_wall = time.perf_counter()
     origin = _floats(args.origin, 3, "--origin") if args.origin else ()
+    if origin:
+        check_receiver_position(origin, "geodetic", "option --origin")
     points = [_floats(p, 2, "--point") for p in args.point]
-    polygon = pa.parse_polygon(args.polygon) if args.polygon else None
+    polygon = pa.parse_polygon(args.polygon) if args.polygon is not None else None   # --polygon= is refused
     start = GnssTime.from_iso(args.start or DEMO_START, scale="GPS")
     times = time_steps(start, args.hours, args.every_min)
     systems = tracked_systems(args.profile, args.systems)
@@ -180,10 +198,14 @@ def _run(args, stage: Path) -> None:
     if args.path:
         area = pa.read_path_csv(args.path)
         area.step_m = float(args.step_m)
+        pa.check_inside_bounds(area.x_m, area.y_m, bounds, lambda i: f"option --path {args.path}, point {i + 1}")
     elif polygon is None and bounds is None:
         area = pa.PlanArea(np.zeros(1), np.zeros(1), "path", float(args.step_m))    # a sky mask: its own point
     else:
         area = pa.grid_area(args.step_m, bounds, polygon)
+    pa.check_inside_bounds([p[0] for p in points], [p[1] for p in points], bounds,
+                           lambda i: f"option --point {args.point[i]!r}")
+    pa.check_plan_size(area.n_cells, len(np.atleast_1d(times.sec)))
     ground = pa.ground_z_m(scene, area.x_m, area.y_m)
     ant = np.stack([area.x_m, area.y_m, ground + args.height_m], axis=1)
     duration_s = float(times[len(times.sec) - 1] - times[0])
@@ -192,8 +214,6 @@ def _run(args, stage: Path) -> None:
     excluded = ReceiverConfig(profile=args.profile).excluded_svs or ""
     sky = plan_sky(provider, times, systems, excluded)
     rule = RtkRule()
-    if not np.isfinite(args.good_cn0_dbhz):
-        raise ValueError(f"option --good-cn0-dbhz is {args.good_cn0_dbhz}: a C/N0 in dB-Hz is needed")
     inp = PlanInputs(sky.pos_ecef_m, sky.system, budget, rule, int(args.max_rays),
                      predictor_from_profile(args.profile, systems), float(args.good_cn0_dbhz), sky.t_s)
     vis = VisibilityOptions(mask_deg=float(args.mask_deg), multipath=args.multipath)

@@ -34,6 +34,8 @@ def run(args) -> int:
     from gnss_sim_ros2.core.trajectory import Trajectory, demo_trajectory
 
     try:
+        if Path(args.png).suffix.lower() != ".png":
+            raise ValueError(f"option --png {args.png}: the figure is a PNG, give a file name ending in .png")
         truth = Trajectory.from_csv(args.trajectory) if args.trajectory else demo_trajectory()
         spherical = spherical_of_world_file(args.world or demo_world_path()) if truth.frame == "world" else None
         tl = read_timeline(args.run_dir, truth, spherical)

@@ -167,6 +167,9 @@ def setup_from_config(cfg, out_dir: Path, trajectory: Trajectory | None = None, 
         trajectory = antenna_path(robot_path(trj), trj["antenna_offset_m"])
         if not vis["world_file"] and not vis["mesh_file"]:
             vis["world_file"] = str(demo_world_path())
+    if extra.get("obstacle_paths") and not (vis["world_file"] or vis["mesh_file"] or "scene" in extra):
+        raise ValueError("option --obstacle-path: an obstacle moves in the world frame of a scene, and the run has "
+                         "none (open sky): give --world, --mesh or --sky-mask")      # was ignored without a word
     run = {"start": GnssTime.from_iso(rcv["start_time"]), "duration_s": eph["duration_s"],
            "interval_s": 1.0 / rcv["rate_hz"], **extra}
     return SimulationSetup(out_dir=Path(out_dir), trajectory=trajectory, receiver_params=rcv, visibility_params=vis,

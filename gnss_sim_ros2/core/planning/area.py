@@ -49,6 +49,44 @@ class PlanArea:
         return out
 
 
+#: the most cell-times one plan computes (cells x time steps): the fields take about 37 B a cell-time in memory
+#: (quality.FIELDS: 6 int16, 6 float32, 1 bool) before the NetCDF / Parquet tables; 5e7 (about 1.9 GB) holds the
+#: Hong Kong square kilometre at 2 m over 24 h at 10 min (250,000 cells x 145 steps = 3.6e7, docs/PLANNING.md)
+MAX_CELL_TIMES = 50_000_000
+#: the most time steps of one plan: each is one ephemeris evaluation and a time object before any cell is computed
+#: (1.2e7 steps ran out of 4 GB); 1e5 is a month at 30 s, the longest window (MAX_DURATION_S) at 1 min takes 44,641
+MAX_TIME_STEPS = 100_000
+
+
+def check_plan_size(n_cells: int, n_times: int) -> None:
+    """ValueError naming the options when ``n_times`` exceeds MAX_TIME_STEPS or ``n_cells`` x ``n_times``
+    MAX_CELL_TIMES (a clear refusal
+    instead of a MemoryError after minutes)."""
+    if n_times > MAX_TIME_STEPS:
+        raise ValueError(f"options --hours and --every-min give {n_times:,} time steps; a plan takes at most "
+                         f"{MAX_TIME_STEPS:,} (MAX_TIME_STEPS in core/planning/area.py): a shorter --hours or a "
+                         f"longer --every-min")
+    if n_cells * n_times > MAX_CELL_TIMES:
+        raise ValueError(f"{n_cells:,} cells x {n_times:,} time steps = {n_cells * n_times:.3g} cell-times; a plan "
+                         f"takes at most {MAX_CELL_TIMES:.0e} (about 37 B of memory each, MAX_CELL_TIMES in "
+                         f"core/planning/area.py): a larger --step-m, a smaller --polygon or --path, a shorter --hours "
+                         f"or a longer --every-min")
+
+
+def check_inside_bounds(x_m, y_m, bounds_xy, what) -> None:
+    """ValueError naming ``what(i)`` (the option or file and row) for the first point outside the world's bounds
+    (xmin, ymin, xmax, ymax); no check without bounds (a sky mask)."""
+    if bounds_xy is None:
+        return
+    bx0, by0, bx1, by1 = bounds_xy
+    x, y = np.atleast_1d(np.asarray(x_m, float)), np.atleast_1d(np.asarray(y_m, float))
+    out = np.flatnonzero((x < bx0) | (x > bx1) | (y < by0) | (y > by1))
+    if out.size:
+        i = int(out[0])
+        raise ValueError(f"{what(i)}: x {x[i]:g}, y {y[i]:g} m lies outside the world (x {bx0:g}..{bx1:g}, "
+                         f"y {by0:g}..{by1:g} m)")
+
+
 def check_step(step_m: float, option: str = "--step-m") -> float:
     step = float(step_m)
     if not (np.isfinite(step) and step > 0):
@@ -91,9 +129,10 @@ def inside_polygon(x, y, poly) -> np.ndarray:
     return inside
 
 
-def grid_area(step_m: float, bounds_xy=None, polygon=None) -> PlanArea:
+def grid_area(step_m: float, bounds_xy=None, polygon=None, step_name: str = "option --step-m") -> PlanArea:
     """A grid over ``polygon`` (P, 2) (clipped to ``bounds_xy`` (xmin, ymin, xmax, ymax) when given) or over the
-    bounds.  ValueError naming --polygon when it lies outside the world's bounds."""
+    bounds.  ValueError naming --polygon when it lies outside the world's bounds, ``step_name`` (the option or
+    parameter of the step) when the grid would hold more than MAX_CELL_TIMES cells."""
     step = check_step(step_m)
     if polygon is not None:
         lo, hi = polygon.min(axis=0), polygon.max(axis=0)
@@ -110,6 +149,10 @@ def grid_area(step_m: float, bounds_xy=None, polygon=None) -> PlanArea:
         raise ValueError("the area needs --polygon or --path (this world source has no bounds)")
     nx = max(1, int(np.ceil((hi[0] - lo[0]) / step - 1e-9)))
     ny = max(1, int(np.ceil((hi[1] - lo[1]) / step - 1e-9)))
+    if nx * ny > MAX_CELL_TIMES:                     # before the (ny, nx) meshgrid: 2e5 x 2e5 would be 298 GiB
+        raise ValueError(f"{step_name} {step:g}: a grid of {nx:,} x {ny:,} cells over x {lo[0]:g}..{hi[0]:g}, "
+                         f"y {lo[1]:g}..{hi[1]:g} m; a plan takes at most {MAX_CELL_TIMES:.0e} cell-times "
+                         f"(MAX_CELL_TIMES in core/planning/area.py): a larger step or a smaller area")
     xs = lo[0] + (np.arange(nx) + 0.5) * step
     ys = lo[1] + (np.arange(ny) + 0.5) * step
     gx, gy = np.meshgrid(xs, ys)                      # (ny, nx)

@@ -64,7 +64,7 @@ class QualityModel:
         bounds = world_bounds_xy(scene)
         if bounds is None:
             raise ValueError("the scene has no bounds (a sky mask): a quality map needs a world or a mesh")
-        area = grid_area(step_m, bounds)
+        area = grid_area(step_m, bounds, step_name="parameter 'grid_step_m'")
         ground = ground_z_m(scene, area.x_m, area.y_m)
         systems = tracked_systems(profile, systems)
         inp = PlanInputs(np.zeros((0, 0, 3)), np.array([]), budget_from_profile(profile, systems), RtkRule(),

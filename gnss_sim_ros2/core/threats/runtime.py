@@ -151,7 +151,9 @@ class ThreatRuntime:
         gain = budget.antenna_gain
         for jam, on in act:
             pos = self.positions_ecef(jam.track, t_rel)                               # (K, 3)
-            _, el, dist = az_el_from_ecef(antenna_ecef_ep, pos)
+            with np.errstate(invalid="ignore", divide="ignore"):     # a jammer on the antenna has no direction:
+                _, el, dist = az_el_from_ecef(antenna_ecef_ep, pos)
+            el = np.where(np.isfinite(el), el, 90.0)                 # its boresight gain (was NaN C/N0, an error)
             loss = self.scene_loss_db(antenna_ecef_ep, pos)
             kappa_u, share_u = np.zeros(len(first)), np.zeros(len(first))
             for u, r in enumerate(first):

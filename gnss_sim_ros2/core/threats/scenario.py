@@ -169,6 +169,14 @@ class Scenario:
     def faults(self) -> list[FaultEvent]:
         return self.of_type(FaultEvent)
 
+    def never_active(self, duration_s: float, where: str) -> list[str]:
+        """One message (file, the event's line and key) per event that starts at or after the end of a run of
+        ``duration_s`` seconds: it will not be active (a typo in start_s, or a run shortened on purpose: the
+        caller warns)."""
+        return [f"scenario {self.source}, line {self.lines.get(e.name, '?')}: key 'events[{i}].start_s': event "
+                f"'{e.name}' starts at {e.start_s:g} s, at or after the end of the run ({where} = {duration_s:g} s): "
+                f"it will not be active" for i, e in enumerate(self.events) if e.start_s >= duration_s]
+
     def needs_scene_frame(self) -> bool:
         """An event placed in world coordinates (a jammer or spoofer): the run needs a georeferenced scene."""
         return any(t is not None and t.frame == "world"
