@@ -110,7 +110,7 @@ def _stages():
         ("RTCM3", rtcm_writer.RtcmWriter, "write_epoch"),
         ("fix.csv + files (_write's own)", chain.ReceiverChain, "_write"),
         ("products (_products' own)", chain.ReceiverChain, "_products"),
-        ("solver inputs (_fix_inputs)", sys.modules["gnss_sim_ros2.core.receiver.outputs"], "_fix_inputs"),
+        ("solver inputs (fix_inputs)", sys.modules["gnss_sim_ros2.core.receiver.outputs"], "fix_inputs"),
         ("solver: PvtSolution objects", solver, "_make_solution"),
         ("solver: velocity", solver, "_solve_velocities"),
     ]

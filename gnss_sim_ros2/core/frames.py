@@ -53,13 +53,7 @@ def ecef_to_geodetic(x_m, y_m, z_m):
             import pymap3d
 
             return pymap3d.ecef2geodetic(x, y, z)
-        beta = math.atan2(z, _ONE_M_F * p)
-        for _ in range(2):
-            sb, cb = math.sin(beta), math.cos(beta)
-            lat = math.atan2(z + _EP2 * _B_M * sb * sb * sb, p - _E2 * WGS84_A_M * cb * cb * cb)
-            beta = math.atan2(_ONE_M_F * math.sin(lat), math.cos(lat))
-        sl, cl = math.sin(lat), math.cos(lat)
-        h = p * cl + z * sl - WGS84_A_M * math.sqrt(1.0 - _E2 * sl * sl)
+        lat, h = _bowring(p, z, math.sin, math.cos, math.atan2, math.sqrt)
         return np.float64(math.degrees(lat)), np.float64(math.degrees(math.atan2(y, x))), np.float64(h)
     x, y, z = np.broadcast_arrays(np.asarray(x_m, dtype=np.float64), np.asarray(y_m, dtype=np.float64),
                                   np.asarray(z_m, dtype=np.float64))
@@ -77,6 +71,36 @@ def ecef_to_geodetic(x_m, y_m, z_m):
     sl, cl = np.sin(lat), np.cos(lat)
     h = p * cl + z * sl - WGS84_A_M * np.sqrt(1.0 - _E2 * sl * sl)
     return np.degrees(lat), np.degrees(np.arctan2(y, x)), h
+
+
+def _bowring(p, z, sin, cos, atan2, sqrt):
+    """(latitude [rad], height [m]) of ecef_to_geodetic from p = hypot(x, y) and z: the arithmetic of its scalar
+    path, written once (ecef_to_geodetic, ecef_to_geodetic_pointwise)."""
+    beta = atan2(z, _ONE_M_F * p)
+    for _ in range(2):
+        sb, cb = sin(beta), cos(beta)
+        lat = atan2(z + _EP2 * _B_M * sb * sb * sb, p - _E2 * WGS84_A_M * cb * cb * cb)
+        beta = atan2(_ONE_M_F * sin(lat), cos(lat))
+    sl, cl = sin(lat), cos(lat)
+    return lat, p * cl + z * sl - WGS84_A_M * sqrt(1.0 - _E2 * sl * sl)
+
+
+def ecef_to_geodetic_pointwise(x_m, y_m, z_m):
+    """ecef_to_geodetic of 1-D arrays, each point's (lat_deg, lon_deg, h_m) bit for bit those of its own scalar
+    call however many points are converted together (numpy's arctan2 and hypot differ from math's in the last
+    bit): the scalar path point by point on Python floats.  For results that must not depend on the batch (the
+    solver's fixes of one epoch or of several robots' or epochs')."""
+    out = []
+    sin, cos, atan2, sqrt, hypot, degrees = math.sin, math.cos, math.atan2, math.sqrt, math.hypot, math.degrees
+    for x, y, z in zip(*(np.asarray(v, dtype=np.float64).reshape(-1).tolist() for v in (x_m, y_m, z_m))):
+        p = hypot(x, y)
+        if hypot(p, z) < _FAST_MIN_RADIUS_M or not math.isfinite(p + z):
+            out.append(tuple(float(v) for v in ecef_to_geodetic(x, y, z)))
+            continue
+        lat, h = _bowring(p, z, sin, cos, atan2, sqrt)
+        out.append((degrees(lat), degrees(atan2(y, x)), h))
+    lla = np.array(out, dtype=np.float64).reshape(-1, 3)
+    return lla[:, 0], lla[:, 1], lla[:, 2]
 
 
 def enu_rotation(lat0_deg, lon0_deg) -> np.ndarray:

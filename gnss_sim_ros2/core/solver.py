@@ -42,7 +42,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .constants import C_MPS
-from .frames import ecef_to_geodetic, enu_rotation
+from .frames import ecef_to_geodetic, ecef_to_geodetic_pointwise, enu_rotation
 from .memo import BoundedCache
 
 #: order in which systems become the reference clock (the first present)
@@ -410,9 +410,25 @@ def solve_pvt_many(epochs, config: SolverConfig | None = None) -> list[PvtSoluti
     (``sv``, ``sat_pos_ecef_m``, ``pseudorange_m`` and the optional ones).  The weighted least squares
     iterate on all epochs together (stacked design matrices, batched factorisations), then the residual
     check and its exclusions, epoch by epoch as :func:`solve_pvt` does them; each epoch's result is the
-    one solve_pvt gives for it alone."""
+    one solve_pvt gives for it alone, bit for bit: the epochs are solved in sets of the same clock systems
+    (an epoch's unknowns are 3 + its clock groups, as alone), and no arithmetic depends on the others
+    (_geodetic_at, the per-epoch reductions over the padded satellites)."""
     cfg = config or _default_config()
     ep = [_epoch_inputs(e, cfg) for e in epochs]
+    sets: dict = {}
+    for i, p in enumerate(ep):
+        sets.setdefault(frozenset(p.groups.tolist()), []).append(i)
+    if len(sets) == 1:
+        return _solve_epochs(ep, cfg)
+    sols: list = [None] * len(ep)
+    for idx in sets.values():
+        for i, sol in zip(idx, _solve_epochs([ep[i] for i in idx], cfg)):
+            sols[i] = sol
+    return sols
+
+
+def _solve_epochs(ep: list, cfg: SolverConfig) -> list[PvtSolution]:
+    """solve_pvt_many of checked epochs (_Epoch) of the same clock groups."""
     k_n = len(ep)
     n_of = [p.n for p in ep]
     n_max = max(n_of, default=0)
@@ -518,14 +534,21 @@ def _no_fix(n, reason="", it=0) -> dict:
             "dof": 0, "iter": it, "worst": None}
 
 
-def _rotations_at(x: np.ndarray) -> np.ndarray:
-    """ENU rotations (K, 3, 3) at the geodetic positions of ECEF points (K, 3) (one point: the scalar path
-    of frames.ecef_to_geodetic, cheaper)."""
+def _geodetic_at(x: np.ndarray):
+    """(lat_deg, lon_deg, h_m) (K,) each and the ENU rotations (K, 3, 3) at ECEF points (K, 3), every point's
+    bits those of frames.ecef_to_geodetic's scalar path (ecef_to_geodetic_pointwise for several points), so that
+    an epoch's fix does not depend on the epochs or robots solved with it."""
     if len(x) == 1:
-        lat, lon, _ = ecef_to_geodetic(x[0, 0], x[0, 1], x[0, 2])
-        return enu_rotation(lat, lon)[None]
-    lat, lon, _ = ecef_to_geodetic(x[:, 0], x[:, 1], x[:, 2])
-    return enu_rotation(lat, lon)
+        lat, lon, h = ecef_to_geodetic(x[0, 0], x[0, 1], x[0, 2])
+        return np.atleast_1d(lat), np.atleast_1d(lon), np.atleast_1d(h), enu_rotation(lat, lon)[None]
+    lat, lon, h = ecef_to_geodetic_pointwise(x[:, 0], x[:, 1], x[:, 2])
+    # C order, as one point's: einsum's summation order follows the operands' memory layout
+    return lat, lon, h, np.ascontiguousarray(enu_rotation(lat, lon))
+
+
+def _rotations_at(x: np.ndarray) -> np.ndarray:
+    """ENU rotations (K, 3, 3) at the geodetic positions of ECEF points (K, 3) (_geodetic_at)."""
+    return _geodetic_at(x)[3]
 
 
 def _filled(nmat: np.ndarray, present: np.ndarray) -> np.ndarray:
@@ -730,12 +753,7 @@ def _final_quantities(lay, rows, done, x, fin, it_of, n_of, out, cfg):
     rho = np.sqrt(np.einsum("kni,kni->kn", d, d))
     e_final = d / np.where(rho > 0, rho, 1.0)[..., None]     # line of sight at the solution (for the velocity)
     v = np.where(use, y - rho - clk[np.arange(len(done))[:, None], col], np.nan)
-    if len(xs) == 1:
-        lat, lon, hgt = (np.atleast_1d(v) for v in ecef_to_geodetic(xs[0, 0], xs[0, 1], xs[0, 2]))
-        rot = enu_rotation(lat[0], lon[0])[None]
-    else:
-        lat, lon, hgt = ecef_to_geodetic(xs[:, 0], xs[:, 1], xs[:, 2])
-        rot = enu_rotation(lat, lon)
+    lat, lon, hgt, rot = _geodetic_at(xs)
     # DOPs from the unweighted design matrix (columns x, y, z, clocks) of the last iteration
     q = _spd_inverses(_filled(np.einsum("kni,knj->kij", h, h), present))
     q3 = q[:, :3, :3]
@@ -748,7 +766,7 @@ def _final_quantities(lay, rows, done, x, fin, it_of, n_of, out, cfg):
     gdop = np.sqrt(pdop**2 + tdop**2)
     n_use = use.sum(axis=1)
     dof = n_use - 3 - present.sum(axis=1)
-    chi2 = np.einsum("kn,kn->k", w, np.where(use, v, 0.0) ** 2)
+    chi2 = _row_dots(w, np.where(use, v, 0.0) ** 2, [n_of[i] for i in done])
     # standardised residuals: v_i / sqrt((Sigma - H N^-1 H^T)_ii)  (Baarda w-test)
     qv = var - np.einsum("kni,kij,knj->kn", h, cov, h)
     wstat = np.abs(np.where(use, v, 0.0)) / np.sqrt(np.maximum(qv, 1e-30))
@@ -788,6 +806,20 @@ def _final_quantities(lay, rows, done, x, fin, it_of, n_of, out, cfg):
                   "chi2_threshold": thr, "dof": k_dof, "iter": int(it_of[i]),
                   "worst": worst[q_i] if k_dof > 0 else None, "rot": rot[q_i],
                   "lla": lla[q_i], "e_final": e_final[q_i, :n]}
+
+
+def _row_dots(a: np.ndarray, b: np.ndarray, n_of: list) -> np.ndarray:
+    """sum_n a[k, n] b[k, n] (K,) over each row's own n_of[k] entries of the padded (K, N) arrays: einsum's
+    summation order depends on the length summed, so a padded row would not give the bits of the epoch alone."""
+    n_max = a.shape[1]
+    if all(n == n_max for n in n_of):
+        return np.einsum("kn,kn->k", a, b)
+    out = np.empty(len(n_of))
+    n_arr = np.asarray(n_of)
+    for n in set(n_of):
+        rows = np.flatnonzero(n_arr == n)
+        out[rows] = np.einsum("kn,kn->k", a[rows, :n], b[rows, :n])
+    return out
 
 
 def _azimuth(enu):

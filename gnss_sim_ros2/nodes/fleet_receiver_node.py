@@ -10,20 +10,23 @@ stamp in robot k's core/receiver/epoch_pairing.EpochPairing.  Each robot is a Ro
 node's own methods (nodes/receiver_node.py: configure, the observations then the fix of an epoch, cleanup) on its
 chain, so a fleet's robot k gives what robot k's own receiver node gives, byte for byte (test_fleet_layout).
 
-The robots' chains are stepped one after the other inside the node (a loop over robots, not one numpy step over
-robots x satellites x signals): what the fleet pays once is the states' decoding, the per-robot visibility cast,
-the executor's and the middleware's per-node work; per robot it still pays the receiver's arithmetic (observables,
-the fix: solver.solve_pvt_many over robots would not give each robot's bits), its visibility decoded, its messages
-encoded and published (docs/BENCHMARKS.md, fleet figures).  A robot's fix half is an executor task
-(ReceiverNode.process) queued behind the visibility callbacks already waiting, so the robots' observations of an
-epoch go out before their fixes when the executor holds them together (4 robots: robot 0's fix after robot 3's
-observations at the median).
+The robots' observables are computed one robot after the other (a loop over robots, not yet one numpy step over
+robots x satellites x signals); their position fixes are one solve: a robot's fix half is an executor task
+(ReceiverNode.process) queued behind the visibility callbacks already waiting, and the first of those tasks
+(``finish_robots``) takes the epoch waiting at every robot and solves them in one solver.solve_pvt_many
+(core/receiver/batch_fix.py: each robot's smoothing filter, last fix, RAIM exclusions and SolverConfig its own;
+each epoch's bits those it gets alone), then writes each robot's NMEA, RINEX and messages.  So the robots'
+observations of an epoch go out before their fixes when the executor holds them together (4 robots: robot 0's
+fix after robot 3's observations at the median).  What the fleet pays once: the states' decoding, the visibility
+cast, the fix's iterations, the executor's and the middleware's per-node work; per robot it still pays the
+observables, its visibility decoded, its messages encoded and published (docs/BENCHMARKS.md, fleet figures).
 """
 from __future__ import annotations
 
 import inspect
 import sys
 
+from gnss_sim_ros2.core.receiver.batch_fix import solve_receivers_fixes
 from gnss_sim_ros2.core.receiver.epoch_pairing import EpochPairing
 from gnss_sim_ros2.graph import FLEET_NODE_NAMES, fleet_topic
 from gnss_sim_ros2.graph_params import fleet_robot_params, robot_namespace
@@ -83,6 +86,12 @@ class RobotReceiver:
     def _decode_states(self, data: bytes):
         return self.node.decoded_states(data)
 
+    def _finish(self):
+        """This robot's epochs observed and not finished (before its next observe, or its executor task), with
+        every other robot's waiting: FleetReceiverNode.finish_robots (their fixes in one solve)."""
+        if self.unfinished:
+            self.node.finish_robots()
+
 
 for _name, _fn in vars(ReceiverNode).items():      # ReceiverNode's own methods, ROS's ones left to the node
     if inspect.isfunction(_fn) and _name not in ("__init__", "activate") and _name not in vars(RobotReceiver):
@@ -108,6 +117,23 @@ class FleetReceiverNode(GnssSimNode):
             while len(self._decoded) > DECODED_KEPT:
                 del self._decoded[next(iter(self._decoded))]
         return hit[1]
+
+    def finish_robots(self):
+        """The fix half of every robot's epochs observed and not yet finished, in rounds: the first waiting
+        epoch of each robot (a robot's next epoch starts at this one's fix), their fixes in one solve
+        (core/receiver/batch_fix.solve_receivers_fixes: each robot's bits as alone), then each robot's
+        products and messages (ReceiverNode._publish_fix: NMEA, RINEX, fix, vel, status, nmea)."""
+        for r in self.robots:
+            if r.chain is None:
+                r.unfinished.clear()
+        while True:
+            due = [r for r in self.robots if r.unfinished]
+            if not due:
+                return
+            epochs = [r.unfinished.pop(0) for r in due]
+            sols = solve_receivers_fixes([r.chain for r in due], [e[4] for e in epochs])
+            for r, e, sol in zip(due, epochs, sols):
+                r._publish_fix(*e, sol=sol)
 
     def shared_publisher(self, msg_type, topic: str, qos):
         if topic not in self._shared:

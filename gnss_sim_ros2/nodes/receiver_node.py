@@ -174,9 +174,11 @@ class ReceiverNode(GnssSimNode):
             self._publish_fix(*self.unfinished.pop(0))
         self.unfinished.clear()
 
-    def _publish_fix(self, stamp, t, ecef, states, obs):
+    def _publish_fix(self, stamp, t, ecef, states, obs, sol=None):
+        """The fix half of one epoch and its messages; ``sol``: its fix solved already (the fleet node's robots
+        in one solve), None: solved by the chain."""
         frame = self.params["antenna_frame"]
-        ep = self.chain.finish(t, ecef, states, obs)
+        ep = self.chain.finish(t, ecef, states, obs, sol)
         sol = ep.sol
         header = Header(stamp=Time(sec=stamp[0], nanosec=stamp[1]), frame_id=frame)
         self.pubs["fix"].publish(fix_to_msg(header, sol))

@@ -29,12 +29,12 @@ import numpy as np
 
 from ..memo import BoundedCache
 from ..presets import preset as preset_switches
-from ..solver import PvtSolution, SolverConfig
+from ..solver import PvtSolution, SolverConfig, solve_pvt_many
 from ..time import GnssTime
 from .config import ReceiverConfig
 from .engine import Receiver
 from .observations import EpochObservations
-from .outputs import epoch_arrays, header, obs_types_for, position_fix, position_fixes, rinex_name, spp_rows
+from .outputs import epoch_arrays, fix_inputs, header, obs_types_for, position_fixes, rinex_name, spp_rows
 from .profiles import load_profile
 from .tracking import TrackingConfig
 
@@ -224,12 +224,20 @@ class ReceiverChain:
                             multipath=multipath)
         return obs if self.threats is None else self.threats.observations(obs)
 
-    def finish(self, t: GnssTime, antenna_ecef_m, states, obs) -> EpochProducts:
+    def finish(self, t: GnssTime, antenna_ecef_m, states, obs, sol: PvtSolution | None = None) -> EpochProducts:
         """The second half of :meth:`step`: the fix, NMEA, files and RTCM of the observables :meth:`observe`
-        gave for this epoch (called once per observe, in order)."""
-        products = self._products(t, np.asarray(antenna_ecef_m, dtype=float), states, obs)
+        gave for this epoch (called once per observe, in order); ``sol``: the fix of :meth:`fix_inputs` of
+        ``obs``, solved by the caller (several receivers' in one solver.solve_pvt_many), or None: solved here."""
+        products = self._products(t, np.asarray(antenna_ecef_m, dtype=float), states, obs, sol)
         self._flush_files()
         return products
+
+    def fix_inputs(self, obs) -> dict:
+        """The position fix's inputs from this epoch's observables (one epoch of solver.solve_pvt_many, with
+        this receiver's SolverConfig ``settings.solver``): the carrier-smoothed code, started at the last fix.
+        The smoothing filter advances: once per epoch, followed by :meth:`finish` with the fix of them."""
+        fix_obs = self._smoothed(obs) if self.settings.smoothing_s > 0 else obs
+        return fix_inputs(fix_obs, self.settings.receiver.profile, self.prior_ecef_m)
 
     def step_block(self, ts, antenna_ecef_m, states, epoch_of_row, vis_state=None, attenuation_db=None,
                    multipath=None) -> list[EpochProducts]:
@@ -256,8 +264,7 @@ class ReceiverChain:
     def _products(self, t, ecef, states, obs, sol=None) -> EpochProducts:
         """The fix (unless given), NMEA, files and RTCM of one epoch's observables."""
         if sol is None:
-            fix_obs = self._smoothed(obs) if self.settings.smoothing_s > 0 else obs
-            sol = position_fix(fix_obs, self.settings.receiver.profile, self.prior_ecef_m, self.settings.solver)
+            sol = solve_pvt_many([self.fix_inputs(obs)], self.settings.solver)[0]
         self.epochs += 1
         if sol.is_fix:
             self.prior_ecef_m = sol.pos_ecef_m      # the receiver's own state: before any output fault

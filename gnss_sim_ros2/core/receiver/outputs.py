@@ -175,10 +175,12 @@ def position_fixes(obs_list, profile: dict[str, list[str]], prior_ecef_m=None,
                    config: SolverConfig | None = None) -> list[PvtSolution]:
     """:func:`position_fix` of several epochs in one solve (solver.solve_pvt_many), each started at
     ``prior_ecef_m``."""
-    return solve_pvt_many([_fix_inputs(obs, profile, prior_ecef_m) for obs in obs_list], config)
+    return solve_pvt_many([fix_inputs(obs, profile, prior_ecef_m) for obs in obs_list], config)
 
 
-def _fix_inputs(obs: EpochObservations, profile, prior_ecef_m) -> dict:
+def fix_inputs(obs: EpochObservations, profile, prior_ecef_m) -> dict:
+    """One epoch of solver.solve_pvt_many from the observables: each satellite's first profile signal (spp_rows),
+    its broadcast corrections, range rates from Doppler, started at ``prior_ecef_m``."""
     rows = spp_rows(obs, profile)
     lam = k.C_MPS / obs.frequency_hz[rows]
     return dict(
