@@ -90,7 +90,7 @@ def quality_block(scene, vis, antenna_world_m, inp: PlanInputs, stats=None, stat
         ant_rows = np.repeat(ant, len(tt), axis=0)                     # row = cell * Tc + time
         sat_rows = np.broadcast_to(sat[None], (c,) + sat.shape).reshape(m_rows, len(cols), 3)
         t_start = _time.perf_counter()
-        state, att, v = vis.cast(scene, ant_rows, sat_rows)
+        state, att, v = vis.cast(scene, ant_rows, sat_rows, azimuth=False)     # the elevations only
         if stats is not None:
             stats["cast_s"] = stats.get("cast_s", 0.0) + _time.perf_counter() - t_start
             stats["rays"] = stats.get("rays", 0) + int(np.count_nonzero(np.asarray(v.el_deg) >= vis.mask_deg))

@@ -151,6 +151,27 @@ def _local_enu_rows(lat_deg, lon_deg):
                      np.stack([cl * co, cl * so, sl], -1)], axis=-2)
 
 
+def _per_run(per_antenna, a):
+    """``per_antenna(a)`` of antenna rows (M, 3), computed once per run of equal consecutive rows and repeated (the
+    planner's rows repeat each cell's antenna once per time step); element-wise arithmetic, so each row's numbers
+    are those of its own call."""
+    if len(a) < 2:
+        return per_antenna(a)
+    first = np.empty(len(a), bool)
+    first[0] = True
+    np.any(a[1:] != a[:-1], axis=1, out=first[1:])
+    if first.all():
+        return per_antenna(a)
+    starts = np.flatnonzero(first)
+    return np.repeat(per_antenna(a[starts]), np.diff(np.append(starts, len(a))), axis=0)
+
+
+def _first_row(res: VisibilityResult) -> VisibilityResult:
+    """The result of a single antenna position: each (1, N) array's row (az_deg None stays None)."""
+    return VisibilityResult(*(None if x is None else np.asarray(x)[0]
+                              for x in (getattr(res, f) for f in res.__dataclass_fields__)))
+
+
 class Scene:
     """A raycastable scene in the world frame with its geodetic origin and material table."""
 
@@ -192,6 +213,12 @@ class Scene:
         w = self.spherical.rotation_world_from_ecef()
         return (rows.reshape(-1, 3) @ w.T).reshape(-1, 3, 3).transpose(0, 2, 1)
 
+    def _local_enu_rows_at(self, antenna_world_m) -> np.ndarray:
+        """(M, 3, 3): rows east, north, up in ECEF at the antennas' WGS 84 positions (frames.ecef_to_geodetic)."""
+        rx = self.antenna_ecef(antenna_world_m)
+        lat, lon, _ = frames.ecef_to_geodetic(rx[:, 0], rx[:, 1], rx[:, 2])
+        return _local_enu_rows(np.atleast_1d(lat), np.atleast_1d(lon))
+
     def antenna_ecef(self, antenna_world_m) -> np.ndarray:
         if self.spherical is None:
             raise ValueError("scene has no geodetic origin (spherical_coordinates): ECEF is undefined")
@@ -201,13 +228,15 @@ class Scene:
     def visibility(self, antenna_world_m, sat_dirs_enu=None, *, az_deg=None, el_deg=None, mask_deg: float = 0.0,
                    fresnel_rays: int = 0, wavelength_m: float = L1_WAVELENGTH_M, fresnel_probe_m: float = 20.0,
                    tnear_m: float = 1e-3, foliage: str = "path",
-                   foliage_touch_db: float = FOLIAGE_MEDIAN_LOSS_DB) -> VisibilityResult:
+                   foliage_touch_db: float = FOLIAGE_MEDIAN_LOSS_DB, azimuth: bool = True) -> VisibilityResult:
         """Line-of-sight state for M antenna positions x N satellites.
 
         ``antenna_world_m``: (3,) or (M, 3) world frame [m].  Directions as ``sat_dirs_enu`` (N, 3) or
         (M, N, 3) (need not be unit) or ``az_deg``/``el_deg`` (N,) or (M, N), in the local ENU frame of
         each antenna.  Satellites below ``mask_deg`` are not cast (state -1).  ``foliage``: "path" or
-        "touch" (module docstring).
+        "touch" (module docstring).  ``azimuth`` False: ``az_deg`` of the result is None when the directions are
+        given as ``sat_dirs_enu`` (no arctan2 for a caller that reads only the elevations: the planner); the
+        states and the rays are the same.
         """
         if foliage not in ("path", "touch"):
             raise ValueError(f"visibility: parameter 'foliage' must be 'path' or 'touch', got {foliage!r}")
@@ -223,21 +252,31 @@ class Scene:
                 raise ValueError(f"sat_dirs_enu: expected (N, 3) or (M, N, 3), got {d.shape}")
             d = np.broadcast_to(d, (m,) + d.shape[-2:]) if d.ndim == 2 else d
             # |d| as np.linalg.norm computes it ((x x + y y) + z z, bit for bit) without its (M, N, 3) temporary
-            norm = np.sqrt(d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1] + d[..., 2] * d[..., 2])[..., None]
+            # (in per-thread scratch arrays: no fresh (M, N, 3) float64 pages on every call)
+            scr = self.rays.scratch
+            norm, sq = scr("d_norm", d.shape[:2], np.float64), scr("d_sq", d.shape[:2], np.float64)
+            np.multiply(d[..., 0], d[..., 0], out=norm)
+            norm += np.multiply(d[..., 1], d[..., 1], out=sq)
+            norm += np.multiply(d[..., 2], d[..., 2], out=sq)
+            np.sqrt(norm, out=norm)
             if np.any(norm == 0):
                 raise ValueError("sat_dirs_enu: zero direction vector")
-            d = d / norm
-            az = np.degrees(np.arctan2(d[..., 0], d[..., 1])) % 360.0
-            el = np.degrees(np.arcsin(np.clip(d[..., 2], -1.0, 1.0)))
+            unit = scr("d_unit", d.shape, np.float64)
+            for k in range(3):                           # unit directions, one coordinate at a time
+                np.divide(d[..., k], norm, out=unit[..., k])
+            d = unit
+            az = np.degrees(np.arctan2(d[..., 0], d[..., 1])) % 360.0 if azimuth else None
+            el = np.clip(d[..., 2], -1.0, 1.0)
+            el = np.degrees(np.arcsin(el, out=el), out=el)
         else:
             if az_deg is None or el_deg is None:
                 raise ValueError("visibility: give sat_dirs_enu or az_deg and el_deg")
             az, el = np.broadcast_arrays(np.asarray(az_deg, np.float64), np.asarray(el_deg, np.float64))
             if az.ndim == 1:
                 az, el = np.broadcast_to(az, (m, az.shape[0])), np.broadcast_to(el, (m, el.shape[0]))
-        if az.shape[0] != m:
-            raise ValueError(f"directions for {az.shape[0]} antenna positions, positions for {m}")
-        n = az.shape[1]
+        if el.shape[0] != m:
+            raise ValueError(f"directions for {el.shape[0]} antenna positions, positions for {m}")
+        n = el.shape[1]
         shape = (m, n)
         att_db = np.zeros(shape)
         path = np.zeros(shape)
@@ -254,10 +293,15 @@ class Scene:
         # float32 work arrays are per-thread scratch (RayScene.scratch): no fresh pages on every call
         scr = self.rays.scratch
         dims = shape if all_cast else (len(flat),)
+        # many antennas with directions given: rotate all (M, N) directions with (M, 1) coefficients, then keep
+        # the cast ones (the same float32 products and sums per ray as rotating only those, without gathering
+        # nine coefficients and three directions per ray)
+        dense = all_cast or (sat_dirs_enu is not None and m > 1 and self.spherical is not None)
+        work = shape if dense else dims
         if sat_dirs_enu is not None:
-            e_c, n_c, u_c = (scr(name, dims) for name in ("e", "n", "u"))
+            e_c, n_c, u_c = (scr(name, work) for name in ("e", "n", "u"))
             for k, dst in enumerate((e_c, n_c, u_c)):
-                np.copyto(dst, d[..., k] if all_cast else d[..., k].take(flat), casting="same_kind")
+                np.copyto(dst, d[..., k] if dense else d[..., k].take(flat), casting="same_kind")
         else:
             az_r, el_r, ce, e_c = (scr(name, dims) for name in ("az", "el", "ce", "e"))
             np.copyto(az_r, az if all_cast else az.take(flat), casting="same_kind")
@@ -279,10 +323,10 @@ class Scene:
         if self.spherical is None:                       # no geodetic origin: world = local ENU everywhere
             rays[..., 3], rays[..., 4], rays[..., 5] = e_c, n_c, u_c
         else:
-            R = self.world_from_local_enu(a).astype(np.float32)               # (M, 3, 3)
+            R = _per_run(self.world_from_local_enu, a).astype(np.float32)     # (M, 3, 3)
             # R[m, k, j] per ray: (M, 1) broadcast over the satellites, a scalar for one antenna, or repeated
             # per cast satellite (K,)
-            if all_cast:
+            if dense:
                 coef = [[R[:, k, j, None] for j in range(3)] for k in range(3)]
             elif m == 1:
                 coef = R[0]
@@ -290,12 +334,13 @@ class Scene:
                 ant = np.repeat(np.arange(m), per_ant)                        # antenna of each cast ray
                 coef = [[np.take(R[:, k, j], ant, mode="clip", out=scr(f"R{k}{j}", dims)) for j in range(3)]
                         for k in range(3)]
-            acc, tmp = scr("acc", dims), scr("tmp", dims)
+            acc, tmp = scr("acc", work), scr("tmp", work)
             for k in range(3):                           # e c0 + n c1 + u c2, in that order, in place
                 np.multiply(e_c, coef[k][0], out=acc)
                 acc += np.multiply(n_c, coef[k][1], out=tmp)
                 acc += np.multiply(u_c, coef[k][2], out=tmp)
-                rays[..., 3 + k] = acc
+                rays[..., 3 + k] = acc if not dense or all_cast else np.take(acc.reshape(-1), flat, mode="clip",
+                                                                             out=scr("kept", dims))
         rays = rays.reshape(-1, 6)
         if fresnel_rays > 0:
             o = np.repeat(a, n if all_cast else per_ant, axis=0)
@@ -338,10 +383,7 @@ class Scene:
             state = np.full(shape, STATE_BELOW_MASK, dtype=np.int8)
             state.reshape(-1)[flat] = st
         res = VisibilityResult(state, att_db, path, np.zeros(shape), frac, diff, az, el)
-        if single:
-            res = VisibilityResult(*(np.asarray(x)[0] for x in (state, att_db, path, np.zeros(shape), frac, diff,
-                                                               az, el)))
-        return res
+        return _first_row(res) if single else res
 
     def _fresnel_fraction(self, o, d, t0, k, lam, probe_m, tnear_m):
         rho, phi = _sunflower(k)
@@ -374,18 +416,20 @@ class Scene:
         a = np.asarray(antenna_world_m, dtype=np.float64)
         single = a.ndim == 1
         a2 = a.reshape(-1, 3)
-        rx = self.antenna_ecef(a2)                       # (M, 3)
+        rx = _per_run(self.antenna_ecef, a2)             # (M, 3)
         sat = np.asarray(sat_ecef_m, dtype=np.float64)
         if sat.ndim == 2:
             sat = np.broadcast_to(sat, (len(a2),) + sat.shape)
-        d_ecef = sat - rx[:, None, :]
-        lat, lon, _ = frames.ecef_to_geodetic(rx[:, 0], rx[:, 1], rx[:, 2])
-        rows = _local_enu_rows(np.atleast_1d(lat), np.atleast_1d(lon))
-        d_enu = np.matmul(d_ecef, rows.transpose(0, 2, 1))                     # (M, N, 3): rows @ d per antenna
+        # (M, N, 3) float64 temporaries in per-thread scratch arrays (visibility copies what it keeps)
+        scr = self.rays.scratch
+        d_ecef = scr("d_ecef", sat.shape, np.float64)
+        for k in range(3):                               # one coordinate at a time: inner loops along N, not 3
+            np.subtract(sat[..., k], rx[:, None, k], out=d_ecef[..., k])
+        rows = _per_run(self._local_enu_rows_at, a2)
+        # (M, N, 3): rows @ d per antenna
+        d_enu = np.matmul(d_ecef, rows.transpose(0, 2, 1), out=scr("d_enu", sat.shape, np.float64))
         res = self.visibility(a2, d_enu, **kwargs)
-        if single:
-            res = VisibilityResult(*(np.asarray(getattr(res, f))[0] for f in res.__dataclass_fields__))
-        return res
+        return _first_row(res) if single else res
 
     # ---------------------------------------------------------------- skyline
     def sky_grid(self, antenna_world_m, az_step_deg: float = 2.0, el_step_deg: float = 1.0, tnear_m: float = 1e-3):

@@ -54,7 +54,7 @@ class VisibilityOptions:
                    multipath_bounces=int(p.get("multipath_bounces", 2)),
                    multipath_scattering=bool(p.get("multipath_scattering", False)))
 
-    def cast(self, scene, antenna_world_m, sat_ecef_m, obstacles=None):
+    def cast(self, scene, antenna_world_m, sat_ecef_m, obstacles=None, azimuth: bool = True):
         """(state, attenuation_db, VisibilityResult) of satellites (N, 3) or (M, N, 3) seen from the antenna(s).
 
         ``state`` uses VisibilityState; satellites below the mask are not cast and count as visible (the
@@ -64,9 +64,11 @@ class VisibilityOptions:
         with a loss below 40 dB are ATTENUATED by it, those with a reflected path REFLECTED_ONLY, and
         ``v.extra_path_m`` is the shortest path's excess.  ``obstacles``: moving boxes
         (core/visibility/moving_obstacles.py ``MovingBoxes``, one row per antenna) that block on top of the
-        static scene, before the reflections are sought."""
+        static scene, before the reflections are sought.  ``azimuth`` False: ``v.az_deg`` may be None (a caller
+        that reads only the elevations, the planner; states and rays unchanged); kept with multipath or obstacles."""
+        bare = self.multipath == "off" and obstacles is None
         v = scene.visibility_ecef(antenna_world_m, sat_ecef_m, mask_deg=self.mask_deg,
-                                  fresnel_rays=self.fresnel_rays, foliage=self.foliage)
+                                  fresnel_rays=self.fresnel_rays, foliage=self.foliage, azimuth=azimuth or not bare)
         state = np.where(v.state < 0, int(VisibilityState.VISIBLE), v.state).astype(np.int64)
         if obstacles is not None:
             state = block_by_obstacles(scene, antenna_world_m, sat_ecef_m, v, state, self.mask_deg, obstacles)
