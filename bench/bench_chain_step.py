@@ -102,7 +102,7 @@ def _stages():
         ("multipath state", code_multipath.CodeMultipath, "state"),
         ("tracking", tracking.Tracker, "update_many"),
         ("carrier smoothing", chain.ReceiverChain, "_smoothed_many"),
-        ("solver (position + velocity)", chain, "position_fix"),
+        ("solver (position + velocity)", chain, "solve_pvt_many"),
         ("RINEX cells (epoch_arrays)", chain, "epoch_arrays"),
         ("RINEX text (write_epochs)", obs_write.RinexObsWriter, "write_epochs"),
         ("NMEA", nmea, "sentences_from_solution"),
