@@ -6,13 +6,14 @@ node's own), each its own core/receiver/chain.ReceiverChain (noise streams, cloc
 publishing on its own topics (/robot<k>/gnss/observations, fix, vel, status, nmea, ...).  One subscription to
 ``satellite_states`` serves all, and each message is decoded once for every robot (``decoded_states``: the robots
 read the same arrays); robot k's ``visibility`` (the fleet visibility node's, one per robot) pairs with it by
-stamp in robot k's core/receiver/epoch_pairing.EpochPairing.  Each robot is a RobotReceiver running the receiver
-node's own methods (nodes/receiver_node.py: configure, the observations then the fix of an epoch, cleanup) on its
-chain, so a fleet's robot k gives what robot k's own receiver node gives, byte for byte (test_fleet_layout).
+stamp in robot k's core/receiver/epoch_pairing.EpochPairing.  Each robot is a nodes/receiver_session.ReceiverSession,
+the object a receiver node holds one of (configure, the observations then the fix of an epoch, the threat
+services, cleanup), here publishing on robot k's topics and serving ~/robot<k>/threats/..., so a fleet's robot k
+gives what robot k's own receiver node gives, byte for byte (test_fleet_layout).
 
 The robots' observables are computed one robot after the other (a loop over robots, not yet one numpy step over
 robots x satellites x signals); their position fixes are one solve: a robot's fix half is an executor task
-(ReceiverNode.process) queued behind the visibility callbacks already waiting, and the first of those tasks
+(ReceiverSession.process) queued behind the visibility callbacks already waiting, and the first of those tasks
 (``finish_robots``) takes the epoch waiting at every robot and solves them in one solver.solve_pvt_many
 (core/receiver/batch_fix.py: each robot's smoothing filter, last fix, RAIM exclusions and SolverConfig its own;
 each epoch's bits those it gets alone), then writes each robot's NMEA, RINEX and messages.  So the robots'
@@ -23,79 +24,17 @@ observables, its visibility decoded, its messages encoded and published (docs/BE
 """
 from __future__ import annotations
 
-import inspect
 import sys
 
 from gnss_sim_ros2.core.receiver.batch_fix import solve_receivers_fixes
-from gnss_sim_ros2.core.receiver.epoch_pairing import EpochPairing
 from gnss_sim_ros2.graph import FLEET_NODE_NAMES, fleet_topic
 from gnss_sim_ros2.graph_params import fleet_robot_params, robot_namespace
 from gnss_sim_ros2.messages.conversions import states_from_cdr
 from gnss_sim_ros2.nodes.common import GnssSimNode, run_node
-from gnss_sim_ros2.nodes.receiver_node import ReceiverNode
+from gnss_sim_ros2.nodes.receiver_session import ReceiverSession
 
 #: SatelliteStates messages kept decoded: epochs whose robots' visibility is still awaited (a late robot's TF)
 DECODED_KEPT = 8
-
-
-class RobotReceiver:
-    """Robot k's receiver inside the fleet node: every method ReceiverNode defines (configure, the pairing, the two
-    halves of an epoch, the threat services, cleanup; bound below the class) on this robot's parameters, chain,
-    pairing buffers, publishers (its topics: graph.fleet_topic; /diagnostics shared by the robots) and services
-    (~/robot<k>/...).  The attributes ReceiverNode.__init__ sets are set here too."""
-
-    def __init__(self, node: FleetReceiverNode, k: int, robots: int, params: dict):
-        self.node, self.k, self.robots, self.params = node, k, robots, params
-        self.chain = None
-        self.pubs: dict = {}
-        self.pairing = EpochPairing()
-        self.tcp = None
-        self.unfinished: list = []
-        self.threat_services: list = []
-        self.last_t = None
-
-    @property
-    def executor(self):
-        return self.node.executor
-
-    def get_name(self) -> str:
-        return f"{self.node.get_name()} ({robot_namespace(self.k)})"
-
-    def get_logger(self):
-        return self.node.get_logger()
-
-    def get_clock(self):
-        return self.node.get_clock()
-
-    def lifecycle_publisher(self, msg_type, topic: str, qos):
-        """Robot k's topic ``topic`` (a relative name of the receiver node); an absolute one (/diagnostics)
-        is the node's, one for every robot."""
-        if topic.startswith("/"):
-            return self.node.shared_publisher(msg_type, topic, qos)
-        return self.node.lifecycle_publisher(msg_type, fleet_topic(self.k, self.robots, topic), qos)
-
-    def create_service(self, srv_type, name: str, callback):
-        """Robot k's service ``name`` (~/threats/start: ~/robot<k>/threats/start of the fleet node)."""
-        if self.robots > 1 and name.startswith("~/"):
-            name = f"~/{robot_namespace(self.k)}/{name[2:]}"
-        return self.node.create_service(srv_type, name, callback)
-
-    def destroy_service(self, srv):
-        return self.node.destroy_service(srv)
-
-    def _decode_states(self, data: bytes):
-        return self.node.decoded_states(data)
-
-    def _finish(self):
-        """This robot's epochs observed and not finished (before its next observe, or its executor task), with
-        every other robot's waiting: FleetReceiverNode.finish_robots (their fixes in one solve)."""
-        if self.unfinished:
-            self.node.finish_robots()
-
-
-for _name, _fn in vars(ReceiverNode).items():      # ReceiverNode's own methods, ROS's ones left to the node
-    if inspect.isfunction(_fn) and _name not in ("__init__", "activate") and _name not in vars(RobotReceiver):
-        setattr(RobotReceiver, _name, _fn)
 
 
 class FleetReceiverNode(GnssSimNode):
@@ -103,7 +42,7 @@ class FleetReceiverNode(GnssSimNode):
 
     def __init__(self, node_name: str | None = None, **kwargs):
         super().__init__(node_name=node_name or FLEET_NODE_NAMES["receiver"], **kwargs)
-        self.robots: list[RobotReceiver] = []
+        self.robots: list[ReceiverSession] = []
         self._shared: dict = {}
         #: the last SatelliteStates messages decoded (id -> (bytes, states_from_cdr)): one decode for every robot
         self._decoded: dict = {}
@@ -122,7 +61,7 @@ class FleetReceiverNode(GnssSimNode):
         """The fix half of every robot's epochs observed and not yet finished, in rounds: the first waiting
         epoch of each robot (a robot's next epoch starts at this one's fix), their fixes in one solve
         (core/receiver/batch_fix.solve_receivers_fixes: each robot's bits as alone), then each robot's
-        products and messages (ReceiverNode._publish_fix: NMEA, RINEX, fix, vel, status, nmea)."""
+        products and messages (ReceiverSession.publish_fix: NMEA, RINEX, fix, vel, status, nmea)."""
         for r in self.robots:
             if r.chain is None:
                 r.unfinished.clear()
@@ -133,30 +72,45 @@ class FleetReceiverNode(GnssSimNode):
             epochs = [r.unfinished.pop(0) for r in due]
             sols = solve_receivers_fixes([r.chain for r in due], [e[4] for e in epochs])
             for r, e, sol in zip(due, epochs, sols):
-                r._publish_fix(*e, sol=sol)
+                r.publish_fix(*e, sol=sol)
 
     def shared_publisher(self, msg_type, topic: str, qos):
         if topic not in self._shared:
             self._shared[topic] = self.lifecycle_publisher(msg_type, topic, qos)
         return self._shared[topic]
 
+    def robot_session(self, k: int, robots: int) -> ReceiverSession:
+        """Robot k's receiver: its topics (graph.fleet_topic; /diagnostics one for every robot), its services
+        (~/robot<k>/threats/start; one robot: the node's own names), the states decoded once for every robot,
+        its fixes solved with the other robots' (finish_robots)."""
+        def publisher(msg_type, topic: str, qos):
+            if topic.startswith("/"):
+                return self.shared_publisher(msg_type, topic, qos)
+            return self.lifecycle_publisher(msg_type, fleet_topic(k, robots, topic), qos)
+
+        def service(name: str) -> str:
+            return f"~/{robot_namespace(k)}/{name[2:]}" if robots > 1 and name.startswith("~/") else name
+
+        return ReceiverSession(self, label=f"{self.get_name()} ({robot_namespace(k)})", publisher=publisher,
+                               service=service, decode_states=self.decoded_states, finish=self.finish_robots)
+
     def configure(self, p):
         n = p["fleet_robots"]
-        self.robots = [RobotReceiver(self, k, n, fleet_robot_params(p, k, "receiver")) for k in range(n)]
-        for r in self.robots:
-            r.configure(r.params)
+        self.robots = [self.robot_session(k, n) for k in range(n)]
+        for k, r in enumerate(self.robots):
+            r.configure(fleet_robot_params(p, k, "receiver"))
 
     def activate(self):
         from gnss_sim_msgs.msg import SatelliteStates, Visibility
 
         self.active_subscription(SatelliteStates, "satellite_states", self._on_states, 100, raw=True)
         n = len(self.robots)
-        for r in self.robots:
-            self.active_subscription(Visibility, fleet_topic(r.k, n, "visibility"), r._on_vis, 100, raw=True)
+        for k, r in enumerate(self.robots):
+            self.active_subscription(Visibility, fleet_topic(k, n, "visibility"), r.on_visibility, 100, raw=True)
 
     def _on_states(self, data: bytes):
         for r in self.robots:
-            r._on_states(data)
+            r.on_states(data)
 
     def deactivate(self):
         for r in self.robots:

@@ -1,0 +1,245 @@
+"""One robot's receiver inside a receiver node: its chain, pairing, unfinished epochs, publishers and services.
+
+ReceiverNode (nodes/receiver_node.py) holds one ReceiverSession, FleetReceiverNode
+(nodes/fleet_receiver_node.py) one per robot; the session is the receiver's work between the ROS messages
+and the core, the node says where it lives in the graph (``publisher``: a topic name to a publisher of the
+node; ``service``: a service name to the node's name for it; ``label``: how errors and diagnostics name it),
+how the satellite states are decoded (``decode_states``: the fleet node decodes a message once for every robot)
+and who finishes its epochs (``finish``: the session alone, or the fleet node solving every robot's fix at once).
+The physics is the core's (core/receiver/chain.ReceiverChain, core/receiver/epoch_pairing.EpochPairing,
+core/threats/live.py); every message is built and read in gnss_sim_ros2/messages/.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import TwistWithCovarianceStamped
+from sensor_msgs.msg import NavSatFix
+from std_msgs.msg import Header, String
+
+from gnss_sim_ros2.core.receiver.epoch_pairing import EpochPairing
+from gnss_sim_ros2.messages.conversions import (
+    chain_inputs_from_visibility,
+    encode_observations,
+    stamp_of,
+    states_from_cdr,
+    visibility_from_cdr,
+)
+from gnss_sim_ros2.messages.diagnostics import diagnostic_array, diagnostic_status
+from gnss_sim_ros2.messages.solution import fix_to_msg, status_to_msg, vel_to_msg
+from gnss_sim_ros2.messages.streams import nmea_to_msg, rtcm_to_msg
+
+
+class ReceiverSession:
+    """A receiver on the node ``node`` (a GnssSimNode: its executor, logger, clock and services), configured
+    by ``configure(params)`` (the receiver node's parameters) until ``cleanup()``."""
+
+    def __init__(self, node, *, label: str, publisher: Callable | None = None,
+                 service: Callable[[str], str] = lambda name: name, decode_states: Callable = states_from_cdr,
+                 finish: Callable[[], None] | None = None):
+        self.node = node
+        self.label = label                 # "gnss_sim_receiver", "gnss_sim_fleet_receiver (robot2)"
+        self._publisher = publisher or node.lifecycle_publisher
+        self._service = service
+        self._decode_states = decode_states
+        self._finish_due = finish or self.finish_alone
+        self.params: dict = {}
+        self.chain = None                  # core.receiver.chain.ReceiverChain (configure .. cleanup)
+        self.pubs: dict = {}
+        self.pairing = EpochPairing()      # the states and visibility bytes by stamp (sec, nanosec) until both came
+        self.tcp = None                    # core.rtcm.tcp_server.RtcmTcpServer (configure .. cleanup)
+        self.unfinished: list = []         # epochs observed and published, their fix not yet (process .. finish)
+        self.threat_services: list = []    # ~/threats/start, ~/threats/stop (configure .. cleanup)
+        self.last_t = None                 # GNSS time of the last epoch observed: "now" for the threat services
+
+    # ------------------------------------------------------------------ lifecycle
+    def configure(self, p: dict):
+        from gnss_sim_msgs.msg import Observations, ReceiverStatus
+
+        from gnss_sim_ros2.core.receiver.chain import ChainSettings, ReceiverChain
+
+        self.params = p
+        try:
+            settings = ChainSettings.from_params(p)
+        except ValueError as exc:
+            raise ValueError(f"node {self.label}: {exc}") from None
+        self.chain = ReceiverChain(settings, None, nmea=True, comment="gnss_sim receiver node",
+                                   rtcm=True if p["rtcm"] else None)
+        self.pairing.reset()
+        pub = self._publisher
+        self.pubs = {
+            "obs": pub(Observations, "observations", 100),
+            "fix": pub(NavSatFix, "fix", 100),
+            "vel": pub(TwistWithCovarianceStamped, "vel", 100),
+            "status": pub(ReceiverStatus, "status", 100),
+            "nmea": pub(String, "nmea", 100),
+            "diag": pub(DiagnosticArray, "/diagnostics", 10),
+        }
+        if p["scenario"]:              # the scenario's events (core/threats) in the scene of scenario_world
+            from gnss_sim_ros2.core.threats.runtime import ThreatRuntime
+            from gnss_sim_ros2.core.threats.scenario import load_scenario
+            from gnss_sim_ros2.core.time import GnssTime
+
+            try:
+                self.chain.threats = ThreatRuntime(load_scenario(p["scenario"]), self._scenario_scene(p),
+                                                   start=GnssTime.from_iso(p["start_time"]))
+            except ValueError as exc:
+                raise ValueError(f"node {self.label}: {exc}") from None
+            self.pubs["threats"] = pub(String, "threats_active", 100)
+        from gnss_sim_msgs.srv import StartThreat, StopThreat
+
+        self.threat_services = [
+            self.node.create_service(StartThreat, self._service("~/threats/start"), self._srv_threat_start),
+            self.node.create_service(StopThreat, self._service("~/threats/stop"), self._srv_threat_stop)]
+        if p["rtcm"]:
+            from std_msgs.msg import UInt8MultiArray
+
+            self.pubs["rtcm"] = pub(UInt8MultiArray, "rtcm", 100)
+            if p["rtcm_tcp_port"]:
+                from gnss_sim_ros2.core.rtcm.tcp_server import RtcmTcpServer
+
+                try:
+                    self.tcp = RtcmTcpServer(p["rtcm_tcp_port"], p["rtcm_tcp_host"])
+                except ValueError as exc:
+                    raise ValueError(f"node {self.label}: {exc}") from None
+                self.node.get_logger().info(f"RTCM3 served on tcp://{self.tcp.host}:{self.tcp.port}")
+
+    def deactivate(self):
+        self.finish()                  # the fix of an epoch whose observations went out, while publishers are on
+        self.pairing.clear()
+
+    def cleanup(self):
+        self.finish()
+        self.pubs = {}
+        for srv in self.threat_services:
+            self.node.destroy_service(srv)
+        self.threat_services = []
+        if self.tcp is not None:
+            self.tcp.close()
+            self.tcp = None
+        if self.chain is not None:
+            self.chain.close()       # RINEX closed with its last epoch
+            self.chain = None
+        self.pairing.reset()
+
+    # ------------------------------------------------------------------ one epoch
+    def on_states(self, data: bytes):
+        for s, v in self.pairing.add_states(stamp_of(data), data):     # keyed by (sec, nanosec) of the stamp
+            self.process(s, v)
+
+    def on_visibility(self, data: bytes):
+        for s, v in self.pairing.add_visibility(stamp_of(data), data):
+            self.process(s, v)
+
+    def process(self, states_data: bytes, vis_data: bytes):
+        """One epoch from the serialised SatelliteStates and Visibility of one stamp."""
+        stamp, t, states, iono = self._decode_states(states_data)
+        self.chain.set_iono_coefficients(iono)
+        # below the horizon = not in the visibility message: blocked, no attenuation
+        ecef, vis_state, att, paths = chain_inputs_from_visibility(visibility_from_cdr(vis_data), states.sv)
+        # the raw observations first, as a receiver outputs them before its fix (the latency ends here), then
+        # the fix and the rest of the epoch: ReceiverChain.step in its two halves
+        self.finish()                  # the chain's halves in order: the previous epoch's fix first
+        self.last_t = t
+        obs = self.chain.observe(t, ecef, states, vis_state, att, multipath=paths)
+        self.pubs["obs"].publish(encode_observations(stamp, self.params["antenna_frame"], t, obs))
+        # the fix after what is already waiting in the executor: several receivers in one process (robots
+        # composed) publish every robot's observations before any of them computes its fix
+        self.unfinished.append((stamp, t, ecef, states, obs))
+        if self.node.executor is not None:
+            self.node.executor.create_task(self.finish)
+        else:
+            self.finish()
+
+    def finish(self):
+        """The fix half of the epochs observed and not finished, by whoever finishes this session's epochs
+        (``finish`` of the constructor: the session alone, or the fleet node with every robot's)."""
+        if self.unfinished:
+            self._finish_due()
+
+    def finish_alone(self):
+        """The second half of the epochs observed (ReceiverChain.finish) and their messages, in order."""
+        while self.unfinished and self.chain is not None:
+            self.publish_fix(*self.unfinished.pop(0))
+        self.unfinished.clear()
+
+    def publish_fix(self, stamp, t, ecef, states, obs, sol=None):
+        """The fix half of one epoch and its messages; ``sol``: its fix solved already (the fleet node's robots
+        in one solve), None: solved by the chain."""
+        frame = self.params["antenna_frame"]
+        ep = self.chain.finish(t, ecef, states, obs, sol)
+        sol = ep.sol
+        header = Header(stamp=Time(sec=stamp[0], nanosec=stamp[1]), frame_id=frame)
+        self.pubs["fix"].publish(fix_to_msg(header, sol))
+        self.pubs["vel"].publish(vel_to_msg(header, sol))
+        bands = self.chain.threats.status(t) if self.chain.threats is not None else None
+        self.pubs["status"].publish(status_to_msg(header, obs, sol, self.chain.settings.receiver.elevation_mask_deg,
+                                                  bands))
+        self.pubs["nmea"].publish(nmea_to_msg(ep.nmea))
+        if "threats" in self.pubs:     # the truth labels of the epoch (messages/threats.py)
+            from gnss_sim_ros2.messages.threats import threats_to_msg
+
+            th = self.chain.threats
+            self.pubs["threats"].publish(threats_to_msg(stamp, th.labels(t), th.status(t)))
+        if ep.rtcm:
+            self.pubs["rtcm"].publish(rtcm_to_msg(ep.rtcm))
+            if self.tcp is not None:
+                self.tcp.write(ep.rtcm)
+        if self.chain.epochs % 10 == 1:
+            self._diagnose(obs, sol)
+
+    # ------------------------------------------------------------------ threats started and stopped at run time
+    def _scenario_scene(self, p):
+        """The scene placing the scenario's world-frame events and attenuating jammers (parameter scenario_world:
+        the visibility node's world, shared with it when composed), as ``gnss-sim simulate`` has it."""
+        from gnss_sim_ros2.core.scene.demo_world import demo_world_path
+        from gnss_sim_ros2.core.visibility import load_scene
+
+        path = p["scenario_world"] or str(demo_world_path())
+        world = path.lower().endswith((".sdf", ".world"))
+        return load_scene(path if world else "", "" if world else path, shared=True)
+
+    def _threat_now_s(self) -> float:
+        """Run time [s] of the last epoch observed (0 before the first): an event started now acts from the next
+        epoch on, one stopped now is over at the next."""
+        th = self.chain.threats
+        return 0.0 if self.last_t is None else float(th.t_rel(self.last_t)[0])
+
+    def _threat_call(self, response, act):
+        if self.chain is None or self.chain.threats is None:
+            response.success, response.message = False, (
+                f"node {self.label} runs without a threat scenario: give it one (parameter scenario, launch "
+                f"argument scenario:=, gnss-sim run --scenario; 'version: 1' and 'events: []' for none at the start)")
+            return response
+        try:
+            act()
+            response.success = True
+        except ValueError as exc:
+            response.success, response.message = False, str(exc)
+        return response
+
+    def _srv_threat_start(self, request, response):
+        from gnss_sim_ros2.core.threats.live import start_event
+
+        def act():
+            response.id = start_event(self.chain.threats, request.event_yaml, self._threat_now_s())
+            response.message = f"threat event {response.id!r} started"
+        return self._threat_call(response, act)
+
+    def _srv_threat_stop(self, request, response):
+        from gnss_sim_ros2.core.threats.live import stop_event
+
+        def act():
+            stop_event(self.chain.threats, request.id, self._threat_now_s())
+            response.message = f"threat event {request.id!r} stopped"
+        return self._threat_call(response, act)
+
+    def _diagnose(self, obs, sol):
+        status = diagnostic_status(f"{self.label}: receiver",
+                                   f"{'fix' if sol.is_fix else 'no fix: ' + sol.reason}, "
+                                   f"{obs.n_tracked_sats} satellites tracked",
+                                   {"epochs": self.chain.epochs, "fixes": self.chain.fixes, "hdop": f"{sol.hdop:.2f}"},
+                                   warn=not sol.is_fix)
+        self.pubs["diag"].publish(diagnostic_array(self.node.get_clock().now().to_msg(), status))
