@@ -110,7 +110,9 @@ def load_config(path: str | Path | None = None, overrides: dict[str, dict] | Non
         from gnss_sim_ros2.core.threats.scenario import load_scenario
 
         dur = "option --duration" if options and options.get("duration_s") else "parameter 'duration_s'"
-        for msg in load_scenario(rx["scenario"]).never_active(cfg.values["ephemeris"]["duration_s"], dur):
+        scenario = load_scenario(rx["scenario"])
+        for msg in [*scenario.never_active(cfg.values["ephemeris"]["duration_s"], dur),
+                    *scenario.absent_satellites(rx["systems"])]:     # a fault on a system not simulated
             logging.getLogger(__name__).warning(msg)
     if rx["scenario"] and not rx["scenario_world"]:   # the receiver places the scenario in the visibility's scene
         rx["scenario_world"] = vis["mesh_file"] or vis["world_file"]

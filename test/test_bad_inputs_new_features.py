@@ -10,7 +10,10 @@ Before these checks: ``plan --step-m 0.001`` ended in a 298 GiB MemoryError trac
 without a scene (ignored), ``--strong-cn0-dbhz nan`` and ``simulate --obstacle-path`` without a scene (ignored);
 a scenario event starting after the run's end was never active without a word (now a warning);
 ``compare --antenna-height-m -5`` said "antenna_world_m: non-finite position" and ``threats-plot --png x.txt``
-matplotlib's "Format 'txt' is not supported".
+matplotlib's "Format 'txt' is not supported".  Later: a fault on satellite G00 was accepted, a fault on G99 or on a
+system not simulated and an --obstacle-path 10,000 km away ran silently (now warnings), ``config --check`` passed
+missing trajectory / world / navigation files, threats-plot of a run without an active event drew an empty panel
+without a word, and ``calibrate --world-offset 1,2,1e6`` said "gnss-sim calibrate:" twice.
 """
 from __future__ import annotations
 
@@ -78,6 +81,9 @@ def _cases(tmp: Path, write: bool = True):
         ("compare-antenna-height", [*cmp_, "--world", COURTYARD, "--antenna-height-m", "-5"],
          ["option --antenna-height-m is -5"]),
         ("threats-plot-png", ["threats-plot", tmp, "--png", tmp / "figure.txt"], ["option --png", ".png"]),
+        # the table's error under a command named the command twice ("gnss-sim calibrate: error: gnss-sim calibrate:")
+        ("calibrate-offset-huge", [*cal, "--world", COURTYARD, "--world-offset", "1,2,1e6"],
+         ["gnss-sim calibrate: error: command line: option --world-offset", "within +-1000 m"]),
     ]
 
 
@@ -153,3 +159,87 @@ def test_scenario_event_after_the_run_is_said(tmp_path, capsys):
     rc, text = _cli(["simulate", "--duration", "5", "--position", "48,11,500", "--scenario", late,
                      "--out", tmp_path / "sim"], capsys)
     assert rc == 0 and "will not be active" not in text, text
+
+
+FAULT = ("version: 1\nevents:\n  - type: fault\n    kind: satellite_clock_step_m\n    satellite: {sv}\n"
+         "    step_m: 100\n    start_s: 0\n    end_s: 10\n")
+
+
+def test_a_malformed_satellite_id_is_refused(tmp_path, capsys):
+    """A fault's satellite id that is not a RINEX one is refused naming file, line and key; PRN 00 was accepted."""
+    for sv in ("X1", "G0", "G00"):
+        bad = tmp_path / f"{sv}.yaml"
+        bad.write_text(FAULT.format(sv=sv))
+        rc, text = _cli(["simulate", "--duration", "2", "--position", "48,11,500", "--quiet", "--scenario", bad,
+                         "--out", tmp_path / "sim"], capsys)
+        assert rc == 2 and "Traceback" not in text, (sv, text)
+        for w in (f"scenario {bad}, line 5", "'events[0].satellite'", "satellite id"):
+            assert w in text, (sv, w, text)
+        assert not (tmp_path / "sim").exists()
+
+
+def test_a_fault_on_a_satellite_not_in_the_run_is_said(tmp_path, capsys):
+    """A satellite fault on a system not simulated (said when the configuration is read) or on a satellite the
+    ephemerides lack (G99, said once they are open) would change nothing: a warning naming file, line and key
+    (it ran silently)."""
+    two = tmp_path / "two.yaml"
+    two.write_text(FAULT.format(sv="G99") + FAULT.format(sv="E05").split("events:\n", 1)[1])
+    rc, text = _cli(["simulate", "--duration", "2", "--position", "48,11,500", "--systems", "G", "--scenario", two,
+                     "--out", tmp_path / "sim"], capsys)
+    assert rc == 0, text
+    for w in (f"scenario {two}, line 5: key 'events[0].satellite'", "ephemerides have no G99",
+              f"scenario {two}, line 11: key 'events[1].satellite'", "system E is not simulated (systems G)"):
+        assert w in text, (w, text)
+    assert text.count("will have no effect") == 2, text
+    rc, text = _cli(["simulate", "--duration", "2", "--position", "48,11,500", "--systems", "GE", "--scenario",
+                     two, "--out", tmp_path / "sim"], capsys)     # E05 is simulated now: only G99 is said
+    assert rc == 0 and text.count("will have no effect") == 1 and "G99" in text, text
+
+
+def test_config_check_names_every_missing_file(tmp_path, capsys):
+    """config --check reports every input file a parameter names that is missing, with its parameter (it passed
+    them; simulate and run stopped at the first they opened); nav_files beside source synthetic are not read."""
+    cfg = tmp_path / "files.yaml"
+    cfg.write_text(f"gnss_sim_ephemeris:\n  ros__parameters:\n    source: broadcast\n"
+                   f"    nav_files: [{tmp_path / 'nav.rnx'}]\n"
+                   f"gnss_sim_visibility:\n  ros__parameters:\n    world_file: {tmp_path / 'world.sdf'}\n"
+                   f"gnss_sim_trajectory_player:\n  ros__parameters:\n    trajectory_file: {tmp_path / 'a.csv'}\n"
+                   f"    robot_trajectory_files: [{tmp_path / 'b.csv'}]\n")
+    rc, text = _cli(["config", "--check", cfg], capsys)
+    assert rc == 2 and "Traceback" not in text, text
+    for name, file in (("nav_files'[0]", "nav.rnx"), ("world_file'", "world.sdf"), ("trajectory_file'", "a.csv"),
+                       ("robot_trajectory_files'[0]", "b.csv")):
+        assert f"parameter '{name} {tmp_path / file}: no such file" in text, (name, text)
+    cfg.write_text(cfg.read_text().replace("source: broadcast", "source: synthetic"))
+    (tmp_path / "world.sdf").write_text("<sdf/>")
+    (tmp_path / "a.csv").write_text("t_s,e_m,n_m,u_m\n0,0,0,0\n")
+    (tmp_path / "b.csv").write_text("t_s,e_m,n_m,u_m\n0,0,0,0\n")
+    rc, text = _cli(["config", "--check", cfg], capsys)
+    assert rc == 0, text
+
+
+def test_an_obstacle_path_far_outside_the_world_is_said(tmp_path, capsys):
+    """An --obstacle-path 10,000 km from the world blocks nothing: a warning naming the option, file and line
+    (it ran silently); a path leaving the world by metres is not said."""
+    far = tmp_path / "far.csv"
+    far.write_text("t_s,e_m,n_m,u_m\n0,1,2,0\n5,1e7,2,0\n")
+    near = tmp_path / "near.csv"
+    near.write_text("t_s,e_m,n_m,u_m\n0,1,2,0\n5,150,2,0\n")
+    base = ["simulate", "--duration", "2", "--world", COURTYARD, "--out", tmp_path / "sim", "--obstacle-path"]
+    rc, text = _cli([*base, far], capsys)
+    assert rc == 0, text
+    assert f"option --obstacle-path {far}:3: x 1e+07, y 2 m lies" in text and "outside the world" in text, text
+    rc, text = _cli([*base, near], capsys)
+    assert rc == 0 and "outside the world" not in text, text
+
+
+def test_threats_plot_says_when_no_event_was_active(tmp_path, capsys):
+    """A run whose scenario had no event inside it: threats-plot says its events panel is empty (it was silent)."""
+    empty = tmp_path / "empty.yaml"
+    empty.write_text("version: 1\nevents: []\n")
+    run = tmp_path / "sim"
+    rc, text = _cli(["simulate", "--duration", "2", "--position", "48,11,500", "--quiet", "--scenario", empty,
+                     "--out", run], capsys)
+    assert rc == 0, text
+    rc, text = _cli(["threats-plot", run, "--png", tmp_path / "t.png"], capsys)
+    assert rc == 0 and "no event of the scenario was active in any epoch" in text, text

@@ -560,7 +560,8 @@ def test_calibrate_fit_offset_reports_the_registration_with_its_uncertainty(esbc
 @pytest.mark.parametrize("extra, message", [
     (["--fit-offset"], "option --fit-offset: needs the scene of the recording"),
     (["--mesh", "MESH", "--world-offset", "1,2"], "option --world-offset (east,north,up [m]) needs three"),
-    (["--mesh", "MESH", "--world-offset", "1,2,3000"], "option --world-offset (parameter 'world_offset_enu_m') = "),
+    (["--mesh", "MESH", "--world-offset", "1,2,3000"],
+     "gnss-sim calibrate: error: command line: option --world-offset (parameter 'world_offset_enu_m') = "),
 ])
 def test_calibrate_bad_registration_options_one_line_rc2(esbc, esbc_fit, tmp_path, capsys, extra, message):
     from gnss_sim_ros2.core.calibration.reading import antenna_from_header
@@ -572,4 +573,5 @@ def test_calibrate_bad_registration_options_one_line_rc2(esbc, esbc_fit, tmp_pat
     rc = _calibrate("--obs", esbc["obs"], "--nav", esbc["nav"], "--duration", 600, *extra, "--out", tmp_path / "o")
     err = capsys.readouterr().err
     assert rc == 2 and message in err and "Traceback" not in err, err
+    assert err.count("gnss-sim calibrate") == 1, err               # said once (it was twice)
     assert not (tmp_path / "o").exists()

@@ -40,7 +40,7 @@ def check_scene_options(args) -> None:
         raise ValueError(f"option --strong-cn0-dbhz is {strong}: a C/N0 in 0..100 dB-Hz is needed")
 
 
-def world_offset_scene(scene, text, command: str):
+def world_offset_scene(scene, text):
     """``scene`` moved by ``--world-offset E,N,U`` (None or empty: unchanged), checked by the parameter table as
     world_offset_enu_m (errors name the option) and printed on stderr, never applied silently."""
     if not text:
@@ -49,8 +49,8 @@ def world_offset_scene(scene, text, command: str):
     from gnss_sim_ros2.parameters import validate_node
 
     off = parse_triple(text, "option --world-offset (east,north,up [m])")
-    validate_node("visibility", {"world_offset_enu_m": off}, f"gnss-sim {command}",
-                  {"world_offset_enu_m": "--world-offset"})
+    # where: the command line (the caller names the command; "gnss-sim calibrate" was said twice)
+    validate_node("visibility", {"world_offset_enu_m": off}, "command line", {"world_offset_enu_m": "--world-offset"})
     if not is_zero(off):
         print(offset_note(off), file=sys.stderr)
     return shifted_scene(scene, off, "option --world-offset")

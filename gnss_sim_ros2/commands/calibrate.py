@@ -110,8 +110,7 @@ def _scene(args):
     except Exception as exc:  # the loaders raise ValueError, OSError, XML and mesh errors: one line naming the file
         msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise ValueError(f"option {opt} {path}: {msg}") from None
-    command = "compare" if hasattr(args, "sim") else "calibrate"
-    return world_offset_scene(scene, getattr(args, "world_offset", None), command), f"{opt} {path}"
+    return world_offset_scene(scene, getattr(args, "world_offset", None)), f"{opt} {path}"
 
 
 def run(args) -> int:

@@ -42,7 +42,11 @@ function, `parameters.validate_node`):
 - a node's section may narrow `systems` (the receiver tracks fewer systems than the ephemeris serves)
   and `seed`;
 - the sections a run writes for derived nodes (`/robot<k>/...`, the RTK base station) must hold what the
-  configuration derives for them.
+  configuration derives for them;
+- `config --check` also reports every input file a parameter names that does not exist (trajectory_file,
+  robot_trajectory_files, world_file, mesh_file, nav_files with source broadcast or sp3, ...:
+  `gnss_sim_ros2/file_parameters.py`), each with its section and parameter; `simulate` and `run` stop at
+  the first one they open.
 
 Warnings are one line each (`gnss-sim simulate: warning: <file>: <reason>`); every subcommand's
 `--quiet` silences them; in the nodes they go to the node's logger.
@@ -144,6 +148,7 @@ def run(args) -> int:
     import yaml
 
     from gnss_sim_ros2.config_file import load_config
+    from gnss_sim_ros2.file_parameters import missing_files
     from gnss_sim_ros2.parameters import default_config_yaml
 
     if args.check:
@@ -151,6 +156,11 @@ def run(args) -> int:
             cfg = load_config(args.check)
         except ValueError as exc:
             print(f"error: {exc}", file=sys.stderr)
+            return 2
+        missing = missing_files(cfg)          # every file at once (run / simulate stop at the first they open)
+        for msg in missing:
+            print(f"error: {msg}", file=sys.stderr)
+        if missing:
             return 2
         print(yaml.safe_dump(cfg.ros_parameter_file_dict(), sort_keys=False), end="")
         return 0

@@ -44,6 +44,9 @@ def run(args) -> int:
     except (ValueError, SdfError, OutputNotOurs) as exc:
         print(f"gnss-sim threats-plot: {exc}", file=sys.stderr)
         return 2
+    if not tl.events:          # a scenario without events, or none of them inside the run: the events panel is empty
+        print(f"note: {Path(args.run_dir) / 'fix.csv'}: no event of the scenario was active in any epoch "
+              f"(column active_events empty): the figure's events panel is empty")
     for line in summary(tl):
         print(line)
     print(f"wrote {args.png}")

@@ -25,6 +25,7 @@ with ``SimulationSetup.switches`` overriding single ones.
 from __future__ import annotations
 
 import dataclasses
+import logging
 import shutil
 import sys
 import time
@@ -43,12 +44,13 @@ from .presets import preset as preset_switches
 from .receiver.chain import ChainSettings, ReceiverChain
 from .receiver.engine import ATTENUATED, BLOCKED, VISIBLE
 from .receiver.outputs import rinex_name, write_navigation
+from .scene.world_mesh import world_bounds_xy
 from .threats.runtime import ThreatRuntime
 from .threats.scenario import load_scenario
 from .time import GnssTime
 from .trajectory import Trajectory
 from .visibility import VisibilityOptions, load_scene
-from .visibility.moving_obstacles import boxes_along_paths
+from .visibility.moving_obstacles import boxes_along_paths, paths_far_from_world
 from .visibility.world_offset import is_zero, offset_note, shifted_scene
 
 
@@ -372,6 +374,9 @@ def _simulate_into(setup: SimulationSetup) -> SimulationResult:
         scene = shifted_scene(scene, setup.visibility_params["world_offset_enu_m"])
         print(offset_note(setup.visibility_params["world_offset_enu_m"]), file=sys.stderr)
     path = AntennaPath(setup.trajectory, scene)
+    if setup.obstacle_paths and scene is not None:     # a path in another frame or unit: said, not silent
+        for msg in paths_far_from_world(setup.obstacle_paths, world_bounds_xy(scene)):
+            logging.getLogger(__name__).warning(msg)
     if scene is not None and setup.crop_scene:
         scene = _cropped_scene(scene, path, n_epochs, interval_s, setup.elevation_mask_deg, vis_opt.fresnel_rays)
         path = AntennaPath(setup.trajectory, scene)
@@ -412,6 +417,9 @@ def _simulate_into(setup: SimulationSetup) -> SimulationResult:
     res = SimulationResult(None, nav_written, out / "fix.csv", 0, 0, [], [], [], [], [], 0.0, 0.0,
                            interval_s=interval_s, orbit_source=source)
     svs_all = np.asarray(provider.svs(setup.systems), dtype="<U3")
+    if chain.threats is not None:          # a fault on a satellite the ephemerides lack (G99): said, not silent
+        for msg in chain.threats.scenario.absent_satellites(setup.systems, svs_all.tolist()):
+            logging.getLogger(__name__).warning(msg)
     fix_est, fix_true = [], []
     wall0 = time.perf_counter()
     cpu0 = time.process_time()

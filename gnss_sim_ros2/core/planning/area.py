@@ -14,6 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..scene.world_mesh import world_bounds_xy as world_bounds_xy  # the planner's and live.py's name
+
 
 @dataclass
 class PlanArea:
@@ -204,12 +206,3 @@ def ground_z_m(scene, x_m, y_m) -> np.ndarray:
     o = np.stack([x, y, np.full(x.shape, top)], axis=1)
     t = rays.hit_distance(o, np.array([[0.0, 0.0, -1.0]]))
     return np.where(np.isfinite(t), top - t, 0.0)
-
-
-def world_bounds_xy(scene):
-    """(xmin, ymin, xmax, ymax) of the scene's vertices [m], or None (a sky mask)."""
-    world = getattr(scene, "world", None)
-    if world is None or len(world.vertices_m) == 0:
-        return None
-    v = world.vertices_m[np.all(np.isfinite(world.vertices_m), axis=1)]
-    return float(v[:, 0].min()), float(v[:, 1].min()), float(v[:, 0].max()), float(v[:, 1].max())

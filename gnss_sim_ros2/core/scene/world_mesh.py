@@ -25,3 +25,12 @@ class WorldMesh:
     def class_counts(self) -> dict[str, int]:
         counts = np.bincount(self.material.astype(np.int64), minlength=len(self.materials.classes))
         return {c.name: int(n) for c, n in zip(self.materials.classes, counts)}
+
+
+def world_bounds_xy(scene):
+    """(xmin, ymin, xmax, ymax) of the scene's vertices [m], or None (a sky mask)."""
+    world = getattr(scene, "world", None)
+    if world is None or len(world.vertices_m) == 0:
+        return None
+    v = world.vertices_m[np.all(np.isfinite(world.vertices_m), axis=1)]
+    return float(v[:, 0].min()), float(v[:, 1].min()), float(v[:, 0].max()), float(v[:, 1].max())

@@ -70,7 +70,8 @@ _KEYS = {
     "spoofer": (*_COMMON, *_PLACED, "false_position", "false_position_type", "false_time_offset_s", "systems",
                 "power_advantage_db", "mode", "delay_s"),
 }
-_SV_RE = re.compile(r"^[GRECJI]\d{2}$")
+#: a satellite id as RINEX 3 writes it: system letter and a two-digit PRN / slot, 01-99 (RINEX 3.05, 4.1)
+_SV_RE = re.compile(r"^[GRECJI](?!00)\d{2}$")
 
 
 class ScenarioError(ValueError):
@@ -153,6 +154,8 @@ class Scenario:
     source: str = ""
     #: event name -> 1-based line in the file (for messages about an event at run time)
     lines: dict = field(default_factory=dict)
+    #: fault event name -> 1-based line of its ``satellite`` key
+    satellite_lines: dict = field(default_factory=dict)
 
     def of_type(self, cls) -> list:
         return [e for e in self.events if isinstance(e, cls)]
@@ -176,6 +179,27 @@ class Scenario:
         return [f"scenario {self.source}, line {self.lines.get(e.name, '?')}: key 'events[{i}].start_s': event "
                 f"'{e.name}' starts at {e.start_s:g} s, at or after the end of the run ({where} = {duration_s:g} s): "
                 f"it will not be active" for i, e in enumerate(self.events) if e.start_s >= duration_s]
+
+    def absent_satellites(self, systems: str, svs=None) -> list[str]:
+        """One message (file, the event's line and key) per satellite fault that will have no effect: without
+        ``svs``, its system is not in ``systems`` (known when the configuration is read); with the run's satellites
+        ``svs`` (ids, known once the ephemerides are open), a satellite of ``systems`` not among them (G99).  The
+        caller warns."""
+        out = []
+        for i, e in enumerate(self.events):
+            sv = getattr(e, "satellite", "")
+            if not sv or (svs is None) != (sv[0] not in systems):
+                continue
+            if svs is None:
+                why = f"system {sv[0]} is not simulated (systems {systems})"
+            elif sv in set(svs):
+                continue
+            else:
+                why = f"the run's ephemerides have no {sv} ({sum(s[0] == sv[0] for s in svs)} {sv[0]} satellites)"
+            line = self.satellite_lines.get(e.name, self.lines.get(e.name, "?"))
+            out.append(f"scenario {self.source}, line {line}: key 'events[{i}].satellite': "
+                       f"fault '{e.name}' on {sv}, but {why}: it will have no effect")
+        return out
 
     def needs_scene_frame(self) -> bool:
         """An event placed in world coordinates (a jammer or spoofer): the run needs a georeferenced scene."""
@@ -221,15 +245,17 @@ def parse_scenario(doc, node=None, where: str = "scenario", source: str = "") ->
         events = []
     if not isinstance(events, list):
         v.fail(("events",), f"must be a list of events, got {type(events).__name__}")
-    out, names, lines = [], set(), {}
+    out, names, lines, sv_lines = [], set(), {}, {}
     for i, ev in enumerate(events):
         e = _event(v, ev, ("events", i), i)
         if e.name in names:
             v.fail(("events", i, "name"), f"event name {e.name!r} is used twice")
         names.add(e.name)
         lines[e.name] = v.line(("events", i))
+        if getattr(e, "satellite", ""):
+            sv_lines[e.name] = v.line(("events", i, "satellite"))
         out.append(e)
-    return Scenario(tuple(out), source, lines)
+    return Scenario(tuple(out), source, lines, sv_lines)
 
 
 class _Validator:

@@ -116,6 +116,31 @@ def boxes_along_paths(paths, t_s, size_m) -> MovingBoxes | None:
     return MovingBoxes.from_bases(base, yaw_rotations(yaw), size_m)
 
 
+#: an obstacle path point farther than this outside the world's horizontal bounds is said (a path in another frame
+#: or unit?): a box 2 m tall 1 km away rises 0.11 deg above the antenna's horizon, below any elevation mask
+FAR_OUTSIDE_WORLD_M = 1000.0
+
+
+def paths_far_from_world(paths, bounds_xy, option: str = "option --obstacle-path") -> list[str]:
+    """One message per obstacle path (core/trajectory.Trajectory, world frame) whose farthest point lies more than
+    FAR_OUTSIDE_WORLD_M outside the world's bounds ``bounds_xy`` (xmin, ymin, xmax, ymax; None: no check): such a
+    box blocks nothing (the caller warns; a path leaving the world is legal)."""
+    if bounds_xy is None:
+        return []
+    x0, y0, x1, y1 = bounds_xy
+    out = []
+    for p in paths:
+        x, y = p.pos[:, 0], p.pos[:, 1]
+        d_m = np.hypot(np.maximum(np.maximum(x0 - x, x - x1), 0.0), np.maximum(np.maximum(y0 - y, y - y1), 0.0))
+        i = int(np.argmax(d_m))
+        if d_m[i] > FAR_OUTSIDE_WORLD_M:
+            at = p.source_lines[i] if p.source_lines else f", point {i + 1}"
+            out.append(f"{option} {p.source}{at}: x {x[i]:g}, y {y[i]:g} m lies {d_m[i] / 1000.0:,.1f} km outside "
+                       f"the world (x {x0:g}..{x1:g}, y {y0:g}..{y1:g} m): the obstacle there blocks nothing (a "
+                       f"path in another frame or unit?)")
+    return out
+
+
 def rays_blocked_by_boxes(origins_world_m, dirs_world, boxes: MovingBoxes, tnear_m: float = TNEAR_M):
     """(M, N) bool: does the ray from antenna m (``origins_world_m`` (M, 3)) along unit ``dirs_world`` (M, N, 3)
     cross an active box of row m beyond ``tnear_m``?  Slab method in each box's frame (module docstring)."""
