@@ -105,6 +105,14 @@ def run_fleet_command(args) -> int:
 
 
 def run(args) -> int:
+    from gnss_sim_ros2.core.output_folder import check_outputs_not_inputs
+
+    try:     # an output that is a folder is refused before the runs, not after minutes of them
+        check_outputs_not_inputs([("--json", None if args.json == "-" else args.json), ("--plot", args.plot)],
+                                 inputs=[args.fleet_config])
+    except ValueError as exc:
+        print(f"gnss-sim bench: error: {exc}", file=sys.stderr)
+        return 2
     if args.fleet:
         return run_fleet_command(args)
     if args.scaling:
@@ -130,8 +138,10 @@ def _report_out(args, report: dict, text_table: str, plot_fn) -> int:
     if args.json == "-":
         print(json.dumps(report, indent=1, default=_json_default))
     elif args.json:
-        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.json).write_text(json.dumps(report, indent=1, default=_json_default))
+        from gnss_sim_ros2.core.output_folder import staged_files
+
+        with staged_files([("--json", args.json)]) as temp:     # renamed into place when whole
+            temp[args.json].write_text(json.dumps(report, indent=1, default=_json_default))
         print(f"wrote {args.json}", file=text)
     if args.plot:
         print(f"wrote {plot_fn(report, args.plot)}", file=text)

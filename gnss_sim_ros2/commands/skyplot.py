@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from gnss_sim_ros2.commands import WORLD_OFFSET_HELP, world_offset_scene
+from gnss_sim_ros2.core.output_folder import check_outputs_not_inputs, check_unnamed_output, staged_files
 from gnss_sim_ros2.core.scene.scene_report import ALLOW_PARTIAL_HELP
 
 
@@ -91,8 +92,6 @@ def _ephemeris(args, t):
 
 
 def run(args) -> int:
-    from gnss_sim_ros2.core.output_folder import check_outputs_not_inputs
-
     try:
         # an output file is never one of the inputs (core/output_folder.py)
         check_outputs_not_inputs([("--csv", args.csv), ("--png", args.png),
@@ -100,6 +99,11 @@ def run(args) -> int:
                                   ("--mask-report", _mask_report_path(args))],
                                  inputs=[args.world, args.mesh, args.materials, *(args.nav or ()),
                                          getattr(args, "sky_mask", None)])
+        # a default output beside a named one replaces only the file skyplot writes there
+        if args.png and not getattr(args, "skyline_csv", None):
+            check_unnamed_output(_skyline_csv_path(args), "--skyline-csv", ",".join(SKYLINE_HEADER))
+        if getattr(args, "sky_mask", None) and not args.mask_report:
+            check_unnamed_output(_mask_report_path(args), "--mask-report", ",".join(MASK_REPORT_HEADER))
         return _run(args)
     except ValueError as exc:
         print(f"gnss-sim skyplot: error: {exc}", file=sys.stderr)
@@ -144,7 +148,7 @@ def _run(args) -> int:
     keep = np.flatnonzero(res.el_deg >= mask)
     order = keep[np.argsort(np.asarray(st.sv)[keep])]
     names = [STATE_NAMES[int(s)] for s in res.state]
-    with open(args.csv, "w", newline="") as fh:
+    with staged_files([("--csv", args.csv)]) as temp, open(temp[args.csv], "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(["sv", "az_deg", "el_deg", "state", "attenuation_db"])
         for i in order:
@@ -153,7 +157,7 @@ def _run(args) -> int:
     counts = {k: sum(names[i] == k for i in order) for k in ("visible", "attenuated", "blocked")}
     print(f"{args.csv}: {len(order)} satellites above {mask:g} deg: "
           + ", ".join(f"{v} {k}" for k, v in counts.items()))
-    skyline_csv = args.skyline_csv or (Path(args.png).parent / "skyline.csv" if args.png else None)
+    skyline_csv = _skyline_csv_path(args)
     comparison = None
     if sky_mask is not None:
         comparison = _compare_mask(args, scene, at, sky_mask)
@@ -182,6 +186,10 @@ def _run(args) -> int:
     return 0
 
 
+def _skyline_csv_path(args):
+    return getattr(args, "skyline_csv", None) or (Path(args.png).parent / "skyline.csv" if args.png else None)
+
+
 def _mask_report_path(args):
     if not getattr(args, "sky_mask", None):
         return None
@@ -195,10 +203,9 @@ def _compare_mask(args, scene, at, sky_mask):
     az, el = scene.horizon_profile(at, az_step_deg=SKYLINE_STEP_DEG)
     cmp = compare_skylines(az, el, sky_mask, sector_deg=args.sector_deg)
     path = _mask_report_path(args)
-    with open(path, "w", newline="") as fh:
+    with staged_files([("--mask-report", path)]) as temp, open(temp[path], "w", newline="") as fh:
         w = csv.writer(fh)
-        w.writerow(["sector", "az_from_deg", "az_to_deg", "mean_diff_deg", "rms_diff_deg", "miss_deg", "miss_az_deg",
-                    "r"])
+        w.writerow(MASK_REPORT_HEADER)
         for k, (lo, hi, mean, rms, miss, miss_az) in enumerate(cmp.sectors):
             w.writerow([k, f"{lo:g}", f"{hi:g}", f"{mean:.2f}", f"{rms:.2f}", f"{miss:.2f}", f"{miss_az:.1f}", ""])
         worst = max(cmp.sectors, key=lambda s_: abs(s_[4]))
@@ -214,12 +221,16 @@ def _compare_mask(args, scene, at, sky_mask):
 SKYLINE_STEP_DEG = 1.0
 #: azimuths at which a measured mask is drawn (as interpolated, periodic)
 MASK_AZ_DEG = np.arange(0.0, 360.0, 0.5)
+#: first rows of the skyline CSV and of the mask report (a default path holding another file is refused)
+SKYLINE_HEADER = ["azimuth_deg", "elevation_deg", "foliage_elevation_deg"]
+MASK_REPORT_HEADER = ["sector", "az_from_deg", "az_to_deg", "mean_diff_deg", "rms_diff_deg", "miss_deg",
+                      "miss_az_deg", "r"]
 
 
 def write_skyline_csv(path, az_deg, el_deg, foliage_el_deg) -> None:
     """The skyline as CSV: azimuth_deg,elevation_deg,foliage_elevation_deg (0: nothing above the horizon)."""
-    with open(path, "w", newline="") as fh:
+    with staged_files([("--skyline-csv", path)]) as temp, open(temp[path], "w", newline="") as fh:
         w = csv.writer(fh)
-        w.writerow(["azimuth_deg", "elevation_deg", "foliage_elevation_deg"])
+        w.writerow(SKYLINE_HEADER)
         for a, e, f in zip(az_deg, el_deg, foliage_el_deg):
             w.writerow([f"{a:.1f}", f"{e:.3f}", f"{f:.3f}"])

@@ -4,6 +4,7 @@ Every plot of gnss_sim (sky plots, comparison reports, sweep summaries, bench pl
 ``pyplot()`` and ends with ``save_figure``."""
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 
@@ -18,11 +19,20 @@ def pyplot():
 
 
 def save_figure(fig, path, dpi: int = 110) -> Path:
-    """Lay out, write (PNG, folders made) and close a matplotlib figure; its path."""
+    """Lay out, write (PNG, folders made) and close a matplotlib figure; its path (``.png`` added to a name
+    without suffix, as matplotlib does).  Written under a temporary name beside it and renamed when complete:
+    a killed or failed write leaves no torn figure and the previous one in place (core/output_folder.py)."""
     plt = pyplot()
     fig.tight_layout()
     path = Path(path)
+    if not path.suffix:
+        path = path.with_name(path.name + ".png")
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=dpi)
-    plt.close(fig)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        fig.savefig(tmp, dpi=dpi, format=path.suffix[1:].lower())
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+        plt.close(fig)
     return path

@@ -16,7 +16,9 @@ or named files (``export-world``, ``skyplot``, ``satpos``):
   manifest; :meth:`OutputFolder.abandon` (a failed run) removes the staging folder only, so the previous
   results stay as they were and nothing half-written is left under a final name.
 - :func:`staged_files`: named output files are written under a staging folder beside each and renamed
-  into place when the command succeeds; an output that is one of the command's inputs is refused.
+  into place when the command succeeds (a file the user names is replaced: naming it says so); an output that
+  is one of the command's inputs is refused.  An output the user did not name (a default beside a named one)
+  replaces only a file of the same kind (:func:`check_unnamed_output`).
 """
 from __future__ import annotations
 
@@ -247,6 +249,23 @@ def check_outputs_not_inputs(outputs: Iterable[tuple[str, object]], inputs: Iter
         if final.resolve() in ins:
             raise OutputNotOurs(f"option {option}: {final} is also an input of this command and would be "
                                 f"overwritten; give another file name")
+
+
+def check_unnamed_output(path, option: str, first_line: str) -> None:
+    """OutputNotOurs when ``path``, an output the user did not name (a default beside a named one, e.g. skyplot's
+    skyline.csv), exists and is not what the command writes there (its first line is not ``first_line``): such a
+    file is replaced only when its option names it."""
+    p = Path(path)
+    if not os.path.lexists(p):
+        return
+    try:
+        with open(p, encoding="utf-8", errors="replace") as fh:
+            head = fh.readline().rstrip("\r\n")
+    except OSError:
+        head = None
+    if p.is_symlink() or head != first_line:
+        raise OutputNotOurs(f"{p} exists and gnss-sim did not write it (the default of {option}); gnss-sim never "
+                            f"replaces files it did not write unless named: give {option} FILE")
 
 
 @contextmanager
