@@ -5,7 +5,8 @@ the cluster of an existing scheduler (``scheduler="tcp://host:port"``; its
 workers must import gnss_sim_ros2 and reach the paths of the scenario and of
 ``out_dir``).  Rows arrive as runs finish: a progress bar counts them, and
 ``results.parquet`` is rewritten (atomically) at most every ``WRITE_EVERY_S``
-seconds and at the end, so an interrupted sweep keeps what it finished.  A run
+seconds and at the end, so an interrupted sweep keeps what it finished (and, for the runs it did not redo,
+the rows of the earlier sweep in the folder).  A run
 that failed is a row with its error (row.py); a run whose worker died or whose
 task could not run at all becomes a failed row too.
 """
@@ -20,7 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .row import run_row
-from .table import write_rows
+from .table import read_previous_rows, rows_so_far, write_rows
 
 #: results.parquet is rewritten at most this often while rows arrive [s]
 WRITE_EVERY_S = 2.0
@@ -165,6 +166,12 @@ def _collect(client, tasks, cache_dir, results: Path, progress: bool) -> list[di
                             key=f"gnss-sim-sweep-{tag}-{point.name}", pure=False)
         futures[fut.key] = (fut, point, setup)
     rows: list[dict] = []
+    # until every run is in, the table keeps the earlier sweep's rows of the runs not redone yet
+    previous = read_previous_rows(results)
+
+    def table():
+        return rows if len(rows) >= len(tasks) else rows_so_far(rows, previous)
+
     bar = _bar(len(tasks), progress)
     last = time.perf_counter()
     try:
@@ -182,12 +189,12 @@ def _collect(client, tasks, cache_dir, results: Path, progress: bool) -> list[di
             if failed:
                 bar.set_postfix(failed=failed)
             if time.perf_counter() - last >= WRITE_EVERY_S:
-                write_rows(rows, results)
+                write_rows(table(), results)
                 last = time.perf_counter()
     finally:
         bar.close()
         if rows:
-            write_rows(rows, results)
+            write_rows(table(), results)
         for fut, _, _ in futures.values():
             if not fut.done():
                 fut.cancel()

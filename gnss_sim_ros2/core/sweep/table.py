@@ -75,3 +75,19 @@ def write_rows(rows: list[dict], path: Path) -> Path:
 def read_rows(path: Path) -> list[dict]:
     """The rows of a sweep's Parquet file, as dicts."""
     return pq.read_table(path).to_pylist()
+
+
+def read_previous_rows(path: Path) -> list[dict]:
+    """The rows of an earlier sweep's table at ``path`` (columns of SCHEMA only; [] when absent or unreadable)."""
+    try:
+        rows = read_rows(path)
+    except (OSError, ValueError, pa.ArrowException):
+        return []
+    return [{c: r.get(c) for c in COLUMNS} for r in rows if isinstance(r.get("run"), str)]
+
+
+def rows_so_far(rows: list[dict], previous: list[dict]) -> list[dict]:
+    """The table of a sweep not yet complete (still going, or interrupted): its rows, then the earlier sweep's rows
+    of the runs it has not redone (their folders under runs/ are still the earlier ones): nothing is lost."""
+    done = {r["run"] for r in rows}
+    return rows + [r for r in previous if r["run"] not in done]
