@@ -14,7 +14,8 @@ or named files (``export-world``, ``skyplot``, ``satpos``):
   (``.<name>.partial-<pid>``); :meth:`OutputFolder.commit` moves its files into place (``os.replace``,
   same file system), removes the previous manifest's files it did not write again and writes the new
   manifest; :meth:`OutputFolder.abandon` (a failed run) removes the staging folder only, so the previous
-  results stay as they were and nothing half-written is left under a final name.
+  results stay as they were and nothing half-written is left under a final name; a run stopped by Ctrl-C or
+  SIGTERM (:meth:`OutputFolder.keep_stopped`) replaces no earlier results either: its own stay staged.
 - :func:`staged_files`: named output files are written under a staging folder beside each and renamed
   into place when the command succeeds (a file the user names is replaced: naming it says so); an output that
   is one of the command's inputs is refused.  An output the user did not name (a default beside a named one)
@@ -215,6 +216,17 @@ class OutputFolder:
         shutil.rmtree(self.staging, ignore_errors=True)           # only empty folders are left in it
         self.release()
         return new
+
+    def keep_stopped(self) -> bool:
+        """A run stopped (Ctrl-C, SIGTERM) after it produced closed results: they go into the folder (commit, True)
+        only when it holds no earlier results of the command; else those stay as they are and the stopped run's stay
+        in the staging folder (False; the lock released, the next run names it): nothing already produced is lost."""
+        writer, old = read_manifest(self.final) if self.final.is_dir() else (None, set())
+        if writer == self.command and any(os.path.lexists(self.final / r) for r in old):
+            self.release()
+            return False
+        self.commit()
+        return True
 
     def abandon(self):
         """A run that failed or produced nothing: the staging folder goes, the previous results stay."""

@@ -336,7 +336,8 @@ def run_simulation(setup: SimulationSetup) -> SimulationResult:
     """Simulate ``setup`` into ``setup.out_dir`` (core/output_folder.py): a folder holding files this command did
     not write is refused; the run writes into a staging folder beside it whose files replace the previous run's
     at the end; a run that fails leaves the previous results as they were (one stopped by Ctrl-C / SIGTERM
-    after its first epoch keeps what it wrote, closed, as ``gnss-sim run`` does)."""
+    after its first epoch keeps what it wrote, closed, as ``gnss-sim run`` does: in the folder when it held no
+    earlier results, else in the staging folder)."""
     from .output_folder import OutputFolder
 
     inputs = [*(f for files in setup.orbit_files() for f in files), *setup.scene_files()]
@@ -351,8 +352,9 @@ def run_simulation(setup: SimulationSetup) -> SimulationResult:
         # a failure (an Exception) leaves nothing; a stop (KeyboardInterrupt, SIGTERM) keeps closed epochs
         if isinstance(exc, Exception) or not any(staging.glob("*_MO*.rnx")):
             folder.abandon()
-        else:
-            folder.commit()
+        elif not folder.keep_stopped():     # never over earlier results: the stopped run's stay staged
+            print(f"stopped: the earlier results in {folder.final} are kept; this run's closed outputs are in "
+                  f"{staging}", file=sys.stderr)
         raise
     folder.commit()
     res.obs_path, res.nav_path = folder.final_path(res.obs_path), folder.final_path(res.nav_path)

@@ -157,8 +157,16 @@ def run(args) -> int:
         runner.close()
         if runner.epochs_done > 0:
             try:
-                folder.commit()
-                runner.log(f"outputs in {folder.final}")
+                if code == 0 and not stop["signal"]:
+                    folder.commit()
+                    moved = True
+                else:       # a run stopped or failed midway never replaces earlier results: its own stay staged
+                    moved = folder.keep_stopped()
+                if moved:
+                    runner.log(f"outputs in {folder.final}")
+                else:
+                    runner.warn(f"stopped: the earlier results in {folder.final} are kept; this run's closed "
+                                f"outputs are in {folder.staging}")
             except OutputNotOurs as exc:    # a foreign file appeared under one of the run's names meanwhile
                 runner.warn(f"gnss-sim run: error: {exc}")
                 code = code or 1
