@@ -52,15 +52,17 @@ def load_config(path: str | Path | None = None, overrides: dict[str, dict] | Non
     if path is not None:
         import yaml  # only a run with a file reads YAML (start-up)
 
+        from gnss_sim_ros2.core import yaml_file
+        from gnss_sim_ros2.core.input_file import read_utf8
+
         path = Path(path)
         try:
-            doc = yaml.safe_load(path.read_text()) or {}
+            text = read_utf8(path, str(path))
         except FileNotFoundError:
             raise ValueError(f"configuration file {path} does not exist") from None
         except IsADirectoryError:
             raise ValueError(f"configuration file {path} is a folder, not a YAML file") from None
-        except yaml.YAMLError as exc:
-            raise ValueError(f"{path}: not valid YAML: {exc}") from None
+        doc = yaml_file.parse(text, yaml_file.unique_keys(yaml.SafeLoader), str(path)) or {}
         if not isinstance(doc, dict):
             raise ValueError(f"{path}: expected a mapping of node names to ros__parameters")
         known = {v: k for k, v in NODE_NAMES.items()}

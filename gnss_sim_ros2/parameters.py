@@ -93,10 +93,13 @@ class Param:
         elif kind == "integer":
             if isinstance(value, bool) or not isinstance(value, int):
                 raise bad
+            if not -2**63 <= value < 2**63:        # a ROS 2 integer parameter is an int64 (rcl_interfaces)
+                raise ValueError(f"{where}: parameter '{self.name}' is {value}; an integer parameter is 64-bit "
+                                 f"(-2**63..2**63-1)")
         elif kind == "double":
             if isinstance(value, bool) or not isinstance(value, (int, float)):
                 raise bad
-            value = float(value)
+            value = _as_double(value, where, self.name)
             if not math.isfinite(value):
                 raise ValueError(f"{where}: parameter '{self.name}' is {value!r}; a finite number is needed")
         elif kind == "string":
@@ -108,7 +111,7 @@ class Param:
             if kind == "double_array":
                 if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
                     raise bad
-                value = [float(v) for v in value]
+                value = [_as_double(v, where, self.name) for v in value]
                 if not all(math.isfinite(v) for v in value):
                     raise ValueError(f"{where}: parameter '{self.name}' = {value!r}: every number must be finite")
             elif not all(isinstance(v, str) for v in value):
@@ -123,6 +126,15 @@ class Param:
         if self.check_value is not None:
             value = self.check_value(value, f"{where}: parameter '{self.name}'")
         return value
+
+
+def _as_double(value, where: str, name: str) -> float:
+    """float(value); an integer beyond a double's range (1e308) is refused naming the parameter."""
+    try:
+        return float(value)
+    except OverflowError:
+        raise ValueError(f"{where}: parameter '{name}' is an integer of {len(str(abs(value)))} digits; "
+                         f"too large for a double") from None
 
 
 def _yaml_bool_hint(value, choices) -> str:
@@ -193,7 +205,32 @@ def _check_sky_mask(value: str, where: str) -> str:
     return str(Path(value).resolve())
 
 
-def _check_iso_time(value: str, where: str) -> str:
+def _check_frame_id(value: str, where: str) -> str:
+    """A TF frame id: not empty, no whitespace, no leading '/' (tf2 refuses it: "frame_id should not start with
+    a '/'", tf2 BufferCore::validateFrameId)."""
+    if not value or value.startswith("/") or any(c.isspace() for c in value):
+        raise ValueError(f"{where} is {value!r}: a TF frame id is a non-empty name without whitespace and without "
+                         f"a leading '/'")
+    return value
+
+
+def _check_optional_frame_id(value: str, where: str) -> str:
+    """'' (none) or a TF frame id (:func:`_check_frame_id`)."""
+    return value and _check_frame_id(value, where)
+
+
+def _check_marker_name(value: str, where: str) -> str:
+    """A RINEX MARKER NAME: printable ASCII of at most 60 characters (RINEX 3.05 table A2, format A60); no '/' or
+    '\\' either: its first 4 characters start the file names (rinex_name)."""
+    bad = next((c for c in value if not " " <= c <= "~" or c in "/\\"), None)
+    if bad is not None or len(value) > 60:
+        why = f"character {bad!r}" if bad is not None else f"{len(value)} characters"
+        raise ValueError(f"{where} is {value!r}: {why}; a RINEX marker name is printable ASCII of at most 60 "
+                         f"characters, without / or \\")
+    return value
+
+
+def check_iso_time(value: str, where: str) -> str:
     from gnss_sim_ros2.core.time import GnssTime
 
     try:
@@ -238,19 +275,22 @@ SHARED = [
     Param("systems", SYSTEMS, "GNSS systems simulated, RINEX letters: G GPS, R GLONASS, E Galileo, C BeiDou, "
           "J QZSS, I NavIC; a node's section may narrow it", check_value=check_systems, shared_only=False),
     Param("start_time", DEMO_START, "GNSS (GPS) time of the first epoch, ISO 8601; with "
-          "time_mapping=offset the ROS time 0 maps to it", check_value=_check_iso_time),
+          "time_mapping=offset the ROS time 0 maps to it", check_value=check_iso_time),
     Param("rate_hz", 1.0, "epoch rate [Hz]", min=0.001, max=100.0),
     Param("elevation_mask_deg", 10.0, "elevation mask [deg]: satellites below are neither cast nor tracked",
           min=-5.0, max=90.0),
-    Param("world_frame", "world", "TF frame of the Gazebo world (ENU at spherical_coordinates)"),
-    Param("antenna_frame", "gnss_antenna", "TF frame of the receiver antenna phase centre"),
+    Param("world_frame", "world", "TF frame of the Gazebo world (ENU at spherical_coordinates)",
+          check_value=_check_frame_id),
+    Param("antenna_frame", "gnss_antenna", "TF frame of the receiver antenna phase centre",
+          check_value=_check_frame_id),
     Param("antenna2_frame", "", "TF frame of a second antenna on the robot: with gnss-sim run --rtk / rtk:=true a "
           "second rover receiver there and rtkrcv in moving-base mode give the heading (/gnss/rtk/heading); "
-          "empty: none"),
+          "empty: none", check_value=_check_optional_frame_id),
     Param("seed", 1, "seed of every random process (noise, clock, ambiguities)", min=0, shared_only=False),
     Param("output_dir", "gnss_sim_output", "folder of the RINEX observation/navigation (and NMEA) files; "
           "empty: none written"),
-    Param("marker_name", "GSIM", "RINEX marker name (its first 4 characters start the file names)"),
+    Param("marker_name", "GSIM", "RINEX marker name (its first 4 characters start the file names)",
+          check_value=_check_marker_name),
     Param("preset", "balanced", "fidelity preset: default values of the model switches",
           choices=PRESET_NAMES),
 ]
@@ -390,7 +430,7 @@ NODE_PARAMS: dict[str, list[Param]] = {
         Param("trajectory_file", "", "CSV t_s,e_m,n_m,u_m[,yaw_deg] in the world frame; empty: waypoints"),
         Param("waypoints", [], "flat list t_s,e_m,n_m,u_m,... (empty with no file: the demo path)",
               item_type="double"),
-        Param("base_frame", "base_link", "robot frame the player moves"),
+        Param("base_frame", "base_link", "robot frame the player moves", check_value=_check_frame_id),
         Param("antenna_offset_m", [0.0, 0.0, 0.5], "antenna position in base_frame [m] (static TF)"),
         Param("antenna2_offset_m", [-1.0, 0.0, 0.5], "with antenna2_frame: the second antenna's position in "
               "base_frame [m] (static TF; default 1 m behind the first)"),
@@ -434,7 +474,8 @@ NODE_PARAMS: dict[str, list[Param]] = {
               choices=POSITION_TYPES),
         Param("base_seed", -1, "seed of the base receiver's own errors (noise, clock, multipath); -1: the "
               "receiver's seed + 1", min=-1),
-        Param("base_marker_name", "BASE", "RINEX marker name of the base station (its files go to output_dir/base)"),
+        Param("base_marker_name", "BASE", "RINEX marker name of the base station (its files go to output_dir/base)",
+              check_value=_check_marker_name),
         Param("base_rtcm_tcp_port", 0, "serve the base station's RTCM3 on this TCP port; 0: none", min=0,
               max=65535),
     ],

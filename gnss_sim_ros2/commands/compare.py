@@ -141,6 +141,7 @@ def _los_scene(args):
 
 def run(args) -> int:
     from gnss_sim_ros2.core.comparison import compare, write_report
+    from gnss_sim_ros2.core.frames import check_receiver_position
     from gnss_sim_ros2.core.output_folder import OutputBusy, OutputFolder
 
     # written beside --out, moved there at the end: only compare's own files replaced (core/output_folder.py)
@@ -149,6 +150,8 @@ def run(args) -> int:
                                   getattr(args, "real_truth_csv", None)])
     try:
         truth = parse_triple(args.truth, "--truth (ECEF X,Y,Z [m])") if args.truth else None
+        if truth is not None:                   # the Earth's centre or space: refused as every position is
+            check_receiver_position(truth, "ecef", f"option --truth {args.truth}")
         _check_fit_options(args)
         scene, scene_name = _los_scene(args)
         staging = folder.acquire()

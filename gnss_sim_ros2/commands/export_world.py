@@ -32,14 +32,17 @@ def add_arguments(parser):
 
 
 def run(args) -> int:
-    from gnss_sim_ros2.core.output_folder import staged_files
+    from gnss_sim_ros2.core.output_folder import check_unnamed_output, staged_files
     from gnss_sim_ros2.core.scene.mesh_files import DroppedTrianglesWarning
-    from gnss_sim_ros2.core.scene.mesh_io import export_world, sidecar_path
+    from gnss_sim_ros2.core.scene.mesh_io import SCENE_FORMAT, check_mesh_name, export_world, sidecar_path
     from gnss_sim_ros2.core.scene.scene_report import LeftOutWarning, SceneWarning, report_lines
 
     try:
         if args.strict and args.allow_partial:
             raise ValueError("options --strict and --allow-partial contradict each other: give one of them")
+        check_mesh_name(args.out, f"option --out {args.out}")     # before the world is loaded (and '/' too)
+        # the sidecar beside replaces only a sidecar (a user's file of that name is refused)
+        check_unnamed_output(sidecar_path(args.out), "--out", f"format: {SCENE_FORMAT}")
         # the mesh and its sidecar written beside, renamed when both are complete; never over an input
         with warnings.catch_warnings(), staged_files([("--out", args.out), ("--out (sidecar)", sidecar_path(args.out))],
                                                      inputs=[args.world, args.materials]) as temp:

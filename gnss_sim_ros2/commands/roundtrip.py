@@ -26,6 +26,10 @@ def _qos():
     return QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
+#: longest wait of --timeout [s]
+MAX_TIMEOUT_S = 3600.0
+
+
 def _listen(timeout_s: float) -> int:
     import rclpy
 
@@ -67,6 +71,10 @@ def _compare(expected, got, path=""):
 
 
 def run(args) -> int:
+    if not 0 < args.timeout <= MAX_TIMEOUT_S:        # nan fails too; 0 or less: nothing could be received
+        print(f"gnss-sim roundtrip: error: option --timeout is {args.timeout:g}; give seconds in "
+              f"(0, {MAX_TIMEOUT_S:g}]", file=sys.stderr)
+        return 2
     if args.listen:
         return _listen(args.timeout)
 

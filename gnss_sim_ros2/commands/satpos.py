@@ -74,11 +74,11 @@ def run(args) -> int:
 
 def _run(args) -> int:
     from gnss_sim_ros2.core.time import GnssTime
+    from gnss_sim_ros2.parameters import SHARED_KEY, check_iso_time, param
 
-    start = GnssTime.from_iso(args.start, "GPS")
-    end = GnssTime.from_iso(args.end, "GPS")
+    start = GnssTime.from_iso(check_iso_time(args.start, "option --start"), "GPS")
+    end = GnssTime.from_iso(check_iso_time(args.end, "option --end"), "GPS")
     grid = _grid(start, end, args.step)
-    from gnss_sim_ros2.parameters import SHARED_KEY, param
 
     systems = param(SHARED_KEY, "systems").check(args.systems.upper(), "option --systems")
     if args.sp3:
@@ -116,5 +116,8 @@ def _run(args) -> int:
                      f"{v[i, 0]:.6f},{v[i, 1]:.6f},{v[i, 2]:.6f},{c[i]:.12e}\n" for i in range(len(svs))]
             f.writelines(lines)
             n_rows += len(lines)
+        if not n_rows:         # an empty table is no answer: the files do not cover the span (the CSV is not kept)
+            raise ValueError(f"no satellite of systems {systems} has a valid record from --start {args.start} to "
+                             f"--end {args.end} in the given files (records of other days or systems)")
     print(f"gnss-sim satpos: {n_rows} rows, {len(grid)} epochs -> {args.out}", file=sys.stderr)
     return 0

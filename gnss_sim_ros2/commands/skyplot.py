@@ -116,7 +116,7 @@ def _run(args) -> int:
     from gnss_sim_ros2.core.scene.visibility import STATE_NAMES
     from gnss_sim_ros2.core.time import GnssTime
     from gnss_sim_ros2.core.visibility import VisibilityOptions, load_scene
-    from gnss_sim_ros2.parameters import param
+    from gnss_sim_ros2.parameters import check_iso_time, param
 
     at = _parse_at(args.at)
     # options that are parameters of the visibility node: checked by the parameter table, before any work
@@ -124,7 +124,7 @@ def _run(args) -> int:
     if fresnel_rays < 0:
         raise ValueError(f"option --fresnel-rays is {fresnel_rays}: a number of rays >= 0 is needed (0: off)")
     mask_deg = param("visibility", "elevation_mask_deg").check(args.mask_deg, "option --mask-deg")
-    t = GnssTime.from_iso(args.time, scale=args.time_scale)
+    t = GnssTime.from_iso(check_iso_time(args.time, "option --time"), scale=args.time_scale)
     sky_mask = None
     if getattr(args, "sky_mask", None):
         from gnss_sim_ros2.core.visibility.sky_mask import read_sky_mask, sector_count

@@ -70,6 +70,8 @@ def axis_values(args) -> dict:
         raise ValueError("option --trajectories excludes --position/--position-ecef")
     if args.worlds and args.mesh:
         raise ValueError("option --worlds excludes --mesh")
+    if args.plot and Path(args.plot).suffix.lower() != ".png":      # found before the runs, not after them
+        raise ValueError(f"option --plot {args.plot}: the summary plot is a PNG, give a file name ending in .png")
     presets = parse_names(args.presets, "--presets") if args.presets is not None else None
     for name in presets or ():
         param(SHARED_KEY, "preset").check(name, "option --presets")
@@ -86,10 +88,15 @@ def axis_values(args) -> dict:
 def _files(paths, option):
     if not paths:
         return None
+    from gnss_sim_ros2.core.input_file import not_a_file
+
     out = [str(Path(p)) for p in paths]
     dup = sorted({p for p in out if out.count(p) > 1})
     if dup:
         raise ValueError(f"option {option}: {dup[0]} given twice")
+    for p in out:              # every run's file, before the cluster starts (a run would fail on its worker)
+        if (why := not_a_file(p)) is not None:
+            raise ValueError(f"option {option}: {p}: {why}")
     return out
 
 

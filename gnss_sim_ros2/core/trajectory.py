@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from .frames import check_receiver_position
+from .input_file import read_utf8
 
 FRAMES = {
     ("e_m", "n_m", "u_m"): "world",
@@ -101,7 +102,7 @@ class Trajectory:
         """Read a CSV path (header names the frame; see the module doc). Errors name file and line."""
         path = Path(path)
         try:
-            text = path.read_text()
+            text = read_utf8(path, f"trajectory file {path}")
         except OSError as exc:
             raise ValueError(f"trajectory file {path}: {exc.strerror}") from None
         rows = [r for r in csv.reader(text.splitlines())]

@@ -58,6 +58,7 @@ from .. import constants as k
 from ..calibration.reading import elevations_deg
 from ..calibration.signal_stats import RecordingStats, signal_statistics
 from ..ephemeris.broadcast import BroadcastEphemeris
+from ..input_file import not_a_file
 from ..receiver.outputs import write_navigation
 from ..rinex.header import read_obs_header
 from ..rinex.obs_table import EPOCH_MATCH_NS, ObsTable, match_epochs
@@ -402,8 +403,8 @@ def compare(sim_path, real_path, nav_paths=None, truth_ecef_m=None, truth_csv=No
     if nav_paths:
         nav_paths = [str(p) for p in nav_paths]
         for p in nav_paths:
-            if not Path(p).is_file():
-                raise ValueError(f"--nav {p}: no such file")
+            if (why := not_a_file(p)) is not None:
+                raise ValueError(f"--nav {p}: {why}")
         eph = BroadcastEphemeris.from_files(nav_paths)
         rx = truth if truth is not None else None
         sys_nav = "".join(s for s in systems if s in "GRECJI" and eph.svs(s))

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..input_file import not_a_file
 from ..time import GnssTime
 from .coverage import check_coverage
 
@@ -60,8 +61,8 @@ def _open(source, start, duration_s, systems, nav_files, sp3_files, clk_files, w
         if not nav_files:
             raise ValueError("ephemeris source 'broadcast' needs nav_files (RINEX navigation files)")
         for f in nav_files:
-            if not Path(f).is_file():
-                raise ValueError(f"navigation file {f} does not exist (parameter nav_files)")
+            if (why := not_a_file(f)) is not None:
+                raise ValueError(f"navigation file {f}: {why} (parameter nav_files)")
         paths = [Path(f) for f in nav_files]
         return BroadcastEphemeris.from_files(list(nav_files), start=lo, end=hi), paths, paths
     if source == "sp3":
@@ -70,8 +71,8 @@ def _open(source, start, duration_s, systems, nav_files, sp3_files, clk_files, w
         if not sp3_files:
             raise ValueError("ephemeris source 'sp3' needs sp3_files")
         for f in list(sp3_files) + list(clk_files):
-            if not Path(f).is_file():
-                raise ValueError(f"file {f} does not exist (parameter sp3_files/clk_files)")
+            if (why := not_a_file(f)) is not None:
+                raise ValueError(f"file {f}: {why} (parameter sp3_files/clk_files)")
         precise = Sp3Ephemeris.from_files(list(sp3_files), list(clk_files), start=lo, end=hi)
         files = [Path(f) for f in list(sp3_files) + list(clk_files)]
         if not nav_files:

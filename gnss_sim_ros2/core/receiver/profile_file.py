@@ -139,15 +139,19 @@ def read_yaml(path, where: str, loader, error: type[ValueError]):
         return yaml.load(text, Loader=loader), yaml.compose(text, Loader=loader)
     except yaml.YAMLError as exc:
         raise error(f"{where}: not valid YAML: {exc}") from None
+    except RecursionError:
+        raise error(f"{where}: not valid YAML: nested too deeply") from None
 
 
 @functools.lru_cache(maxsize=1)
 def _loader():
     """PyYAML's safe loader reading floats as YAML 1.2 does: 16.0e6 and 1e-3 are numbers (YAML 1.1, which
-    PyYAML follows, reads an exponent without a sign as text)."""
+    PyYAML follows, reads an exponent without a sign as text); a key given twice is refused (core/yaml_file.py)."""
     import yaml
 
-    class Loader(yaml.SafeLoader):
+    from gnss_sim_ros2.core.yaml_file import unique_keys
+
+    class Loader(unique_keys(yaml.SafeLoader)):
         pass
 
     Loader.add_implicit_resolver(

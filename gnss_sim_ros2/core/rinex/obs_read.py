@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..input_file import not_a_file
 from .header import parse_obs_header
 from .obs_table import ObsTable
 
@@ -114,6 +115,12 @@ def _rinex3_table(text: str, path, tlim) -> tuple:
         if flag > 1:                      # events (2-5: header records follow) and cycle-slip records (6)
             i += n + 1
             continue
+        body = lines[i + 1:i + 1 + n]
+        if len(body) < n or any(b.startswith(">") for b in body):    # a cut file or a miscounted record
+            got = next((k for k, b in enumerate(body) if b.startswith(">")), len(body))
+            cut = " before the end of the file (a truncated file?)" if got == len(body) else ""
+            raise ValueError(f"{path}, line {i + 1}: the epoch record announces {n} satellites, {got} lines of "
+                             f"them follow{cut}")
         try:
             y, mo, d, h, mi = (int(x) for x in line[2:29].split()[:5])
             sec = float(line[18:29])
@@ -124,7 +131,7 @@ def _rinex3_table(text: str, path, tlim) -> tuple:
         if (lo is None or t >= lo) and (hi is None or t <= hi):
             e = len(t_list)
             t_list.append(t)
-            rec_lines += lines[i + 1:i + 1 + n]
+            rec_lines += body
             rec_epoch += [e] * n
         i += n + 1
     times = np.array(t_list, dtype="datetime64[ns]")
@@ -165,8 +172,8 @@ def load_rinex(path, tlim=None) -> ObsTable:
     from georinex.rio import opener  # plain, .gz, .Z, .bz2, .zip and Hatanaka (CRINEX, with the hatanaka package)
 
     path = Path(path)
-    if not path.is_file():
-        raise ValueError(f"{path}: no such file")
+    if (why := not_a_file(path)) is not None:
+        raise ValueError(f"{path}: {why}")
     try:
         with opener(path) as f:
             text = f.read()

@@ -169,13 +169,15 @@ def load_materials_yaml(path) -> MaterialTable:
     """Read a materials YAML file (format in the module docstring) on top of the built-in classes."""
     import yaml
 
+    from gnss_sim_ros2.core import yaml_file
+    from gnss_sim_ros2.core.input_file import read_utf8
+
     path = Path(path)
     try:
-        data = yaml.safe_load(path.read_text()) or {}
+        text = read_utf8(path, f"materials file {path}")
     except OSError as exc:
         raise ValueError(f"materials file {path}: cannot read: {exc}") from exc
-    except yaml.YAMLError as exc:
-        raise ValueError(f"materials file {path}: not valid YAML: {exc}") from exc
+    data = yaml_file.parse(text, yaml_file.unique_keys(yaml.SafeLoader), f"materials file {path}") or {}
     if not isinstance(data, dict):
         raise ValueError(f"materials file {path}: top level must be a mapping with 'classes' and/or 'rules'")
     unknown = sorted(set(data) - {"classes", "rules", "foliage_names", "opaque_names"})

@@ -142,13 +142,19 @@ def _read_own_ply(path: Path):
     return verts, tris, mat
 
 
+def check_mesh_name(mesh_path, where: str) -> Path:
+    """``mesh_path`` as a Path when it names a .ply file; ValueError naming ``where`` otherwise."""
+    mesh_path = Path(mesh_path)
+    if mesh_path.suffix.lower() != ".ply":
+        raise ValueError(f"{where}: the scene mesh must be a .ply file (it keeps a class per triangle)")
+    return mesh_path
+
+
 def write_scene(mesh_path, world: WorldMesh) -> Path:
     """Write ``world`` as a PLY plus its sidecar YAML; returns the sidecar path."""
     import yaml
 
-    mesh_path = Path(mesh_path)
-    if mesh_path.suffix.lower() != ".ply":
-        raise ValueError(f"--out {mesh_path}: the scene mesh must be a .ply file (it keeps a class per triangle)")
+    mesh_path = check_mesh_name(mesh_path, f"--out {mesh_path}")
     mesh_path.parent.mkdir(parents=True, exist_ok=True)
     write_ply(mesh_path, world.vertices_m, world.triangles, world.material)
     side = {

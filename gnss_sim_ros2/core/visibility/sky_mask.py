@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import frames
+from ..input_file import read_utf8
 from ..scene.georeference import SphericalCoordinates
 from ..vocabulary import VisibilityState
 
@@ -61,7 +62,7 @@ def read_sky_mask(path) -> SkyMask:
     """Read a sky mask CSV (module docstring); ValueError naming the file and line of a bad row."""
     path = Path(path)
     try:
-        text = path.read_text()
+        text = read_utf8(path, f"sky mask {path}")
     except OSError as exc:
         raise ValueError(f"sky mask {path}: cannot read it ({exc.strerror or exc})") from exc
     rows = [(i, line) for i, line in enumerate(text.splitlines(), start=1)

@@ -1,0 +1,50 @@
+"""The one strict YAML reading of the project's input files (parameter files, receiver profiles, scenarios).
+
+PyYAML keeps the last of two equal keys of a mapping without a word (``duration_s: 10`` then ``duration_s: 20``
+reads 20; two sections of one node: only the second); YAML 1.2 requires keys to be unique
+(https://yaml.org/spec/1.2.2/#mapping, "the content of a mapping node is an unordered set of key/value node
+pairs, with the restriction that each of the keys is unique").  :func:`unique_keys` refuses them naming both lines.
+"""
+from __future__ import annotations
+
+import functools
+
+MERGE_TAG = "tag:yaml.org,2002:merge"
+
+
+@functools.cache
+def unique_keys(base):
+    """The loader class ``base`` (a PyYAML loader) refusing a key given twice in one mapping: a
+    ``yaml.constructor.ConstructorError`` marking the second key (``<<`` merges may still be overridden)."""
+    import yaml
+
+    class Loader(base):
+        def construct_mapping(self, node, deep=False):
+            if isinstance(node, yaml.MappingNode):
+                first_line: dict = {}
+                for key_node, _ in node.value:
+                    if key_node.tag == MERGE_TAG or not isinstance(key_node, yaml.ScalarNode):
+                        continue
+                    key = self.construct_object(key_node)
+                    if key in first_line:
+                        raise yaml.constructor.ConstructorError(
+                            "while reading a mapping", node.start_mark,
+                            f"found the key {key!r} twice (first on line {first_line[key]})", key_node.start_mark)
+                    first_line[key] = key_node.start_mark.line + 1
+            return super().construct_mapping(node, deep=deep)
+
+    Loader.__name__ = f"Unique{base.__name__}"
+    return Loader
+
+
+def parse(text: str, loader, where: str):
+    """``yaml.load(text, loader)``; ValueError naming ``where`` for text that is not YAML or nests so deeply that
+    the parser's recursion gives up (PyYAML is recursive: about 1000 levels)."""
+    import yaml
+
+    try:
+        return yaml.load(text, Loader=loader)
+    except yaml.YAMLError as exc:
+        raise ValueError(f"{where}: not valid YAML: {exc}") from None
+    except RecursionError:
+        raise ValueError(f"{where}: not valid YAML: nested too deeply") from None
