@@ -182,6 +182,15 @@ def test_skyplot_default_skyline_never_replaces_a_users_file(tmp_path, capsys):
         check_unnamed_output(tmp_path / "empty.csv", "--skyline-csv", ",".join(SKYLINE_HEADER))
 
 
+def test_export_world_never_replaces_a_users_file_under_the_sidecars_name(tmp_path, capsys):
+    from gnss_sim_ros2.core.scene.demo_world import demo_world_path
+
+    (tmp_path / "m.scene.yaml").write_text("my notes\n")
+    assert main(["export-world", str(demo_world_path()), "--out", str(tmp_path / "m.ply")]) == 2
+    assert "m.scene.yaml exists and gnss-sim did not write it" in capsys.readouterr().err
+    assert _contents(tmp_path) == {"m.scene.yaml": b"my notes\n"}
+
+
 # ------------------------------------------------------------------------------------------------------ sweep
 def test_an_interrupted_sweeps_table_keeps_the_earlier_rows(tmp_path):
     from gnss_sim_ros2.core.sweep.table import read_previous_rows, read_rows, rows_so_far, write_rows

@@ -41,11 +41,11 @@ def run(args) -> int:
         if args.strict and args.allow_partial:
             raise ValueError("options --strict and --allow-partial contradict each other: give one of them")
         check_mesh_name(args.out, f"option --out {args.out}")     # before the world is loaded (and '/' too)
-        # the sidecar beside replaces only a sidecar (a user's file of that name is refused)
-        check_unnamed_output(sidecar_path(args.out), "--out", f"format: {SCENE_FORMAT}")
         # the mesh and its sidecar written beside, renamed when both are complete; never over an input
         with warnings.catch_warnings(), staged_files([("--out", args.out), ("--out (sidecar)", sidecar_path(args.out))],
                                                      inputs=[args.world, args.materials]) as temp:
+            # the sidecar beside replaces only a sidecar (a user's file of that name is refused)
+            check_unnamed_output(sidecar_path(args.out), "--out", f"format: {SCENE_FORMAT}")
             # each skip, left-out model and dropped triangle is listed once in the scene report below
             for category in (SceneWarning, LeftOutWarning, DroppedTrianglesWarning):
                 warnings.simplefilter("ignore", category)
