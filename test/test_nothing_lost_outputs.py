@@ -69,6 +69,9 @@ def test_simulate_stopped_or_killed_midway_keeps_the_earlier_results(tmp_path, s
         assert "TIME OF LAST OBS" in rinex.split("END OF HEADER")[0]
         assert f"earlier results in {out} are kept" in err and str(staged[0].parent) in err
         assert "Traceback" not in err
+        nxt = _cli(*SIMULATE, "--duration", "30", "--out", out)     # the next run names them and leaves them
+        assert nxt.returncode == 0 and f"{staged[0].parent} holds the outputs of a run that was stopped" in nxt.stderr
+        assert staged[0].read_text() == rinex
 
 
 def test_simulate_stopped_into_a_new_folder_keeps_its_epochs_there(tmp_path):

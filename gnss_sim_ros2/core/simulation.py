@@ -343,6 +343,8 @@ def run_simulation(setup: SimulationSetup) -> SimulationResult:
     inputs = [*(f for files in setup.orbit_files() for f in files), *setup.scene_files()]
     folder = OutputFolder(setup.out_dir, command="gnss-sim simulate", inputs=inputs)
     staging = folder.acquire()
+    for old in folder.stale:        # as `gnss-sim run` says it: a stopped or killed run's outputs, never removed
+        print(f"note: {old} holds the outputs of a run that was stopped or killed; left as it is", file=sys.stderr)
     rtcm_path = setup.rtcm_path     # an RTCM file named inside the folder is one of the run's files too
     if rtcm_path and folder.final in Path(rtcm_path).resolve().parents:
         rtcm_path = str(staging / Path(rtcm_path).resolve().relative_to(folder.final))
