@@ -305,13 +305,20 @@ def test_truth_csv_interpolates(tmp_path):
     from gnss_sim_ros2.core.comparison.truth import truth_from_csv
     from gnss_sim_ros2.core.frames import geodetic_to_ecef
 
-    f = tmp_path / "truth.csv"
-    f.write_text("time,x_m,y_m,z_m\n2022-01-01T00:00:00,100.0,200.0,300.0\n2022-01-01T00:01:40,200.0,0.0,300.0\n")
+    f = tmp_path / "truth.csv"       # a path near a real place (a point inside the Earth is refused)
+    x0, y0, z0 = 3149700.0, 598200.0, 5495300.0
+    f.write_text(f"time,x_m,y_m,z_m\n2022-01-01T00:00:00,{x0 + 100},{y0 + 200},{z0 + 300}\n"
+                 f"2022-01-01T00:01:40,{x0 + 200},{y0},{z0 + 300}\n")
     t = np.array(["2021-12-31T23:59:59", "2022-01-01T00:00:00", "2022-01-01T00:00:25", "2022-01-01T00:01:40"],
                  dtype="datetime64[ns]")
     out = truth_from_csv(f, t)
     assert np.all(np.isnan(out[0]))                     # before the path: no truth
-    np.testing.assert_allclose(out[1:], [[100, 200, 300], [125, 150, 300], [200, 0, 300]], atol=1e-9)
+    np.testing.assert_allclose(out[1:] - [x0, y0, z0], [[100, 200, 300], [125, 150, 300], [200, 0, 300]],
+                               atol=1e-6)
+    inside = tmp_path / "inside.csv"
+    inside.write_text("time,x_m,y_m,z_m\n2022-01-01T00:00:00,100.0,200.0,300.0\n")
+    with pytest.raises(ValueError, match=r"inside\.csv, line 2: .*Earth's centre"):
+        truth_from_csv(inside, t)
     g = tmp_path / "fix.csv"       # gnss-sim simulate's fix.csv layout (rows without a fix skipped)
     g.write_text("time,lat_deg,lon_deg,h_m,n_sats,status\n2022-01-01T00:00:00,59.9,10.75,60.0,9,fix\n"
                  "2022-01-01T00:00:10,,,,2,no_fix\n")
