@@ -13,7 +13,8 @@ a '/' wrote a RINEX file name with it; ``compare --truth 0,0,0`` compared agains
 observation file cut inside an epoch record was read as if whole; ``skyplot --time`` and ``satpos --start`` in
 1970 ran (satpos wrote 0 rows, rc 0); ``sweep --worlds missing.sdf`` and ``--plot x.txt`` were found only by the
 runs or after them; ``roundtrip --timeout 0`` waited nothing and reported every message lost; an empty or
-'/world' TF frame ran.
+'/world' TF frame ran; ``export-world --seed -5`` of a world with a <population> said "expected non-negative
+integer".
 """
 from __future__ import annotations
 
@@ -98,6 +99,8 @@ def _cases(tmp: Path, write: bool = True):
         ("profile-key-twice", ["profile", "show", profile_dup], [str(profile_dup), "'gnss_sim_profile' twice"]),
         ("export-out-root", [*export, "--out", "/"], ["option --out /", ".ply"]),
         ("export-out-txt", [*export, "--out", tmp / "e.txt"], [f"option --out {tmp / 'e.txt'}", ".ply"]),
+        ("export-seed-negative", ["export-world", REPO / "worlds" / "orchard.sdf", "--quiet", "--out", tmp / "o.ply",
+                                  "--seed", "-5"], ["option --seed", "minimum is 0"]),
         ("export-materials-binary", [*export, "--out", tmp / "w.ply", "--materials", binary],
          [f"materials file {binary}", "not a UTF-8 text file"]),
         ("marker-newline", [*sim, "--marker", "AB\nCD"], ["option --marker", "'marker_name'", "'\\n'"]),

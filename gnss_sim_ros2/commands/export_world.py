@@ -36,11 +36,13 @@ def run(args) -> int:
     from gnss_sim_ros2.core.scene.mesh_files import DroppedTrianglesWarning
     from gnss_sim_ros2.core.scene.mesh_io import SCENE_FORMAT, check_mesh_name, export_world, sidecar_path
     from gnss_sim_ros2.core.scene.scene_report import LeftOutWarning, SceneWarning, report_lines
+    from gnss_sim_ros2.parameters import SHARED_KEY, param
 
     try:
         if args.strict and args.allow_partial:
             raise ValueError("options --strict and --allow-partial contradict each other: give one of them")
         check_mesh_name(args.out, f"option --out {args.out}")     # before the world is loaded (and '/' too)
+        param(SHARED_KEY, "seed").check(args.seed, "option --seed")    # a seed as every seed: 0..2**63-1
         # the mesh and its sidecar written beside, renamed when both are complete; never over an input
         with warnings.catch_warnings(), staged_files([("--out", args.out), ("--out (sidecar)", sidecar_path(args.out))],
                                                      inputs=[args.world, args.materials]) as temp:
