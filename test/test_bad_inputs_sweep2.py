@@ -14,7 +14,8 @@ observation file cut inside an epoch record was read as if whole; ``skyplot --ti
 1970 ran (satpos wrote 0 rows, rc 0); ``sweep --worlds missing.sdf`` and ``--plot x.txt`` were found only by the
 runs or after them; ``roundtrip --timeout 0`` waited nothing and reported every message lost; an empty or
 '/world' TF frame ran; ``export-world --seed -5`` of a world with a <population> said "expected non-negative
-integer".
+integer"; ``compare --mask-deg 200`` ran, ``--epoch-tol-ms -5`` named no option, ``skyplot --png sky.txt``
+ended in matplotlib's "Format 'txt' is not supported".
 """
 from __future__ import annotations
 
@@ -119,6 +120,11 @@ def _cases(tmp: Path, write: bool = True):
          ["option --truth", "Earth's centre"]),
         ("compare-truth-csv-utf16", [*cmp_, "--sim", whole, "--real", whole, "--truth-csv", truth16],
          [f"--truth-csv {truth16}", "not a UTF-8 text file"]),
+        ("compare-mask-200", [*cmp_, "--sim", whole, "--real", whole, "--mask-deg", "200"],
+         ["option --mask-deg", "maximum is 90"]),
+        ("compare-epoch-tolerance", [*cmp_, "--sim", whole, "--real", whole, "--epoch-tol-ms", "-5"],
+         ["--epoch-tol-ms -5"]),
+        ("skyplot-png-not-png", [*sky, "--time", START, "--png", tmp / "sky.txt"], ["option --png", ".png"]),
         ("skyplot-time-1970", [*sky, "--time", "1970-01-01T00:00:00"], ["option --time", "supported span"]),
         ("skyplot-time-2100", [*sky, "--time", "2100-06-01T00:00:00"], ["option --time", "supported span"]),
         ("satpos-start-1970", [*satpos, "--start", "1970-01-01T00:00:00", "--end", "1970-01-01T01:00:00"],

@@ -143,6 +143,7 @@ def run(args) -> int:
     from gnss_sim_ros2.core.comparison import compare, write_report
     from gnss_sim_ros2.core.frames import check_receiver_position
     from gnss_sim_ros2.core.output_folder import OutputBusy, OutputFolder
+    from gnss_sim_ros2.parameters import param
 
     # written beside --out, moved there at the end: only compare's own files replaced (core/output_folder.py)
     folder = OutputFolder(Path(args.out), command="gnss-sim compare",
@@ -152,6 +153,7 @@ def run(args) -> int:
         truth = parse_triple(args.truth, "--truth (ECEF X,Y,Z [m])") if args.truth else None
         if truth is not None:                   # the Earth's centre or space: refused as every position is
             check_receiver_position(truth, "ecef", f"option --truth {args.truth}")
+        param("visibility", "elevation_mask_deg").check(args.mask_deg, "option --mask-deg")   # -5..90 deg
         _check_fit_options(args)
         scene, scene_name = _los_scene(args)
         staging = folder.acquire()

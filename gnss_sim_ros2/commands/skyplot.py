@@ -92,6 +92,8 @@ def _ephemeris(args, t):
 
 
 def run(args) -> int:
+    from gnss_sim_ros2.core.figures import check_png_name
+
     try:
         # an output file is never one of the inputs (core/output_folder.py)
         check_outputs_not_inputs([("--csv", args.csv), ("--png", args.png),
@@ -99,6 +101,8 @@ def run(args) -> int:
                                   ("--mask-report", _mask_report_path(args))],
                                  inputs=[args.world, args.mesh, args.materials, *(args.nav or ()),
                                          getattr(args, "sky_mask", None)])
+        if args.png:
+            check_png_name(args.png, f"option --png {args.png}")
         # a default output beside a named one replaces only the file skyplot writes there
         if args.png and not getattr(args, "skyline_csv", None):
             check_unnamed_output(_skyline_csv_path(args), "--skyline-csv", ",".join(SKYLINE_HEADER))

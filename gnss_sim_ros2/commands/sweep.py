@@ -60,6 +60,7 @@ def add_arguments(p):
 def axis_values(args) -> dict:
     """{axis: values or None} from the options; ValueError naming the option."""
     from gnss_sim_ros2.config_file import load_config
+    from gnss_sim_ros2.core.figures import check_png_name
     from gnss_sim_ros2.core.sweep.axes import parse_dates, parse_names, parse_seeds
     from gnss_sim_ros2.parameters import SHARED_KEY, param
 
@@ -70,8 +71,8 @@ def axis_values(args) -> dict:
         raise ValueError("option --trajectories excludes --position/--position-ecef")
     if args.worlds and args.mesh:
         raise ValueError("option --worlds excludes --mesh")
-    if args.plot and Path(args.plot).suffix.lower() != ".png":      # found before the runs, not after them
-        raise ValueError(f"option --plot {args.plot}: the summary plot is a PNG, give a file name ending in .png")
+    if args.plot:                                  # found before the runs, not after them
+        check_png_name(args.plot, f"option --plot {args.plot}")
     presets = parse_names(args.presets, "--presets") if args.presets is not None else None
     for name in presets or ():
         param(SHARED_KEY, "preset").check(name, "option --presets")

@@ -18,6 +18,16 @@ def pyplot():
     return plt
 
 
+def check_png_name(path, where: str) -> Path:
+    """``path`` when :func:`save_figure` writes it as a PNG (a .png name, or none: .png is added); ValueError
+    naming ``where`` otherwise, before any work (matplotlib's own "Format 'txt' is not supported" names no option
+    and comes after the run)."""
+    path = Path(path)
+    if path.suffix.lower() not in ("", ".png"):
+        raise ValueError(f"{where}: the figure is a PNG, give a file name ending in .png")
+    return path
+
+
 def save_figure(fig, path, dpi: int = 110) -> Path:
     """Lay out, write (PNG, folders made) and close a matplotlib figure; its path (``.png`` added to a name
     without suffix, as matplotlib does).  Written under a temporary name beside it and renamed when complete:

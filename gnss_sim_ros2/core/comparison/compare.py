@@ -324,7 +324,7 @@ def compare(sim_path, real_path, nav_paths=None, truth_ecef_m=None, truth_csv=No
         raise ValueError(f"{real_path}: no observation epochs"
                          + (" within the simulated span" if restrict_real_to_sim_span else ""))
     if epoch_tol_ms is not None and not 0.0 < epoch_tol_ms <= 500.0:
-        raise ValueError(f"epoch tolerance {epoch_tol_ms!r} ms: must be in (0, 500]")
+        raise ValueError(f"--epoch-tol-ms {epoch_tol_ms!r}: the epoch tolerance must be in (0, 500] ms")
     tol_ns = EPOCH_MATCH_NS if epoch_tol_ms is None else int(round(epoch_tol_ms * 1e6))
     i_sim, i_real = match_epochs(sim.time, real.time, tol_ns)
     if not len(i_sim):
