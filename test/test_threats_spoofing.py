@@ -223,9 +223,10 @@ def test_the_counterfeits_arrive_from_the_spoofer_for_every_satellite(tmp_path, 
     ("delay_s", -1.0, "delay_s"), ("eirp_dbw", 500.0, "eirp_dbw"), ("false_time_offset_s", 2.0, "false_time_offset_s")])
 def test_bad_spoofer_fields_name_file_line_and_key(tmp_path, field, value, key):
     p = tmp_path / "bad.yaml"
+    eirp = value if field == "eirp_dbw" else -40.0       # a key given twice is an error of its own (yaml_file)
     p.write_text("version: 1\nevents:\n  - type: spoofer\n    position: [50.0, 14.0, 300.0]\n    position_type: llh\n"
-                 "    eirp_dbw: -40.0\n    start_s: 0\n    end_s: 10\n    false_position: [50.001, 14.0, 300.0]\n"
-                 "    false_position_type: llh\n" + f"    {field}: {value}\n")
+                 f"    eirp_dbw: {eirp}\n    start_s: 0\n    end_s: 10\n    false_position: [50.001, 14.0, 300.0]\n"
+                 "    false_position_type: llh\n" + (f"    {field}: {value}\n" if field != "eirp_dbw" else ""))
     with pytest.raises(ScenarioError) as exc:
         load_scenario(p)
     msg = str(exc.value)
