@@ -172,6 +172,7 @@ def _run(args, stage: Path) -> None:
     from gnss_sim_ros2.core.planning.runner import SceneSpec, run_blocks
     from gnss_sim_ros2.core.planning.sky import plan_sky, time_steps
     from gnss_sim_ros2.core.receiver.config import ReceiverConfig
+    from gnss_sim_ros2.core.scene.world_mesh import world_bounds_xy
     from gnss_sim_ros2.core.time import GnssTime
     from gnss_sim_ros2.core.visibility import VisibilityOptions
 
@@ -194,7 +195,7 @@ def _run(args, stage: Path) -> None:
     if scene.spherical is None:
         raise ValueError(f"{args.world or args.mesh}: no geodetic origin (<spherical_coordinates> in the world, "
                          f"spherical_coordinates in the sidecar): satellites cannot be placed")
-    bounds = pa.world_bounds_xy(scene)
+    bounds = world_bounds_xy(scene)
     if args.path:
         area = pa.read_path_csv(args.path)
         area.step_m = float(args.step_m)

@@ -14,8 +14,6 @@ from pathlib import Path
 
 import numpy as np
 
-from ..scene.world_mesh import world_bounds_xy as world_bounds_xy  # the planner's and live.py's name
-
 
 @dataclass
 class PlanArea:

@@ -12,8 +12,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..scene.world_mesh import world_bounds_xy
 from ..time import GnssTime
-from .area import PlanArea, grid_area, ground_z_m, world_bounds_xy
+from .area import PlanArea, grid_area, ground_z_m
 from .predicted_cn0 import predictor_from_profile
 from .quality import PlanInputs, path_quality, quality_block
 from .ranging import budget_from_profile, tracked_systems
