@@ -37,14 +37,16 @@ def unique_keys(base):
     return Loader
 
 
-def parse(text: str, loader, where: str):
-    """``yaml.load(text, loader)``; ValueError naming ``where`` for text that is not YAML or nests so deeply that
-    the parser's recursion gives up (PyYAML is recursive: about 1000 levels)."""
+def parse(text: str, loader, where: str, error: type[ValueError] = ValueError, with_nodes: bool = False):
+    """``yaml.load(text, loader)`` (with ``with_nodes``: and the node tree with line marks, ``yaml.compose``);
+    ``error`` (ValueError or a subclass) naming ``where`` for text that is not YAML or nests so deeply that the
+    parser's recursion gives up (PyYAML is recursive: about 1000 levels)."""
     import yaml
 
     try:
-        return yaml.load(text, Loader=loader)
+        doc = yaml.load(text, Loader=loader)
+        return (doc, yaml.compose(text, Loader=loader)) if with_nodes else doc
     except yaml.YAMLError as exc:
-        raise ValueError(f"{where}: not valid YAML: {exc}") from None
+        raise error(f"{where}: not valid YAML: {exc}") from None
     except RecursionError:
-        raise ValueError(f"{where}: not valid YAML: nested too deeply") from None
+        raise error(f"{where}: not valid YAML: nested too deeply") from None

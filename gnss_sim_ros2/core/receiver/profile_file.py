@@ -129,18 +129,13 @@ def _read_file(path: str, _mtime_ns: int, _size: int, owner: type) -> ReceiverPr
 def read_yaml(path, where: str, loader, error: type[ValueError]):
     """(document, node tree with line marks) of a YAML file read with ``loader``; ``error`` (a ValueError
     subclass) naming ``where`` when the file cannot be read or is not YAML (profiles, scenario files)."""
-    import yaml
+    from gnss_sim_ros2.core.yaml_file import parse
 
     try:
         text = Path(path).read_text()
     except (OSError, UnicodeDecodeError) as exc:
         raise error(f"{where}: cannot be read: {exc}") from None
-    try:
-        return yaml.load(text, Loader=loader), yaml.compose(text, Loader=loader)
-    except yaml.YAMLError as exc:
-        raise error(f"{where}: not valid YAML: {exc}") from None
-    except RecursionError:
-        raise error(f"{where}: not valid YAML: nested too deeply") from None
+    return parse(text, loader, where, error, with_nodes=True)
 
 
 @functools.lru_cache(maxsize=1)
