@@ -143,8 +143,8 @@ def test_a_figure_whose_write_fails_leaves_the_previous_one(tmp_path, monkeypatc
     save_figure(plt.figure(), png)
     before = png.read_bytes()
 
-    def torn(self, path, **kwargs):
-        Path(path).write_bytes(before[:100])                  # a part written, then the process is stopped
+    def torn(self, fname, **kwargs):              # matplotlib's savefig takes a path or a binary file
+        (fname.write if hasattr(fname, "write") else Path(fname).write_bytes)(before[:100])  # a part, then stopped
         raise KeyboardInterrupt
 
     monkeypatch.setattr(Figure, "savefig", torn)

@@ -4,8 +4,9 @@ Every plot of gnss_sim (sky plots, comparison reports, sweep summaries, bench pl
 ``pyplot()`` and ends with ``save_figure``."""
 from __future__ import annotations
 
-import os
 from pathlib import Path
+
+from .user_cache import write_whole
 
 
 def pyplot():
@@ -37,12 +38,8 @@ def save_figure(fig, path, dpi: int = 110) -> Path:
     path = Path(path)
     if not path.suffix:
         path = path.with_name(path.name + ".png")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     try:
-        fig.savefig(tmp, dpi=dpi, format=path.suffix[1:].lower())
-        os.replace(tmp, path)
+        write_whole(path, lambda f: fig.savefig(f, dpi=dpi, format=path.suffix[1:].lower()))
     finally:
-        tmp.unlink(missing_ok=True)
         plt.close(fig)
     return path
