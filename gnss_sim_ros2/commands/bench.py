@@ -21,7 +21,9 @@ def add_arguments(p):
     p.add_argument("--quick", action="store_true", help="shorter scenarios (under two minutes)")
     p.add_argument("--json", metavar="FILE", nargs="?", const="-",
                    help="write the figures as JSON to FILE (no FILE: to standard output, the table to stderr)")
-    p.add_argument("--plot", metavar="FILE.png", help="plot of cost against accuracy (PNG)")
+    p.add_argument("--plot", metavar="FILE.png",
+                   help="plot of cost against accuracy (PNG); with --scaling: cost against the size of the problem; "
+                   "with --fleet: cost, latency and memory against the robots")
     p.add_argument("--repeats", type=int, default=None, help="timed runs per preset, best kept (3)")
     p.add_argument("--no-real", action="store_true", help="skip the OPEC scenario even when its data is present")
     p.add_argument("--presets", default=",".join(PRESET_ORDER), help="comma-separated presets (all)")
@@ -92,8 +94,6 @@ def run_fleet_command(args) -> int:
         if not (0 < args.fleet_rate <= 100 and args.fleet_duration >= 1):
             raise ValueError(f"options --fleet-rate {args.fleet_rate:g} / --fleet-duration {args.fleet_duration:g}: "
                              f"a rate in (0, 100] Hz and a duration of at least 1 s are needed")
-        if args.plot:
-            raise ValueError("--plot is not available with --fleet")
         if args.fleet_config and not Path(args.fleet_config).is_file():
             raise ValueError(f"option --fleet-config {args.fleet_config}: no such file")
         report = run_fleet(counts, args.fleet_rate, args.fleet_duration,
@@ -101,7 +101,9 @@ def run_fleet_command(args) -> int:
     except (ValueError, RuntimeError) as exc:
         print(f"gnss-sim bench: error: {exc}", file=sys.stderr)
         return 2
-    return _report_out(args, report, fleet_table(report), None)
+    from gnss_sim_ros2.benchmarks.fleet_plot import fleet_plot
+
+    return _report_out(args, report, fleet_table(report), fleet_plot)
 
 
 def run(args) -> int:
