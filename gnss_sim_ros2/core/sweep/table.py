@@ -25,11 +25,12 @@ runs of the same inputs; every other column is determined by the inputs.
 """
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import pyarrow as pa
 import pyarrow.parquet as pq
+
+from ..user_cache import write_whole
 
 #: horizontal error percentiles of every row
 PERCENTILES = (50, 68, 95, 99)
@@ -64,11 +65,11 @@ def to_table(rows: list[dict]) -> pa.Table:
 
 
 def write_rows(rows: list[dict], path: Path) -> Path:
-    """Write the rows to ``path`` (Parquet) atomically: a reader never sees a half-written file."""
+    """Write the rows to ``path`` (Parquet) whole (core/user_cache.write_whole): a reader never sees a half-written
+    file, and a failed write leaves the earlier table and no temporary."""
     path = Path(path)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    pq.write_table(to_table(rows), tmp)
-    os.replace(tmp, path)
+    table = to_table(rows)
+    write_whole(path, lambda f: pq.write_table(table, f))
     return path
 
 
