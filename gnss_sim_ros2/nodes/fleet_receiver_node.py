@@ -11,22 +11,28 @@ the object a receiver node holds one of (configure, the observations then the fi
 services, cleanup), here publishing on robot k's topics and serving ~/robot<k>/threats/..., so a fleet's robot k
 gives what robot k's own receiver node gives, byte for byte (test_fleet_layout).
 
-The robots' observables are computed one robot after the other (a loop over robots, not yet one numpy step over
-robots x satellites x signals); their position fixes are one solve: a robot's fix half is an executor task
-(ReceiverSession.process) queued behind the visibility callbacks already waiting, and the first of those tasks
+The robots' observables are one numpy pass over robots x satellites x signals: a robot's paired epoch waits in its
+session (ReceiverSession.paired) and the first one queues an executor task (``observe_robots``) behind the
+visibility callbacks already waiting, which takes the epoch paired at every robot and computes their observables in
+one core/receiver/batch_observe.observe_receivers (each robot's noise streams, clock, tracking state its own; each
+robot's bits those it gets alone; robots whose settings cannot share the pass -- threats, the LMS layer, reflected
+paths, another configuration -- are observed alone), publishes each robot's observations, then queues their fix
+half.  Their position fixes are one solve: the first fix task
 (``finish_robots``) takes the epoch waiting at every robot and solves them in one solver.solve_pvt_many
 (core/receiver/batch_fix.py: each robot's smoothing filter, last fix, RAIM exclusions and SolverConfig its own;
 each epoch's bits those it gets alone), then writes each robot's NMEA, RINEX and messages.  So the robots'
 observations of an epoch go out before their fixes when the executor holds them together (4 robots: robot 0's
 fix after robot 3's observations at the median).  What the fleet pays once: the states' decoding, the visibility
-cast, the fix's iterations, the executor's and the middleware's per-node work; per robot it still pays the
-observables, its visibility decoded, its messages encoded and published (docs/BENCHMARKS.md, fleet figures).
+cast, the observables' stages without memory, the fix's iterations, the executor's and the middleware's per-node
+work; per robot it still pays its clock, tracking and noise draws, its visibility decoded, its messages encoded and
+published (docs/BENCHMARKS.md, fleet figures).
 """
 from __future__ import annotations
 
 import sys
 
 from gnss_sim_ros2.core.receiver.batch_fix import solve_receivers_fixes
+from gnss_sim_ros2.core.receiver.batch_observe import observe_receivers
 from gnss_sim_ros2.graph import FLEET_NODE_NAMES, fleet_topic
 from gnss_sim_ros2.graph_params import fleet_robot_params, robot_namespace
 from gnss_sim_ros2.messages.conversions import states_from_cdr
@@ -46,6 +52,8 @@ class FleetReceiverNode(GnssSimNode):
         self._shared: dict = {}
         #: the last SatelliteStates messages decoded (id -> (bytes, states_from_cdr)): one decode for every robot
         self._decoded: dict = {}
+        #: an observe_robots task is queued and has not run yet
+        self._observe_queued = False
 
     def decoded_states(self, data: bytes):
         """states_from_cdr of ``data`` (the one message object every robot's pairing holds), decoded once: the
@@ -56,6 +64,43 @@ class FleetReceiverNode(GnssSimNode):
             while len(self._decoded) > DECODED_KEPT:
                 del self._decoded[next(iter(self._decoded))]
         return hit[1]
+
+    def observe_due(self):
+        """A robot's epoch is paired: observe it with the other robots' paired by then, in a task queued behind the
+        callbacks already waiting (their visibility messages), or at once without an executor."""
+        if self._observe_queued:
+            return
+        if self.executor is None:
+            self.observe_robots()
+            return
+        self._observe_queued = True
+        self.executor.create_task(self.observe_robots)
+
+    def observe_robots(self):
+        """The observables of every robot's paired epochs, in rounds (a robot's next epoch after this one): the
+        fixes still due first (each chain's halves in order), the first paired epoch of each robot observed in
+        one pass (core/receiver/batch_observe.observe_receivers: each robot's bits as alone), each robot's
+        observations published; then their fix half queued (finish_robots)."""
+        self._observe_queued = False
+        for r in self.robots:
+            if r.chain is None:
+                r.paired.clear()
+        observed = False
+        while True:
+            due = [r for r in self.robots if r.paired]
+            if not due:
+                break
+            self.finish_robots()
+            inputs = [r.epoch_inputs(*r.paired.pop(0)) for r in due]
+            got = observe_receivers([r.chain for r in due], [e for _, e in inputs])
+            for r, (stamp, e), obs in zip(due, inputs, got):
+                r.observed(stamp, e, obs)
+            observed = True
+        if observed:
+            if self.executor is not None:
+                self.executor.create_task(self.finish_robots)
+            else:
+                self.finish_robots()
 
     def finish_robots(self):
         """The fix half of every robot's epochs observed and not yet finished, in rounds: the first waiting
@@ -92,7 +137,8 @@ class FleetReceiverNode(GnssSimNode):
             return f"~/{robot_namespace(k)}/{name[2:]}" if robots > 1 and name.startswith("~/") else name
 
         return ReceiverSession(self, label=f"{self.get_name()} ({robot_namespace(k)})", publisher=publisher,
-                               service=service, decode_states=self.decoded_states, finish=self.finish_robots)
+                               service=service, decode_states=self.decoded_states, finish=self.finish_robots,
+                               observe=self.observe_due)
 
     def configure(self, p):
         n = p["fleet_robots"]
@@ -113,6 +159,7 @@ class FleetReceiverNode(GnssSimNode):
             r.on_states(data)
 
     def deactivate(self):
+        self.observe_robots()            # the epochs paired, while the publishers are on
         for r in self.robots:
             r.deactivate()
 

@@ -4,8 +4,10 @@ ReceiverNode (nodes/receiver_node.py) holds one ReceiverSession, FleetReceiverNo
 (nodes/fleet_receiver_node.py) one per robot; the session is the receiver's work between the ROS messages
 and the core, the node says where it lives in the graph (``publisher``: a topic name to a publisher of the
 node; ``service``: a service name to the node's name for it; ``label``: how errors and diagnostics name it),
-how the satellite states are decoded (``decode_states``: the fleet node decodes a message once for every robot)
-and who finishes its epochs (``finish``: the session alone, or the fleet node solving every robot's fix at once).
+how the satellite states are decoded (``decode_states``: the fleet node decodes a message once for every robot),
+who observes its epochs (``observe``: None, the session at once; or the fleet node's call that takes the session's
+``paired`` epochs later, every robot's in one core/receiver/batch_observe pass) and who finishes them (``finish``:
+the session alone, or the fleet node solving every robot's fix at once).
 The physics is the core's (core/receiver/chain.ReceiverChain, core/receiver/epoch_pairing.EpochPairing,
 core/threats/live.py); every message is built and read in gnss_sim_ros2/messages/.
 """
@@ -19,6 +21,7 @@ from geometry_msgs.msg import TwistWithCovarianceStamped
 from sensor_msgs.msg import NavSatFix
 from std_msgs.msg import Header, String
 
+from gnss_sim_ros2.core.receiver.batch_observe import ReceiverEpoch
 from gnss_sim_ros2.core.receiver.epoch_pairing import EpochPairing
 from gnss_sim_ros2.messages.conversions import (
     chain_inputs_from_visibility,
@@ -38,19 +41,21 @@ class ReceiverSession:
 
     def __init__(self, node, *, label: str, publisher: Callable | None = None,
                  service: Callable[[str], str] = lambda name: name, decode_states: Callable = states_from_cdr,
-                 finish: Callable[[], None] | None = None):
+                 finish: Callable[[], None] | None = None, observe: Callable[[], None] | None = None):
         self.node = node
         self.label = label                 # "gnss_sim_receiver", "gnss_sim_fleet_receiver (robot2)"
         self._publisher = publisher or node.lifecycle_publisher
         self._service = service
         self._decode_states = decode_states
         self._finish_due = finish or self.finish_alone
+        self._observe_due = observe
         self.params: dict = {}
         self.chain = None                  # core.receiver.chain.ReceiverChain (configure .. cleanup)
         self.pubs: dict = {}
         self.pairing = EpochPairing()      # the states and visibility bytes by stamp (sec, nanosec) until both came
         self.tcp = None                    # core.rtcm.tcp_server.RtcmTcpServer (configure .. cleanup)
         self.unfinished: list = []         # epochs observed and published, their fix not yet (process .. finish)
+        self.paired: list = []             # (states, visibility bytes) paired, not yet observed (``observe`` given)
         self.threat_services: list = []    # ~/threats/start, ~/threats/stop (configure .. cleanup)
         self.last_t = None                 # GNSS time of the last epoch observed: "now" for the threat services
 
@@ -112,6 +117,7 @@ class ReceiverSession:
 
     def cleanup(self):
         self.finish()
+        self.paired.clear()
         self.pubs = {}
         for srv in self.threat_services:
             self.node.destroy_service(srv)
@@ -134,24 +140,41 @@ class ReceiverSession:
             self.process(s, v)
 
     def process(self, states_data: bytes, vis_data: bytes):
-        """One epoch from the serialised SatelliteStates and Visibility of one stamp."""
-        stamp, t, states, iono = self._decode_states(states_data)
-        self.chain.set_iono_coefficients(iono)
-        # below the horizon = not in the visibility message: blocked, no attenuation
-        ecef, vis_state, att, paths = chain_inputs_from_visibility(visibility_from_cdr(vis_data), states.sv)
+        """One epoch from the serialised SatelliteStates and Visibility of one stamp (``observe`` given: queued
+        in ``paired`` for the caller's pass over every robot, which then calls :meth:`epoch_inputs` and
+        :meth:`observed`)."""
+        if self._observe_due is not None:
+            self.paired.append((states_data, vis_data))
+            self._observe_due()
+            return
         # the raw observations first, as a receiver outputs them before its fix (the latency ends here), then
         # the fix and the rest of the epoch: ReceiverChain.step in its two halves
         self.finish()                  # the chain's halves in order: the previous epoch's fix first
-        self.last_t = t
-        obs = self.chain.observe(t, ecef, states, vis_state, att, multipath=paths)
-        self.pubs["obs"].publish(encode_observations(stamp, self.params["antenna_frame"], t, obs))
+        stamp, e = self.epoch_inputs(states_data, vis_data)
+        obs = self.chain.observe(e.t, e.antenna_ecef_m, e.states, e.vis_state, e.attenuation_db,
+                                 multipath=e.multipath)
+        self.observed(stamp, e, obs)
         # the fix after what is already waiting in the executor: several receivers in one process (robots
         # composed) publish every robot's observations before any of them computes its fix
-        self.unfinished.append((stamp, t, ecef, states, obs))
         if self.node.executor is not None:
             self.node.executor.create_task(self.finish)
         else:
             self.finish()
+
+    def epoch_inputs(self, states_data: bytes, vis_data: bytes):
+        """(stamp, core ReceiverEpoch) of one epoch's serialised SatelliteStates and Visibility; the chain takes
+        the navigation header's ionosphere coefficients; the epoch's time is "now" for the threat services."""
+        stamp, t, states, iono = self._decode_states(states_data)
+        self.chain.set_iono_coefficients(iono)
+        # below the horizon = not in the visibility message: blocked, no attenuation
+        ecef, vis_state, att, paths = chain_inputs_from_visibility(visibility_from_cdr(vis_data), states.sv)
+        self.last_t = t
+        return stamp, ReceiverEpoch(t, ecef, states, vis_state, att, paths)
+
+    def observed(self, stamp, e: ReceiverEpoch, obs):
+        """Publish an epoch's observations (ReceiverChain.observe of :meth:`epoch_inputs`); its fix is due."""
+        self.pubs["obs"].publish(encode_observations(stamp, self.params["antenna_frame"], e.t, obs))
+        self.unfinished.append((stamp, e.t, e.antenna_ecef_m, e.states, obs))
 
     def finish(self):
         """The fix half of the epochs observed and not finished, by whoever finishes this session's epochs

@@ -214,15 +214,20 @@ class ReceiverChain:
         """The first half of :meth:`step`: the epoch's observables, tracking included (EpochObservations).
         A receiver outputs these raw measurements before its fix (u-blox: RXM-RAWX, then NAV-PVT); the
         receiver node publishes them here, then calls :meth:`finish` with them."""
-        ecef = np.asarray(antenna_ecef_m, dtype=float)
-        backward = self._backward_velocity(t, ecef)
-        if antenna_vel_ecef_mps is None:
-            antenna_vel_ecef_mps = backward
-        if self.rx is None:
-            self.rx = self._receiver(states)
+        ecef, antenna_vel_ecef_mps = self.observe_inputs(t, antenna_ecef_m, states, antenna_vel_ecef_mps)
         obs = self.rx.epoch(t, ecef, states, vis_state, attenuation_db, antenna_vel_ecef_mps=antenna_vel_ecef_mps,
                             multipath=multipath)
         return obs if self.threats is None else self.threats.observations(obs)
+
+    def observe_inputs(self, t: GnssTime, antenna_ecef_m, states, antenna_vel_ecef_mps=None):
+        """(antenna ECEF, its velocity or None) of the epoch :meth:`observe` is about to compute (the velocity:
+        the given one, else the backward difference; this epoch's position kept for the next), the receiver
+        ``rx`` made at the first epoch.  batch_observe.py calls it in observe's place for several receivers."""
+        ecef = np.asarray(antenna_ecef_m, dtype=float)
+        backward = self._backward_velocity(t, ecef)
+        if self.rx is None:
+            self.rx = self._receiver(states)
+        return ecef, (backward if antenna_vel_ecef_mps is None else antenna_vel_ecef_mps)
 
     def finish(self, t: GnssTime, antenna_ecef_m, states, obs, sol: PvtSolution | None = None) -> EpochProducts:
         """The second half of :meth:`step`: the fix, NMEA, files and RTCM of the observables :meth:`observe`

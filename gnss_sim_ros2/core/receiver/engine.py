@@ -291,14 +291,16 @@ class Receiver:
         b.svs = np.asarray(b.st.sv)
         b.seg = np.searchsorted(b.e_sat, np.arange(b.k_n + 1))
 
-    def _signals(self, b: _Block) -> None:
+    def _signals(self, b: _Block, receivers=None) -> None:
         """The signal rows of every epoch (cached per satellite set and day), stacked; epoch e's are
         sig_seg[e]:sig_seg[e+1].  A (satellite, signal) row exists only where the satellite transmits the signal on
-        that date (signal_plans) and its broadcast health allows the signal (QZSS: per signal)."""
+        that date (signal_plans) and its broadcast health allows the signal (QZSS: per signal).  ``receivers``:
+        the receiver of each epoch (batch_observe.py: one per robot, its own multipath slots), None: this one."""
         k_n, seg, svs, glo = b.k_n, b.seg, b.svs, np.asarray(b.st.glo_channel)
         health = np.asarray(b.st.health)
-        parts = [self._rows_of(svs[seg[e]:seg[e + 1]], glo[seg[e]:seg[e + 1]], gps_day(b.ts[e].sec),
-                               health[seg[e]:seg[e + 1]]) for e in range(k_n)]
+        rxs = receivers or [self] * k_n
+        parts = [rxs[e]._rows_of(svs[seg[e]:seg[e + 1]], glo[seg[e]:seg[e + 1]], gps_day(b.ts[e].sec),
+                                 health[seg[e]:seg[e + 1]]) for e in range(k_n)]
         b.rows = parts[0] if k_n == 1 else SignalRows.stack(parts, seg[:-1])
         b.sat_i, b.codes, b.freq, b.chip, _ = b.rows.signal_rows
         b.m_ep = np.array([len(p.signal_rows[0]) for p in parts], dtype=np.int64)
@@ -460,32 +462,13 @@ class Receiver:
         b.tracked, b.lli, b.lock, b.amb = self.tracker.update_many(b.ts, b.rows.sv_j, b.codes, b.cn0,
                                                                    b.ok_all & above, b.sig_seg)
 
-    def _receiver_errors(self, b: _Block) -> None:
+    def _receiver_errors(self, b: _Block, draws=None) -> None:
         """The receiver's random errors: C/N0 noise, code/phase/Doppler thermal noise, code multipath.
-
-        The noise processes' draws, epoch after epoch as K calls of one epoch make them (the same streams:
-        a Generator's draws of n and then m values are its n + m values): per epoch C/N0 noise, then code,
-        phase and Doppler noise from rng_noise; the code multipath's innovations from its own stream."""
-        cfg, m, sig_seg = self.cfg, b.m, b.sig_seg
+        ``draws``: (z_cn0, r, mp_x) of every row drawn already (batch_observe.py: each robot's from its own
+        streams), None: :meth:`_noise_draws` of the block."""
+        cfg, m = self.cfg, b.m
         draw_cn0 = cfg.noise and cfg.cn0_noise_db > 0
-        z_cn0 = np.zeros(m)
-        r = np.zeros((3, m))
-        mp_x = np.zeros(m)
-        if cfg.noise:
-            lead = 1 if draw_cn0 else 0
-            j0_row = sig_seg[b.e_sig]
-            mb_row = b.m_ep[b.e_sig]
-            base = (3 + lead) * j0_row + (np.arange(m) - j0_row)
-            w = self.rng_noise.standard_normal((3 + lead) * m)
-            if draw_cn0:
-                z_cn0 = w[base]
-            for i in range(3):
-                r[i] = w[base + (lead + i) * mb_row]
-            w_mp = self.code_multipath.rng.standard_normal(m)
-            for e in np.flatnonzero(~b.empty).tolist():
-                s = slice(sig_seg[e], sig_seg[e + 1])
-                mp_x[s] = self.code_multipath.state(b.rows.mp_idx[s], b.dt_ep[e], w_mp[s])
-
+        z_cn0, r, mp_x = draws or self._noise_draws(m, b.sig_seg, b.m_ep, b.e_sig, b.empty, b.dt_ep, b.rows.mp_idx)
         cn0 = b.cn0
         b.cn0_meas = cn0 + cfg.cn0_noise_db * self.code_multipath.fading_scale(b.el_j) * z_cn0 if draw_cn0 else cn0
         if cfg.cn0_resolution_db > 0:           # the receiver's output resolution
@@ -500,6 +483,32 @@ class Receiver:
             b.mp = self.code_multipath.sigma_m(b.el_j, b.rows.sig_key) * mp_x
         else:
             b.e_p = b.e_l = b.e_d = b.mp = np.zeros(m)
+
+    def _noise_draws(self, m, sig_seg, m_ep, e_sig, empty, dt_ep, mp_idx):
+        """(z_cn0 (m,), r (3, m), mp_x (m,)): the noise processes' unit draws of ``m`` signal rows, epoch after
+        epoch as K calls of one epoch make them (the same streams: a Generator's draws of n and then m values
+        are its n + m values): per epoch C/N0 noise, then code, phase and Doppler noise from rng_noise; the code
+        multipath's innovations from its own stream (its states at ``mp_idx`` advanced by ``dt_ep``)."""
+        cfg = self.cfg
+        draw_cn0 = cfg.noise and cfg.cn0_noise_db > 0
+        z_cn0 = np.zeros(m)
+        r = np.zeros((3, m))
+        mp_x = np.zeros(m)
+        if cfg.noise:
+            lead = 1 if draw_cn0 else 0
+            j0_row = sig_seg[e_sig]
+            mb_row = m_ep[e_sig]
+            base = (3 + lead) * j0_row + (np.arange(m) - j0_row)
+            w = self.rng_noise.standard_normal((3 + lead) * m)
+            if draw_cn0:
+                z_cn0 = w[base]
+            for i in range(3):
+                r[i] = w[base + (lead + i) * mb_row]
+            w_mp = self.code_multipath.rng.standard_normal(m)
+            for e in np.flatnonzero(~empty).tolist():
+                s = slice(sig_seg[e], sig_seg[e + 1])
+                mp_x[s] = self.code_multipath.state(mp_idx[s], dt_ep[e], w_mp[s])
+        return z_cn0, r, mp_x
 
     def _observables(self, b: _Block) -> None:
         """Pseudorange, carrier phase and Doppler (the observation equations of the module doc)."""

@@ -1,0 +1,181 @@
+"""The observables of one epoch of several receivers in one numpy pass (the fleet receiver node's robots).
+
+core/receiver/engine.Receiver.epochs computes a block of K epochs of one receiver: the stages without memory
+(geometry, satellite clocks, atmosphere, world errors, C/N0, the observation equations) over all the block's
+rows at once, the stages with memory (receiver clock, tracking, noise draws) epoch by epoch.  Here the block's
+"epochs" are receivers: robot r's satellites and signals are the block's segment r, the stages without memory
+run once over robots x satellites x signals, and each robot's own state acts on its own slice only: its clock
+(stepped from its own last epoch), its signal rows (its code multipath's slots), its tracking loops, its noise
+streams (rng_noise and the code multipath's, drawn in the order and counts of its epoch alone).  So every robot's
+EpochObservations are the bits its ReceiverChain.observe gives alone (test/test_batch_observe.py), as
+core/receiver/batch_fix.py does for the fixes.
+
+What cannot share a pass goes through the receiver's own path (ReceiverChain.observe, one robot at a time): a
+receiver alone in its group (configurations differ beyond the seed: profile, systems, models...; another
+ionosphere model or coefficients; another ephemeris provider), a scenario's threats, the land-mobile-satellite
+layer (lms_environment).  Reflected paths (multipath from the visibility cast) share the pass: the composite
+signal's errors are computed per receiver's rows as Receiver.epochs does per epoch (``calls``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from ..ephemeris.states import SatelliteStates
+from ..time import GnssTime
+from .engine import Receiver, _Block
+from .observations import EpochObservations
+
+
+@dataclass
+class ReceiverEpoch:
+    """One receiver's inputs of an epoch, as ReceiverChain.observe takes them (the antenna velocity: the
+    backward difference of its positions)."""
+
+    t: GnssTime
+    antenna_ecef_m: np.ndarray
+    states: SatelliteStates
+    vis_state: np.ndarray | None = None
+    attenuation_db: np.ndarray | None = None
+    multipath: object = None          # multipath.reflections.ScenePaths of the states' rows, or None
+
+
+def observe_receivers(chains, epochs: list[ReceiverEpoch]) -> list[EpochObservations]:
+    """``chains[k].observe(...)`` of ``epochs[k]`` for every k (one epoch per chain, each chain at most once):
+    the receivers that can share a pass (module doc) in one numpy pass per group, the others alone; the same
+    bits either way."""
+    prepared = [chain.observe_inputs(e.t, e.antenna_ecef_m, e.states) for chain, e in zip(chains, epochs)]
+    out: list = [None] * len(chains)
+    groups: list = []                   # [(representative Receiver, [indices])]
+    for i, (chain, e) in enumerate(zip(chains, epochs)):
+        rx = chain.rx
+        if not _shareable(chain, e):
+            groups.append((None, [i]))
+            continue
+        for rep, idx in groups:
+            if rep is not None and _same_pass(rep, rx):
+                idx.append(i)
+                break
+        else:
+            groups.append((rx, [i]))
+    for _, idx in groups:
+        if len(idx) == 1:
+            i = idx[0]
+            out[i] = _alone(chains[i], epochs[i], *prepared[i])
+            continue
+        got = observe_block([chains[i].rx for i in idx], [epochs[i] for i in idx], [prepared[i] for i in idx])
+        for i, obs in zip(idx, got):
+            out[i] = obs
+    return out
+
+
+def _alone(chain, e: ReceiverEpoch, ecef, vel) -> EpochObservations:
+    """ReceiverChain.observe after its observe_inputs (made already)."""
+    obs = chain.rx.epoch(e.t, ecef, e.states, e.vis_state, e.attenuation_db, antenna_vel_ecef_mps=vel,
+                         multipath=e.multipath)
+    return obs if chain.threats is None else chain.threats.observations(obs)
+
+
+def _shareable(chain, e: ReceiverEpoch) -> bool:
+    """Whether this receiver's epoch may go into a shared pass: no threats, no LMS layer (their state is the
+    receiver's, stepped inside the stages)."""
+    rx = chain.rx
+    return chain.threats is None and rx.threats is None and rx.lms is None
+
+
+def _same_pass(a: Receiver, b: Receiver) -> bool:
+    """Receivers whose stages without memory give the same bits: configurations equal but for the seed, the same
+    ephemeris provider, the same true ionosphere (model and coefficients)."""
+    if a.provider is not b.provider or a.iono_truth != b.iono_truth:
+        return False
+    if not (np.array_equal(a.iono_alpha, b.iono_alpha) and np.array_equal(a.iono_beta, b.iono_beta)):
+        return False
+    if (a._nequick is None) != (b._nequick is None) or (
+            a._nequick is not None and a._nequick.coefficients != b._nequick.coefficients):
+        return False
+    if a.cfg is b.cfg:
+        return True
+    return all(f.name == "seed" or getattr(a.cfg, f.name) == getattr(b.cfg, f.name) for f in fields(a.cfg))
+
+
+def observe_block(rxs: list[Receiver], epochs: list[ReceiverEpoch], prepared) -> list[EpochObservations]:
+    """The observables of receivers ``rxs`` (two or more, _same_pass of each other, each _shareable), one epoch
+    each: Receiver.epochs' stages over a block whose segment r is receiver r's epoch, the stages with memory on
+    each receiver's slice with its own state.  ``prepared``: (antenna ECEF, velocity or None) per receiver."""
+    lead, r_n = rxs[0], len(rxs)
+    b = _Block([e.t for e in epochs])
+    # antenna: each receiver's geodetic position cache
+    b.rx_ep = np.array([p[0] for p in prepared], dtype=float).reshape(r_n, 3)
+    b.vel_ep = np.zeros((r_n, 3))
+    for r, (_, v) in enumerate(prepared):
+        if v is not None:
+            b.vel_ep[r] = v
+    b.lat_ep, b.lon_ep, b.h_ep = np.array([rx._geodetic(p) for rx, p in zip(rxs, b.rx_ep)], dtype=float).T
+    # each receiver's clock, stepped from its own last epoch (its own stream)
+    clocks = []
+    for rx, e in zip(rxs, epochs):
+        one = _Block([e.t])
+        rx._receiver_clock(one)
+        clocks.append(one)
+    b.bias_ep = np.array([c.bias_ep[0] for c in clocks])
+    b.drift_ep = np.array([c.drift_ep[0] for c in clocks])
+    b.dt_ep = np.array([c.dt_ep[0] for c in clocks])
+    b.t_true = GnssTime(np.array([np.asarray(c.t_true.sec) for c in clocks], dtype=np.int64),
+                        np.array([np.asarray(c.t_true.frac) for c in clocks], dtype=float))
+    # the satellites of every receiver, one after another
+    states = SatelliteStates.concatenate([e.states for e in epochs])
+    n_r = [len(e.states) for e in epochs]
+    e_all = np.repeat(np.arange(r_n), n_r)
+    vis = np.concatenate([np.zeros(n, dtype=np.int64) if e.vis_state is None else np.asarray(e.vis_state, np.int64)
+                          for e, n in zip(epochs, n_r)])
+    att = np.concatenate([np.zeros(n) if e.attenuation_db is None else np.asarray(e.attenuation_db, float)
+                          for e, n in zip(epochs, n_r)])
+    lead._satellites_above_horizon(b, states, e_all, vis, att)
+    lead._signals(b, rxs)
+    if b.m == 0:
+        return [rx._empty(e.t, b.bias_ep[r], b.drift_ep[r], *b.sat_rows(r)) for r, (rx, e) in
+                enumerate(zip(rxs, epochs))]
+    lead._geometry(b)
+    lead._satellite_clocks(b)
+    lead._atmosphere(b)
+    lead._world_errors(b)
+    lead._signal_strength(b)
+    # reflected paths: each receiver's own, every (receiver, bandwidth) its own call of the DLL's peak search
+    lead._scene_reflections(b, [e.multipath for e in epochs])
+    _tracking(rxs, b)
+    lead._receiver_errors(b, draws=_noise_draws(rxs, b))
+    lead._observables(b)
+    return lead._assemble(b)
+
+
+def _tracking(rxs, b: _Block) -> None:
+    """Each receiver's tracking loops on its signal rows (Receiver._tracking; _empty's update without rows)."""
+    ok = b.ok_all & (b.el_j >= rxs[0].cfg.elevation_mask_deg)
+    parts = []
+    for r, rx in enumerate(rxs):
+        j0, j1 = int(b.sig_seg[r]), int(b.sig_seg[r + 1])
+        if j0 == j1:
+            rx.tracker.update(b.ts[r], np.zeros(0, dtype="<U3"), np.zeros(0, dtype="<U2"), np.zeros(0))
+            continue
+        s = slice(j0, j1)
+        parts.append(rx.tracker.update_many([b.ts[r]], b.rows.sv_j[s], b.codes[s], b.cn0[s], ok[s],
+                                            np.array([0, j1 - j0])))
+    b.tracked, b.lli, b.lock, b.amb = (np.concatenate(c) for c in zip(*parts))
+
+
+def _noise_draws(rxs, b: _Block):
+    """(z_cn0, r, mp_x) of every signal row, each receiver's from its own streams (Receiver._noise_draws of its
+    epoch alone)."""
+    z, r3, mp = [], [], []
+    for r, rx in enumerate(rxs):
+        j0, j1 = int(b.sig_seg[r]), int(b.sig_seg[r + 1])
+        if j0 == j1:                     # alone: no signal row, no draw (Receiver.epochs returns before)
+            continue
+        m = j1 - j0
+        zc, rr, mx = rx._noise_draws(m, np.array([0, m]), np.array([m]), np.zeros(m, dtype=np.int64),
+                                     np.array([False]), b.dt_ep[r:r + 1], b.rows.mp_idx[j0:j1])
+        z.append(zc)
+        r3.append(rr)
+        mp.append(mx)
+    return np.concatenate(z), np.concatenate(r3, axis=1), np.concatenate(mp)
