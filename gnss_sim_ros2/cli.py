@@ -125,6 +125,48 @@ def _attach_negative_values(parser: argparse.ArgumentParser, argv: list[str]) ->
     return out
 
 
+def _check_values(parser: argparse.ArgumentParser, args, tokens: list[str]) -> list[tuple[str, str]]:
+    """Refuse (exit 2, one line) an empty or blank value of an option or argument, naming it (``--out ''``
+    meant the current folder, ``--position ''`` the configuration's position, ``--rtcm ''`` the default file, a
+    blank --marker the default marker: each a silent default); returns the (option, last value) of the options
+    given more than once (argparse keeps the last without a word: the caller warns)."""
+    by_string = parser._option_string_actions
+    seen: set = set()
+    twice: dict = {}
+    current = None
+
+    def blank(action, value):
+        name = "/".join(action.option_strings) or action.metavar or action.dest
+        what = f"option {name}" if action.option_strings else f"argument {name}"
+        parser.exit(2, f"{parser.prog}: error: {what} is given an empty value {value!r}: give a value (or leave the "
+                       f"option out)\n")
+
+    for token in tokens:
+        if token == "--":
+            current = None
+            continue
+        opt, eq, value = token.partition("=") if token.startswith("--") else (token, "", "")
+        action = by_string.get(opt) if token.startswith("-") else None
+        if action is not None:
+            if action.nargs != 0 and not isinstance(action, argparse._AppendAction):
+                if action.dest in seen:
+                    twice[action.dest] = opt
+                seen.add(action.dest)
+            current = None if eq or action.nargs == 0 else action
+            if eq and not value.strip():
+                blank(action, value)
+            continue
+        if current is not None and not token.strip():
+            blank(current, token)
+        if current is not None and current.nargs in (None, "?", 1):
+            current = None
+    for action in parser._actions:      # positional arguments (a blank one read the current folder)
+        value = getattr(args, action.dest, None)
+        if not action.option_strings and isinstance(value, str) and not value.strip():
+            blank(action, value)
+    return [(opt, getattr(args, dest)) for dest, opt in twice.items()]
+
+
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     # Only the chosen subcommand's module is imported.
@@ -137,12 +179,19 @@ def main(argv=None) -> int:
         _add_quiet(sub.choices[chosen])
     else:
         parser = build_parser(load_all=False)
-    args = parser.parse_args(_attach_negative_values(parser, argv))
+    argv = _attach_negative_values(parser, argv)
+    args = parser.parse_args(argv)
     if args.command is None:
         parser.print_help()
         return 0
     module = importlib.import_module(f"gnss_sim_ros2.commands.{COMMANDS[args.command][0]}")
+    command_parser = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices[
+        args.command]
+    given_twice = _check_values(command_parser, args, argv[argv.index(args.command) + 1:])
     route_messages(args.command, bool(getattr(args, "quiet", False)))
+    for option, last in given_twice:
+        logging.getLogger("gnss_sim_ros2").warning(f"option {option} is given more than once: the last ({last}) is "
+                                                   f"used")
     # SIGTERM unwinds like Ctrl-C (files closed by their finally blocks); `run` installs its own handlers
     signal.signal(signal.SIGTERM, _terminate)
     try:

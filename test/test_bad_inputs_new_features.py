@@ -55,7 +55,7 @@ def _cases(tmp: Path, write: bool = True):
         ("plan-height-huge", [*plan, "--height-m", "1e9"], ["option --height-m", "0..10000 m"]),
         ("plan-good-cn0", [*plan, "--good-cn0-dbhz", "-400"], ["option --good-cn0-dbhz is -400"]),
         ("plan-start-span", [*plan, "--start", "3025-01-01T00:00:00"], ["option --start", "supported span"]),
-        ("plan-polygon-empty", [*plan, "--polygon="], ["option --polygon ''", "three x,y vertices"]),
+        ("plan-polygon-empty", [*plan, "--polygon="], ["option --polygon", "empty value ''"]),   # cli.py
         ("plan-path-outside", [*plan, "--path", far], [f"option --path {far}, point 2", "outside the world"]),
         ("plan-point-outside", [*plan, "--point", "1e7,1e7"], ["option --point '1e7,1e7'", "outside the world"]),
         ("plan-origin-latitude", [*mask_plan, "95,11,500"], ["option --origin", "latitude 95 deg"]),

@@ -83,6 +83,9 @@ def run_speed(duration_s: float = 3600.0, repeats: int = 3, peer: str | None = N
 
     if not duration_s > 0 or repeats < 1:
         raise ValueError(f"duration {duration_s!r} must be > 0 and repeats {repeats!r} >= 1")
+    py, why = peer_python(peer)
+    if peer and py is None:      # the interpreter the user named: refused up front (was a note after the runs)
+        raise ValueError(why)
     work = Path(tempfile.mkdtemp(prefix="gnss_sim_speed_"))
     env = dict(os.environ)
     repo = str(Path(__file__).resolve().parents[2])
@@ -101,7 +104,6 @@ def run_speed(duration_s: float = 3600.0, repeats: int = 3, peer: str | None = N
     demo_cmd = sim + ["--out", str(work / "demo")]
     xyz = ",".join(f"{v:.4f}" for v in GPS_STATION_ECEF_M)
     gps_cmd = sim + ["--systems", "G", "--position-ecef", xyz, "--start", DEMO_START, "--out", str(work / "gps")]
-    py, why = peer_python(peer)
     peer_cmd = None
     if py is not None:
         start = GnssTime.from_iso(DEMO_START)

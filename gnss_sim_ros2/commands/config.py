@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import sys
 
+from gnss_sim_ros2.commands import fail
+
 #: the file ``gnss-sim config --markdown`` writes (test/test_docs.py keeps it equal to the table)
 REFERENCE_PATH = "docs/CONFIGURATION.md"
 
@@ -155,11 +157,10 @@ def run(args) -> int:
         try:
             cfg = load_config(args.check)
         except ValueError as exc:
-            print(f"error: {exc}", file=sys.stderr)
-            return 2
+            return fail("config", exc)
         missing = missing_files(cfg)          # every file at once (run / simulate stop at the first they open)
         for msg in missing:
-            print(f"error: {msg}", file=sys.stderr)
+            print(f"gnss-sim config: error: {msg}", file=sys.stderr)
         if missing:
             return 2
         print(yaml.safe_dump(cfg.ros_parameter_file_dict(), sort_keys=False), end="")

@@ -120,9 +120,15 @@ def parameter_overrides(args) -> tuple[dict, dict]:
 
 def setup_from_args(args):
     from gnss_sim_ros2.config_file import load_config
+    from gnss_sim_ros2.core.output_folder import check_outputs_not_inputs
     from gnss_sim_ros2.core.simulation import setup_from_config
     from gnss_sim_ros2.core.trajectory import Trajectory
 
+    # --rtcm naming an input (the --trajectory CSV, a navigation file) wrote the RTCM stream over it
+    check_outputs_not_inputs([("--rtcm", args.rtcm or None)], inputs=[
+        args.config, args.trajectory, *(args.nav or ()), *(args.sp3 or ()), *(args.clk or ()), args.world, args.mesh,
+        getattr(args, "sky_mask", None), getattr(args, "scenario", None), args.profile,
+        *getattr(args, "obstacle_path", [])])
     ov, names = parameter_overrides(args)
     cfg = load_config(args.config, ov, names)
     tr = None

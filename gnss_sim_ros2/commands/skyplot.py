@@ -97,7 +97,7 @@ def run(args) -> int:
     try:
         # an output file is never one of the inputs (core/output_folder.py)
         check_outputs_not_inputs([("--csv", args.csv), ("--png", args.png),
-                                  ("--skyline-csv", getattr(args, "skyline_csv", None)),
+                                  ("--skyline-csv", _skyline_csv_path(args)),
                                   ("--mask-report", _mask_report_path(args))],
                                  inputs=[args.world, args.mesh, args.materials, *(args.nav or ()),
                                          getattr(args, "sky_mask", None)])

@@ -11,7 +11,9 @@ says what the receiver did while it was active.
 """
 from __future__ import annotations
 
-import sys
+from pathlib import Path
+
+from gnss_sim_ros2.commands import fail
 
 
 def add_arguments(parser):
@@ -24,8 +26,6 @@ def add_arguments(parser):
 
 
 def run(args) -> int:
-    from pathlib import Path
-
     from gnss_sim_ros2.core.output_folder import OutputNotOurs, staged_files
     from gnss_sim_ros2.core.scene.demo_world import demo_world_path
     from gnss_sim_ros2.core.scene.georeference import spherical_of_world_file
@@ -42,8 +42,7 @@ def run(args) -> int:
         with staged_files([("--png", args.png)]) as temp:
             plot_timeline(tl, temp[args.png], title=f"threat scenario: {Path(args.run_dir).name}")
     except (ValueError, SdfError, OutputNotOurs) as exc:
-        print(f"gnss-sim threats-plot: {exc}", file=sys.stderr)
-        return 2
+        return fail("threats-plot", exc)
     if not tl.events:          # a scenario without events, or none of them inside the run: the events panel is empty
         print(f"note: {Path(args.run_dir) / 'fix.csv'}: no event of the scenario was active in any epoch "
               f"(column active_events empty): the figure's events panel is empty")

@@ -21,10 +21,12 @@ def read_utf8(path: str | Path, where: str) -> str:
 
 def not_a_file(path: str | Path) -> str | None:
     """None when ``path`` is an existing file (or a link to one); else why not: "no such file" or "is a folder, not
-    a file" (or "is not a regular file": a device, a pipe)."""
+    a file" (or "is not a regular file": a device, a pipe; or a broken or looping symbolic link)."""
     path = Path(path).expanduser()
     if path.is_file():
         return None
     if path.is_dir():
         return "is a folder, not a file"
+    if path.is_symlink():       # a link to nothing, or to itself (pathlib's resolve: "RuntimeError: Symlink loop")
+        return "is a symbolic link to nothing (broken, or a loop)"
     return "is not a regular file" if path.exists() else "no such file"

@@ -146,7 +146,7 @@ class OutputFolder:
         self.final = Path(final).resolve()
         self.command = command
         #: input files and folders of the run: never removed, even when a previous manifest lists them
-        self.inputs = {Path(p).resolve() for p in inputs if p}
+        self.inputs = {_real(p) for p in inputs if p}
         self.lock_path = self.final.parent / f".{self.final.name}.lock"
         self.staging = self.final.parent / f".{self.final.name}.partial-{os.getpid()}"
         self.stale: list[Path] = []
@@ -249,16 +249,28 @@ class OutputFolder:
             return p
 
 
+def _real(path) -> Path:
+    """``path`` with its links resolved; a broken or looping link as far as it resolves (Path.resolve raised
+    "RuntimeError: Symlink loop" on an input that links to itself: a traceback before the reader could say so)."""
+    return Path(os.path.realpath(path))
+
+
 def check_outputs_not_inputs(outputs: Iterable[tuple[str, object]], inputs: Iterable = ()) -> None:
-    """OutputNotOurs naming the option when an output file (option, path) is a folder or one of ``inputs``."""
-    ins = {Path(p).resolve() for p in inputs if p}
+    """OutputNotOurs naming the option when an output file (option, path) is a folder, one of ``inputs`` or the file
+    of an earlier output (skyplot --csv x.png --png x.png: the plot replaced the table without a word)."""
+    ins = {_real(p) for p in inputs if p}
+    taken: dict = {}
     for option, path in outputs:
         if path is None:
             continue
         final = Path(path)
+        if _real(final) in taken:
+            raise OutputNotOurs(f"options {taken[_real(final)]} and {option} name the same file {final}: one would "
+                                f"replace the other; give each its own file")
+        taken[_real(final)] = option
         if final.is_dir():
             raise OutputNotOurs(f"option {option}: {final} is a folder; give a file name")
-        if final.resolve() in ins:
+        if _real(final) in ins:
             raise OutputNotOurs(f"option {option}: {final} is also an input of this command and would be "
                                 f"overwritten; give another file name")
 

@@ -260,7 +260,9 @@ class AntennaPath:
             raise ValueError("a path in world coordinates (t_s,e_m,n_m,u_m) needs a georeferenced scene "
                              "(--world with spherical_coordinates, or --mesh)")
         if trajectory.frame != "world" and scene is not None and scene.spherical is None:
-            raise ValueError("the scene has no spherical_coordinates: cannot place a geodetic/ECEF path in it")
+            source = getattr(getattr(scene, "world", None), "source", "")       # the file: it named none
+            raise ValueError(f"the scene {source} has no spherical_coordinates (a world's <spherical_coordinates>, a "
+                             f"mesh's .scene.yaml sidecar): cannot place a geodetic/ECEF path in it")
         if trajectory.frame == "world":     # the points as the scene places them: receivers the simulator models
             lines = trajectory.source_lines
             check_receiver_position(scene.antenna_ecef(trajectory.pos), "ecef",

@@ -27,6 +27,9 @@ def truth_from_csv(path, times: np.ndarray) -> np.ndarray:
         raise ValueError(f"{path}, line 1: need columns time and x_m,y_m,z_m or lat_deg,lon_deg,h_m; "
                          f"got {sorted(cols)}")
     for n, row in enumerate(rd, start=2):
+        if None in row.values() or None in row:      # a short or long row: "float() argument must be ... 'NoneType'"
+            raise ValueError(f"{path}, line {n}: {len(rd.fieldnames)} columns ({','.join(rd.fieldnames)}) expected, "
+                             f"got {len([v for v in row.values() if v is not None]) + len(row.get(None) or [])}")
         try:
             t = np.datetime64(row["time"].strip().rstrip("Z"), "ns")
             if ecef:

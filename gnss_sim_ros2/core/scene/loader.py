@@ -49,7 +49,7 @@ from .primitives import box, capsule, cone, cylinder, ellipsoid, heightmap, plan
 from .scene_report import SceneReport
 from .sdf_xml import SdfError, child, child_floats, children, local, ns, parse_pose, parse_xml, text, truthy, where
 from .uris import UriResolver, model_sdf_path
-from .world_mesh import WorldMesh
+from .world_mesh import WorldMesh, check_world_extent
 
 _SHAPES = {"box": box, "sphere": sphere, "cylinder": cylinder, "cone": cone, "capsule": capsule,
            "ellipsoid": ellipsoid, "plane": plane}
@@ -420,6 +420,7 @@ class _Loader:
             verts, tris, mats = np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros(0, np.int16)
         self.report.dropped = list(self.meshes.dropped)
         self.report.raise_if_partial(source)
+        check_world_extent(verts, f"world {source}")
         self.report.warn_left_out_dynamic()
         self.report.mesh_files_read = self.meshes.reads
         self.report.mesh_cache_hits = self.meshes.hits

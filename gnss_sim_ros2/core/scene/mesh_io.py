@@ -31,10 +31,11 @@ from pathlib import Path
 
 import numpy as np
 
+from ..input_file import not_a_file
 from .georeference import SphericalCoordinates
 from .loader import load_sdf_world
 from .materials import MaterialTable
-from .world_mesh import WorldMesh
+from .world_mesh import WorldMesh, check_world_extent
 
 SCENE_FORMAT = "gnss_sim.scene/1"
 FRAME_DESCRIPTION = ("Gazebo world frame [m]: ENU at the spherical_coordinates origin rotated by heading_deg "
@@ -178,8 +179,8 @@ def read_scene(mesh_path) -> WorldMesh:
     import yaml
 
     mesh_path = Path(mesh_path)
-    if not mesh_path.is_file():
-        raise ValueError(f"scene mesh {mesh_path} not found")
+    if (why := not_a_file(mesh_path)) is not None:       # a folder or /dev/null was "not found"
+        raise ValueError(f"scene mesh {mesh_path}: {why}")
     sp = sidecar_path(mesh_path)
     side = {}
     if sp.is_file():
@@ -200,6 +201,10 @@ def read_scene(mesh_path) -> WorldMesh:
         verts, tris, mat = np.asarray(m.vertices, np.float64), np.asarray(m.faces, np.int64), None
     else:
         verts, tris, mat = got
+    if len(tris) == 0:    # an empty STL read as a scene of nothing: "the scene has no spherical_coordinates"
+        empty = " (an empty file)" if mesh_path.stat().st_size == 0 else ""
+        raise ValueError(f"scene mesh {mesh_path} holds no triangles{empty}")
+    check_world_extent(verts, f"scene mesh {mesh_path}")
     table = MaterialTable.from_list(side["materials"], f"{sp}: materials") if side.get("materials") else MaterialTable()
     if mat is None and side.get("material_index_file"):
         idx_path = mesh_path.parent / side["material_index_file"]

@@ -92,7 +92,7 @@ def _connect(workers: int | None, scheduler: str | None):
     if scheduler:
         try:
             client = Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s")
-        except (OSError, TimeoutError) as exc:
+        except (OSError, TimeoutError, ValueError) as exc:      # ValueError: "missing port number in address"
             raise SweepClusterError(f"option --scheduler {scheduler}: cannot reach the scheduler ({exc})") from None
         try:
             client.wait_for_workers(1, timeout=CONNECT_TIMEOUT_S)

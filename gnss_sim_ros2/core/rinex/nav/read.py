@@ -40,6 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ...input_file import not_a_file
 from ...time import GnssTime
 from ..nav_write import GLONASS_KM_FIELDS, d12, d19, iono_from_header, record_values
 from . import v2, v3, v4
@@ -74,8 +75,8 @@ def read_nav_file(path, start: GnssTime | None = None, end: GnssTime | None = No
                   systems: str = SUPPORTED_SYSTEMS, margin_s: float = 6 * 3600.0) -> NavData:
     """Read one RINEX 2/3/4 navigation file (plain or compressed)."""
     path = Path(path)
-    if not path.is_file():
-        raise ValueError(f"navigation file {path} does not exist")
+    if (why := not_a_file(path)) is not None:      # /dev/null was said "does not exist"
+        raise ValueError(f"navigation file {path}: {why}")
 
     def parse() -> NavData:
         from georinex.rio import opener  # local import: georinex pulls in xarray
