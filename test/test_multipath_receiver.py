@@ -144,7 +144,8 @@ def test_profiles_f9p_drops_beidou_geo_and_m8t_is_single_frequency(provider):
     cfg = ReceiverConfig(profile="ublox_m8t")
     assert (cfg.dll_spacing_chips, cfg.antenna, cfg.tracking.acquisition_cn0_dbhz) == (0.5, "patch", 22.0)
     geod = ReceiverConfig(profile="geodetic")
-    # the geodetic profile's narrow correlator and 0.25 Hz DLL (profiles/geodetic.yaml, issue 26)
-    assert (geod.dll_spacing_chips, geod.dll_bn_hz, geod.tracking.acquisition_cn0_dbhz) == (0.1, 0.25, 33.0)
+    # the geodetic profile's narrow correlator and 0.25 Hz DLL (profiles/geodetic.yaml, issue 26); its acquisition
+    # threshold where the PolaRx5 of ESBC starts its tracks (issue 27, test_geodetic_thresholds)
+    assert (geod.dll_spacing_chips, geod.dll_bn_hz, geod.tracking.acquisition_cn0_dbhz) == (0.1, 0.25, 20.5)
     with pytest.raises(ValueError, match="antenna"):
         ReceiverConfig(antenna="dipole")

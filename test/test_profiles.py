@@ -91,14 +91,15 @@ def test_the_ublox_m8t_hk_profile_is_what_calibrate_fits_on_the_hong_kong_drive(
 def test_geodetic_profile_values():
     """A multi-frequency geodetic receiver: GPS L1 C/A, L2 P(Y) (2W), L2C, L5; choke ring; 16 MHz front end
     (P(Y) / L5 at 10.23 Mchip/s need it, NetR9 data sheet); a 0.1 chip narrow correlator, 0.25 Hz DLL (issue 26
-    part C: the Septentrio default loop); acquire 33, lose 25 dB-Hz (issue 27: where the PolaRx5's loops let go);
-    the code biases measured on OPEC 2022-001 (Galileo -2.9 m, BeiDou-2 7.5 m, BeiDou-3 8.9 m)."""
+    part C: the Septentrio default loop); acquire 20.5, lose 20 dB-Hz (issue 27: where the PolaRx5 of ESBC starts
+    and ends its tracks, test_geodetic_thresholds); the code biases measured on OPEC 2022-001 (Galileo -2.9 m,
+    BeiDou-2 7.5 m, BeiDou-3 8.9 m)."""
     cfg = ReceiverConfig(profile="geodetic")
     assert cfg.profile == {"G": ["1C", "2W", "2L", "5Q"], "R": ["1C", "2C"], "E": ["1C", "5Q", "7Q", "8Q", "6C"],
                            "C": ["2I", "7I", "6I", "1P", "5P"], "J": ["1C", "2L", "5Q"], "I": ["5A"]}
     assert (cfg.antenna, cfg.dll_spacing_chips, cfg.dll_bn_hz, cfg.frontend_bandwidth_hz) == \
         ("choke_ring", 0.1, 0.25, 16e6)
-    assert (cfg.tracking.acquisition_cn0_dbhz, cfg.tracking.tracking_cn0_dbhz) == (33.0, 25.0)
+    assert (cfg.tracking.acquisition_cn0_dbhz, cfg.tracking.tracking_cn0_dbhz) == (20.5, 20.0)
     assert cfg.code_bias_m == {"E": {"*": -2.9}, "C2": {"*": 7.5}, "C3": {"*": 8.9}}
     assert cfg.excluded_svs == "" and cfg._excluded is None
     assert ReceiverConfig().profile == cfg.profile                     # the default profile
