@@ -53,10 +53,12 @@ class NodeSpec:
         return f"{PYTHON_TARGET_PREFIX}{self.module}:{self.cls}"
 
 
-#: the fleet layout's nodes (LAYOUTS "fleet"): one visibility node casting every robot's antenna in one call per epoch
-#: and one receiver node running every robot's chain (nodes/fleet_visibility_node.py, nodes/fleet_receiver_node.py)
+#: the fleet layout's nodes (LAYOUTS "fleet"): one trajectory player moving every robot (one TFMessage per tick), one
+#: visibility node casting every robot's antenna in one call per epoch and one receiver node running every robot's
+#: chain (nodes/trajectory_player.py with fleet_robots, nodes/fleet_visibility_node.py, nodes/fleet_receiver_node.py)
 FLEET_INSTANCE = "fleet"
-FLEET_NODE_NAMES = {"visibility": "gnss_sim_fleet_visibility", "receiver": "gnss_sim_fleet_receiver"}
+FLEET_NODE_NAMES = {"trajectory": "gnss_sim_fleet_trajectory_player", "visibility": "gnss_sim_fleet_visibility",
+                    "receiver": "gnss_sim_fleet_receiver"}
 #: start order: TF first, then the chain upstream -> downstream
 NODES = (
     NodeSpec("trajectory", "trajectory_player", "gnss_sim_ros2.nodes.trajectory_player", "TrajectoryPlayer"),
@@ -102,11 +104,11 @@ def nodes(with_trajectory_player: bool = True, robots: int = 1, fleet: bool = Fa
 
     ``robots`` > 1: one ephemeris node and, per robot k, a trajectory player, a visibility and a receiver node
     in the namespace ``robot<k>`` (ROBOT_KEYS); the players first, then the chain upstream -> downstream.
-    ``fleet``: the robots' players, the ephemeris node, then FLEET_NODES (one visibility and one receiver node
-    serving every robot)."""
+    ``fleet``: FLEET_NODES' player (every robot's TF), the ephemeris node, then FLEET_NODES' visibility and
+    receiver node (serving every robot)."""
     if fleet:
-        return [n for n in nodes(with_trajectory_player, robots) if n.key == "trajectory"] + \
-            [n for n in NODES if n.key == "ephemeris"] + list(FLEET_NODES)
+        return [n for n in FLEET_NODES if n.key == "trajectory" and with_trajectory_player] + \
+            [n for n in NODES if n.key == "ephemeris"] + [n for n in FLEET_NODES if n.key != "trajectory"]
     if robots == 1:
         return [n for n in NODES if with_trajectory_player or n.key != "trajectory"]
     by_key = {n.key: n for n in NODES}
@@ -212,6 +214,8 @@ HEADING_NODES = (
     NodeSpec("rtk", "rtk_node", "gnss_sim_ros2.nodes.rtk_node", "RtkNode", "heading"),
 )
 FLEET_NODES = (
+    NodeSpec("trajectory", "trajectory_player", "gnss_sim_ros2.nodes.trajectory_player", "TrajectoryPlayer",
+             FLEET_INSTANCE),
     NodeSpec("visibility", "fleet_visibility_node", "gnss_sim_ros2.nodes.fleet_visibility_node",
              "FleetVisibilityNode", FLEET_INSTANCE),
     NodeSpec("receiver", "fleet_receiver_node", "gnss_sim_ros2.nodes.fleet_receiver_node", "FleetReceiverNode",
@@ -220,7 +224,7 @@ FLEET_NODES = (
 #: the GNSS-quality layer for Nav2 (launch argument quality_map:=true; its remappings and parameters below)
 QUALITY_MAP_NODE = NodeSpec("quality_map", "quality_map_node", "gnss_sim_ros2.nodes.quality_map_node", "QualityMapNode")
 #: one line per class in the component index (nodes/components.py)
-COMPONENT_NODES = NODES + (RTK_NODES[2],) + FLEET_NODES + (QUALITY_MAP_NODE,)
+COMPONENT_NODES = NODES + (RTK_NODES[2],) + FLEET_NODES[1:] + (QUALITY_MAP_NODE,)   # the fleet's player: NODES' class
 BASE_NAMESPACE = f"{TOPIC_NAMESPACE}/base"
 BASE_REMAPPINGS = (("satellite_states", f"{TOPIC_NAMESPACE}/satellite_states"),) + tuple(
     (a, f"{BASE_NAMESPACE}/{a}") for a, _ in REMAPPINGS if a != "satellite_states")

@@ -299,8 +299,8 @@ SHARED = [
 #: serving robots 0..N-1 (their frames robot<k>/..., topics /robot<k>/gnss/...; one robot: the root's)
 FLEET_ROBOTS = Param("fleet_robots", 1, "robots this node serves in the fleet layout (gnss-sim run --layout fleet, "
                      "composed:=fleet; set by the layout): one cast of every robot's antenna per epoch, one receiver "
-                     "chain per robot (seed + k, frames robot<k>/..., topics /robot<k>/gnss/...); 1 in the other "
-                     "layouts", min=1, max=MAX_FLEET_ROBOTS)
+                     "chain per robot (seed + k, frames robot<k>/..., topics /robot<k>/gnss/...), every robot's TF "
+                     "from one player in one message per tick; 1 in the other layouts", min=1, max=MAX_FLEET_ROBOTS)
 
 NODE_PARAMS: dict[str, list[Param]] = {
     "ephemeris": [
@@ -444,6 +444,7 @@ NODE_PARAMS: dict[str, list[Param]] = {
         Param("robot_trajectory_files", [], "with several robots: one path CSV per robot (robot k takes entry k, "
               "no convoy offset); empty: the convoy along trajectory_file / waypoints / the demo path",
               item_type="string"),
+        FLEET_ROBOTS,
     ],
     "rtk": [
         Param("rtkrcv_path", "", "RTKLIB rtkrcv executable; empty: rtkrcv on PATH (Debian package rtklib)"),

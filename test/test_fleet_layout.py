@@ -35,8 +35,9 @@ BODIES = {"obstacle_frames": [f"robot{k}/base_link" for k in range(ROBOTS)], "ob
 
 def test_fleet_graph_one_visibility_one_receiver():
     specs = graph.nodes(True, 4, fleet=True)
-    assert [s.path for s in specs] == [f"robot{k}/gnss_sim_trajectory_player" for k in range(4)] + [
-        "gnss_sim_ephemeris", "gnss_sim_fleet_visibility", "gnss_sim_fleet_receiver"]
+    assert [s.path for s in specs] == ["gnss_sim_fleet_trajectory_player", "gnss_sim_ephemeris",
+                                       "gnss_sim_fleet_visibility", "gnss_sim_fleet_receiver"]
+    assert [s.path for s in graph.nodes(False, 4, fleet=True)] == [s.path for s in specs[1:]]
     from gnss_sim_ros2.parameters import defaults
 
     cfg = defaults()
@@ -49,6 +50,12 @@ def test_fleet_graph_one_visibility_one_receiver():
         mine = fleet_robot_params(rx, k, "receiver")
         assert {n: mine[n] for n in own if n != "fleet_robots"} == {n: v for n, v in own.items() if n != "fleet_robots"}
     assert graph.fleet_topic(2, 4, "fix") == "/robot2/gnss/fix" and graph.fleet_topic(0, 1, "fix") == "/gnss/fix"
+    # the one player moves every robot: robot k's base frame and convoy offset, as robot k's own player
+    player = graph.node_parameters(cfg, specs[0], 4)
+    for k in range(4):
+        own = robot_params(cfg, k, 4, "trajectory")
+        mine = fleet_robot_params(player, k, "trajectory")
+        assert {n: mine[n] for n in own if n != "fleet_robots"} == {n: v for n, v in own.items() if n != "fleet_robots"}
 
 
 def test_fleet_robot_limit_named():

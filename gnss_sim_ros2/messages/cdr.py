@@ -89,6 +89,7 @@ class _Struct:
             self.steps.append(("block", _Block(run)))
         self.flat = all(step[0] != "seq" for step in self.steps)
         self._templates: dict = {}
+        self._fixed: dict = {}
         # a structure of primitives only, whose elements follow each other at one stride
         only = self.steps[0][1] if len(self.steps) == 1 and self.steps[0][0] == "block" else None
         self.uniform = only if only is not None and only.sizes[0] % only.align == 0 and max(
@@ -117,6 +118,47 @@ class _Struct:
         return got
 
 
+    def fixed_template(self, lengths: tuple):
+        """(element size, offsets of the steps, record dtype) for each start offset modulo 8 of an element whose
+        strings have these lengths (NUL included) and whose sequences are empty: the whole element as one numpy
+        record (fields: the primitives by name, a string's length word "<name>#len" and its bytes "<name>"
+        (NUL included), a sequence's count "<name>#count")."""
+        got = self._fixed.get(lengths)
+        if got is None:
+            sizes, offs, dtypes = [0] * 8, np.zeros((8, len(self.steps)), dtype=np.int64), []
+            for r in range(8):
+                p, k = r, 0
+                names, formats, offsets = [], [], []
+                for j, step in enumerate(self.steps):
+                    if step[0] == "block":
+                        b, q = step[1], p & 7
+                        offs[r, j] = p - r
+                        names += b.names
+                        formats += [_dtype(c) for c in b.codes]
+                        offsets += [p - r + int(o) for o in b.offsets[q]]
+                        p += b.sizes[q]
+                        continue
+                    p = (p + 3) & -4
+                    offs[r, j] = p - r
+                    if step[0] == "str":
+                        length = lengths[k]
+                        k += 1
+                        names += [step[1] + "#len", step[1]]
+                        formats += ["<u4", ("u1", (length,))]
+                        offsets += [p - r, p - r + 4]
+                        p += 4 + length
+                    else:
+                        names.append(step[1] + "#count")
+                        formats.append("<u4")
+                        offsets.append(p - r)
+                        p += 4
+                sizes[r] = p - r
+                dtypes.append(np.dtype({"names": names, "formats": formats, "offsets": offsets,
+                                        "itemsize": p - r}))
+            got = self._fixed[lengths] = (sizes, offs, dtypes)
+        return got
+
+
 def _flatten(schema, prefix: str):
     for name, kind in schema:
         if isinstance(kind, tuple) and kind and kind[0] != "seq":
@@ -128,11 +170,18 @@ def _flatten(schema, prefix: str):
 class Layout:
     """Where every field of the elements of one structure lies (body offsets, in element order)."""
 
-    def __init__(self):
+    def __init__(self, records: bool = True):
+        self.records = records                 # whether elements may be laid out as records (_scan_fixed)
         self.blocks: dict[int, list] = {}      # id(block) -> [block, starts]
         self.strings: dict[str, list] = {}     # name -> offsets of the length words
         self.lengths: dict[str, list] = {}     # name -> lengths (NUL included)
         self.seqs: dict[str, list] = {}        # name -> [counts, offsets of the counts, Layout | (code, starts)]
+        #: (_Struct, element starts, string lengths): every element laid out as one record (_scan_fixed)
+        self.fixed = None
+
+
+class _Refit(Exception):
+    """A second run of elements into a Layout laid out as records (_scan_fixed): lay out without records."""
 
 
 class _Prep:
@@ -142,12 +191,21 @@ class _Prep:
     def __init__(self, st: _Struct, cols: dict, n: int):
         self.cols, self.next = cols, 0
         self.strs: dict[str, list] = {}
+        #: a column of ASCII strings of one length as bytes (n, length + 1), the NUL last (cols[name] a numpy
+        #: str array: one cast instead of a bytes object per string); its strs made when asked (strings)
+        self.chars: dict[str, np.ndarray] = {}
         self.counts: dict[str, np.ndarray] = {}
         self.child: dict[str, object] = {}
         for step in st.steps:
             if step[0] == "str":
                 v = cols[step[1]]
-                b = [str(x).encode("utf-8") + b"\x00" for x in ([v] if isinstance(v, str) else v)]
+                if isinstance(v, np.ndarray) and v.dtype.kind == "U" and v.ndim == 1 and len(v) == n > 1:
+                    chars = _ascii_chars(v)
+                    if chars is not None:
+                        self.chars[step[1]] = chars
+                        continue
+                v = [v] if isinstance(v, str) else (v.tolist() if isinstance(v, np.ndarray) else v)
+                b = [str(x).encode("utf-8") + b"\x00" for x in v]
                 if len(b) != n:
                     raise ValueError(f"column {step[1]}: {len(b)} strings for {n} elements")
                 self.strs[step[1]] = b
@@ -162,6 +220,30 @@ class _Prep:
                 self.child[name] = _Prep(elem, values, int(counts.sum())) if isinstance(elem, _Struct) else values
 
 
+    def strings(self, name: str) -> list:
+        """The bytes of each string of column ``name``, NUL included."""
+        got = self.strs.get(name)
+        if got is None:
+            got = self.strs[name] = [row.tobytes() for row in self.chars[name]]
+        return got
+
+
+def _ascii_chars(v: np.ndarray):
+    """(n, length + 1) bytes of a numpy str array whose strings are ASCII, of one length and without a trailing
+    NUL character, the NUL appended; None otherwise."""
+    try:
+        enc = v.astype("S")
+    except UnicodeEncodeError:
+        return None
+    size = enc.dtype.itemsize
+    chars = np.zeros((len(v), size + 1), dtype=np.uint8)
+    if size:
+        chars[:, :size] = enc.view(np.uint8).reshape(len(v), size)
+        if not chars[:, size - 1].all():        # a shorter string (its NULs fill the rest): not one length
+            return None
+    return chars
+
+
 # ------------------------------------------------------------------ scan
 def _scan(st: _Struct, n: int, pos: int, lay: Layout, src) -> int:
     """Lay out ``n`` elements of ``st`` from body offset ``pos``; lengths and counts read from ``src``
@@ -169,11 +251,82 @@ def _scan(st: _Struct, n: int, pos: int, lay: Layout, src) -> int:
     i0 = 0
     if isinstance(src, _Prep):
         i0, src.next = src.next, src.next + n
+    if lay.fixed is not None:
+        raise _Refit
+    if n > 2 and i0 == 0 and lay.records and not (lay.blocks or lay.strings or lay.seqs):
+        end = _scan_fixed(st, n, pos, lay, src)
+        if end is not None:
+            return end
     if st.flat and n > 2:
         end = _scan_flat(st, n, pos, lay, src, i0)
         if end is not None:
             return end
     return _scan_each(st, n, pos, lay, src, i0)
+
+
+def _scan_fixed(st: _Struct, n: int, pos: int, lay: Layout, src):
+    """_scan of elements whose strings have one length in every element and whose sequences are all empty (the
+    satellites of a message, their reflections none): the element's layout repeats with its start offset modulo
+    8, so each element is one numpy record (_Struct.fixed_template) and the whole sequence a few record arrays.
+    None when the elements are not all alike (then _scan_flat or _scan_each lay them out)."""
+    strs = [step[1] for step in st.steps if step[0] == "str"]
+    seqs = [step[1] for step in st.steps if step[0] == "seq"]
+    if isinstance(src, _Prep):
+        lengths = []
+        for name in strs:
+            if name in src.chars:
+                lengths.append(src.chars[name].shape[1])
+                continue
+            got = set(map(len, src.strs[name][:n]))
+            if len(got) != 1:
+                return None
+            lengths.append(got.pop())
+        if any(np.any(src.counts[name][:n]) for name in seqs):
+            return None
+    else:
+        lengths, p = [], pos
+        for step in st.steps:                    # the first element's string lengths and sequence counts
+            if step[0] == "block":
+                p += step[1].sizes[p & 7]
+                continue
+            p = (p + 3) & -4
+            if p + 4 > len(src):
+                raise CdrError("message shorter than its contents")
+            value = _U32.unpack_from(src, p)[0]
+            if step[0] == "seq" and value or step[0] == "str" and not value:
+                return None
+            if step[0] == "str":
+                lengths.append(value)
+                p += value
+            p += 4
+    sizes, _, dtypes = st.fixed_template(tuple(lengths))
+    # runs of elements with one start offset modulo 8: one element size, back to back (the first element's
+    # residue may differ from the others', which then repeat)
+    runs = []                       # [residue, first element, end element, byte offset of the first]
+    p = pos
+    for i in range(n):
+        r = p & 7
+        if runs and runs[-1][0] == r:
+            runs[-1][2] = i + 1
+        else:
+            runs.append([r, i, i + 1, p])
+        p += sizes[r]
+    if not isinstance(src, _Prep):
+        if p > len(src):
+            raise CdrError("message shorter than its contents")
+        arr = np.frombuffer(src, np.uint8)
+        for r, i0, i1, b0 in runs:
+            rec = arr[b0:b0 + (i1 - i0) * sizes[r]].view(dtypes[r])
+            k = 0
+            for step in st.steps:
+                if step[0] == "block":
+                    continue
+                want = lengths[k] if step[0] == "str" else 0
+                k += step[0] == "str"
+                if np.any(rec[step[1] + ("#len" if step[0] == "str" else "#count")] != want):
+                    return None
+    lay.fixed = (st, runs, tuple(lengths), n)
+    return p
 
 
 def _scan_flat(st: _Struct, n: int, pos: int, lay: Layout, src, i0: int):
@@ -184,7 +337,7 @@ def _scan_flat(st: _Struct, n: int, pos: int, lay: Layout, src, i0: int):
     if isinstance(src, _Prep):
         lengths = []
         for name in names:
-            b = src.strs[name]
+            b = src.strings(name)
             first = len(b[i0])
             if any(len(x) != first for x in b[i0:i0 + n]):
                 return None
@@ -231,13 +384,13 @@ def _scan_each(st: _Struct, n: int, pos: int, lay: Layout, src, i0: int) -> int:
         if step[0] == "block":
             steps.append((0, step[1], lay.blocks.setdefault(id(step[1]), [step[1], []])[1], None))
         elif step[0] == "str":
-            steps.append((1, None if reading else src.strs[step[1]], lay.strings.setdefault(step[1], []),
+            steps.append((1, None if reading else src.strings(step[1]), lay.strings.setdefault(step[1], []),
                           lay.lengths.setdefault(step[1], [])))
         else:
             name, elem = step[1], step[2]
             sub = lay.seqs.get(name)
             if sub is None:
-                sub = lay.seqs[name] = [[], [], Layout() if isinstance(elem, _Struct) else (elem, [])]
+                sub = lay.seqs[name] = [[], [], Layout(lay.records) if isinstance(elem, _Struct) else (elem, [])]
             steps.append((2, elem, sub, None if reading else (src.counts[name], src.child[name])))
     for i in range(i0, i0 + n):
         for kind, a, out, extra in steps:
@@ -302,19 +455,7 @@ def _strings(body: bytes, arr: np.ndarray, offsets: list, lengths: list) -> np.n
     first = lengths[0]
     if lengths.count(first) == len(lengths):            # one length (sv "G05", code "1C"): one gather
         off = np.asarray(offsets, dtype=np.int64) + 4
-        chars = arr[off[:, None] + np.arange(first)]
-        if chars[:, -1].any():
-            raise CdrError("string without its NUL")
-        if first == 1:
-            return np.full(len(offsets), "", dtype="<U1")
-        raw = chars[:, :-1].copy().view(f"S{first - 1}").ravel()
-        try:
-            return raw.astype(f"<U{first - 1}")       # ASCII (satellite ids, signal codes): one cast
-        except UnicodeDecodeError:
-            try:
-                return np.char.decode(raw, "utf-8")
-            except UnicodeDecodeError as exc:
-                raise CdrError(f"string not UTF-8: {exc}") from None
+        return _chars_to_strings(arr[off[:, None] + np.arange(first)], first)
     out = []
     for p, length in zip(offsets, lengths):
         if body[p + 3 + length] != 0:
@@ -324,6 +465,22 @@ def _strings(body: bytes, arr: np.ndarray, offsets: list, lengths: list) -> np.n
         except UnicodeDecodeError as exc:
             raise CdrError(f"string not UTF-8: {exc}") from None
     return np.array(out)
+
+
+def _chars_to_strings(chars: np.ndarray, length: int) -> np.ndarray:
+    """Strings of one ``length`` (NUL included) from their bytes (n, length)."""
+    if chars[:, -1].any():
+        raise CdrError("string without its NUL")
+    if length == 1:
+        return np.full(len(chars), "", dtype="<U1")
+    raw = chars[:, :-1].copy().view(f"S{length - 1}").ravel()
+    try:
+        return raw.astype(f"<U{length - 1}")       # ASCII (satellite ids, signal codes): one cast
+    except UnicodeDecodeError:
+        try:
+            return np.char.decode(raw, "utf-8")
+        except UnicodeDecodeError as exc:
+            raise CdrError(f"string not UTF-8: {exc}") from None
 
 
 def _seq_offsets(counts: np.ndarray, starts, size: int) -> np.ndarray:
@@ -344,7 +501,40 @@ def _residue_groups(starts):
     return s, [(int(q), np.flatnonzero(r == q)) for q in np.unique(r)]
 
 
+def _records(lay: Layout, arr: np.ndarray) -> list:
+    """The record arrays (views of ``arr``) of a Layout laid out as records, one per run (_scan_fixed)."""
+    st, runs, lengths, _ = lay.fixed
+    sizes, _, dtypes = st.fixed_template(lengths)
+    return [arr[b0:b0 + (i1 - i0) * sizes[r]].view(dtypes[r]) for r, i0, i1, b0 in runs]
+
+
+def _record_columns(lay: Layout, arr: np.ndarray) -> dict:
+    """_columns of a Layout laid out as records (_scan_fixed)."""
+    st, _, lengths, n = lay.fixed
+    recs = _records(lay, arr)
+
+    def column(name):
+        return recs[0][name].copy() if len(recs) == 1 else np.concatenate([rec[name] for rec in recs])
+
+    out: dict = {}
+    k = 0
+    for step in st.steps:
+        if step[0] == "block":
+            for name in step[1].names:
+                out[name] = column(name)
+        elif step[0] == "str":
+            out[step[1]] = _chars_to_strings(column(step[1]), lengths[k])
+            k += 1
+        else:
+            elem = step[2]
+            out[step[1]] = (np.zeros(n, dtype=np.int64), {} if isinstance(elem, _Struct) else
+                            np.zeros(0, dtype=_dtype(elem)))
+    return out
+
+
 def _columns(lay: Layout, body: bytes, arr: np.ndarray) -> dict:
+    if lay.fixed is not None:
+        return _record_columns(lay, arr)
     out: dict = {}
     for block, starts in lay.blocks.values():
         s, groups = _residue_groups(starts)
@@ -412,7 +602,34 @@ def _scatter(body: np.ndarray, off: np.ndarray, values, code: str):
         body[off[:, None] + np.arange(size)] = raw.reshape(-1, size)
 
 
+def _write_records(lay: Layout, prep: _Prep, body: np.ndarray):
+    """_write of a Layout laid out as records (_scan_fixed): each run's elements written as one record array
+    into ``body`` (its padding already the pad value)."""
+    st, runs, lengths, n = lay.fixed
+    values, k = {}, 0
+    for step in st.steps:
+        if step[0] == "block":
+            for name in step[1].names:
+                v = values[name] = np.asarray(prep.cols[name]).reshape(-1)
+                if len(v) != n:
+                    raise ValueError(f"column {name}: {len(v)} values for {n} elements")
+        elif step[0] == "str":
+            values[step[1] + "#len"] = lengths[k]
+            chars = prep.chars.get(step[1])
+            values[step[1]] = chars if chars is not None else np.frombuffer(
+                b"".join(prep.strs[step[1]][:n]), np.uint8).reshape(n, lengths[k])
+            k += 1
+        else:
+            values[step[1] + "#count"] = 0
+    for (_, i0, i1, _), rec in zip(runs, _records(lay, body)):
+        whole = i0 == 0 and i1 == n
+        for name, v in values.items():
+            rec[name] = v if whole or np.ndim(v) == 0 else v[i0:i1]
+
+
 def _write(lay: Layout, prep: _Prep, body: np.ndarray, pad: int):
+    if lay.fixed is not None:
+        return _write_records(lay, prep, body)
     cols = prep.cols
     for block, starts in lay.blocks.values():
         if not starts:
@@ -432,7 +649,7 @@ def _write(lay: Layout, prep: _Prep, body: np.ndarray, pad: int):
             body[at[:, None] + np.arange(block.sizes[r])] = raw
     for name, offsets in lay.strings.items():
         _scatter(body, np.asarray(offsets, dtype=np.int64), lay.lengths[name], "u4")
-        strs = prep.strs[name]
+        strs = prep.strings(name)
         lengths = lay.lengths[name]
         if lengths and lengths.count(lengths[0]) == len(lengths):      # one length: one scatter
             chars = np.frombuffer(b"".join(strs), np.uint8).reshape(len(strs), lengths[0])
@@ -466,17 +683,24 @@ class Codec:
         if len(data) < 4 or data[:2] != HEADER_LE[:2]:
             raise CdrError(f"not little-endian CDR (encapsulation {data[:4].hex()})")
         body = data[4:]
-        lay = Layout()
-        _scan(self.root, 1, 0, lay, body)
+        try:
+            lay = Layout()
+            _scan(self.root, 1, 0, lay, body)
+        except _Refit:
+            lay = Layout(records=False)
+            _scan(self.root, 1, 0, lay, body)
         return _complete(self.root, _columns(lay, body, np.frombuffer(body, np.uint8)))
 
     def encode(self, cols: dict, pad: int = 0) -> bytes:
         """``pad``: the value of the padding bytes (the tests tell padding from data by encoding twice)."""
         cols = {k: (v if isinstance(v, tuple) or k not in self._top_seqs else ([len(_first(v))], v))
                 for k, v in cols.items()}
-        prep = _Prep(self.root, cols, 1)
-        lay = Layout()
-        end = _scan(self.root, 1, 0, lay, prep)
+        try:
+            prep, lay = _Prep(self.root, cols, 1), Layout()
+            end = _scan(self.root, 1, 0, lay, prep)
+        except _Refit:
+            prep, lay = _Prep(self.root, cols, 1), Layout(records=False)
+            end = _scan(self.root, 1, 0, lay, prep)
         body = np.full(_align(end, 4), pad, dtype=np.uint8)
         _write(lay, prep, body, pad)
         return HEADER_LE + body.tobytes()

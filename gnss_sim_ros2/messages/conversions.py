@@ -158,12 +158,12 @@ def encode_states(states: SatelliteStates, t: GnssTime, stamp, frame_id: str, io
     from gnss_sim_ros2.messages.cdr import STATES_CODEC
 
     week, tow = t.week_tow()
-    sv = [str(s) for s in states.sv]
+    sv = np.asarray(states.sv).tolist()
     n = len(sv)
     pos, vel, acc = (np.asarray(a, dtype=float).reshape(n, 3) for a in
                      (states.pos_ecef_m, states.vel_ecef_mps, states.acc_ecef_mps2))
     cols = {
-        "sv": sv, "system": np.array([ord(s[0]) for s in sv], dtype=np.int64),
+        "sv": np.asarray(states.sv), "system": np.array([ord(s[0]) for s in sv], dtype=np.int64),
         "prn": np.array([int(s[1:]) for s in sv], dtype=np.int64),
         "glonass_channel": np.asarray(states.glo_channel, dtype=np.int64),
         "clock_bias_s": states.clock_bias_s, "clock_drift_sps": states.clock_drift_sps,
@@ -235,7 +235,7 @@ def encode_visibility(stamp, frame_id: str, antenna_world_m, antenna_ecef_m, sv,
                 "gamma_cross_re": cross.real, "gamma_cross_im": cross.imag,
                 "arrival_elevation_deg": paths.arrival_el_deg[valid]}
     w, e = (np.asarray(a, dtype=float).reshape(3) for a in (antenna_world_m, antenna_ecef_m))
-    sats = {"sv": [str(s) for s in sv], "azimuth_deg": az_deg, "elevation_deg": el_deg, "state": state,
+    sats = {"sv": np.asarray(sv), "azimuth_deg": az_deg, "elevation_deg": el_deg, "state": state,
             "attenuation_db": attenuation_db, "extra_path_m": extra_path_m, "fraction_blocked": fraction_blocked,
             "reflections": (counts, refl)}
     return VISIBILITY_CODEC.encode({
@@ -319,13 +319,13 @@ def encode_observations(stamp, frame_id: str, t: GnssTime, obs) -> bytes:
 
     week, tow = t.week_tow()
     lli = np.asarray(obs.lli, dtype=np.int64)
-    cols = {"sv": [str(s) for s in obs.sv], "code": [str(c) for c in obs.code], "frequency_hz": obs.frequency_hz,
+    cols = {"sv": np.asarray(obs.sv), "code": np.asarray(obs.code), "frequency_hz": obs.frequency_hz,
             "pseudorange_m": obs.pseudorange_m, "carrier_phase_cycles": obs.carrier_phase_cyc,
             "doppler_hz": obs.doppler_hz, "cn0_dbhz": obs.cn0_dbhz, "lock_time_s": obs.lock_time_s, "lli": lli,
             "loss_of_lock": (lli & 1) != 0, "half_cycle_ambiguity": (lli & 2) != 0}
     return OBSERVATIONS_CODEC.encode({**_header(stamp, frame_id), "gps_week": int(week), "gps_tow_s": float(tow),
                                       "receiver_clock_offset_s": float(obs.clock_bias_s),
-                                      "observations": ([len(cols["sv"])], cols)})
+                                      "observations": ([len(lli)], cols)})
 
 
 # ---------------------------------------------------------------------------------------------------------
