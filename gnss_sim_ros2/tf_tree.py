@@ -17,6 +17,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
+#: the rotation of no turn (composed with a lookup's rotation as the general case composes it)
+_IDENTITY = Rotation.identity()
+
 
 class TransformError(LookupError):
     """A transform cannot be computed (unknown frame, no common tree, time out of the buffer)."""
@@ -29,9 +32,15 @@ class _Edge:
     times: list = field(default_factory=list)  # float seconds, sorted
     trans: list = field(default_factory=list)  # np (3,)
     quats: list = field(default_factory=list)  # np (4,) xyzw
+    #: Rotation of a static edge's quaternion, made once (a lookup through the edge at every epoch)
+    static_rot: Rotation | None = None
 
     def at(self, t_s: float | None, tolerance_s: float) -> tuple[np.ndarray, Rotation]:
-        if self.static or t_s is None:
+        if self.static:
+            if self.static_rot is None:
+                self.static_rot = Rotation.from_quat(self.quats[-1])
+            return self.trans[-1], self.static_rot
+        if t_s is None:
             return self.trans[-1], Rotation.from_quat(self.quats[-1])
         i = bisect.bisect_left(self.times, t_s)
         if i < len(self.times) and abs(self.times[i] - t_s) <= 1e-9:
@@ -75,6 +84,7 @@ class TransformTree:
         tr = np.asarray(translation, dtype=float)
         if static:
             edge.times, edge.trans, edge.quats = [t_s], [tr], [q / n]
+            edge.static_rot = None
             return
         i = bisect.bisect_left(edge.times, t_s)
         if i < len(edge.times) and edge.times[i] == t_s:
@@ -106,9 +116,10 @@ class TransformTree:
         (tf2's lookupTransform(target, source, time)).  ``t_s`` None: the latest.
         """
         target, source = target.lstrip("/"), source.lstrip("/")
+        known = self.frames()
         for f in (target, source):
-            if f not in self.frames():
-                raise TransformError(f"frame '{f}' does not exist (known: {sorted(self.frames())})")
+            if f not in known:
+                raise TransformError(f"frame '{f}' does not exist (known: {sorted(known)})")
         up_s = self._path_to_root(source)
         up_t = self._path_to_root(target)
         common = next((f for f in up_s if f in set(up_t)), None)
@@ -119,6 +130,8 @@ class TransformTree:
         for f in up_s[: up_s.index(common)]:
             tr, rot = self._edges[f].at(t_s, self.tolerance_s)
             tr_s, rot_s = rot.apply(tr_s) + tr, rot * rot_s
+        if common == target:      # the target is the source's ancestor (world -> a robot's antenna): no way back
+            return tr_s, _IDENTITY * rot_s       # what the product with the way back's inverse (identity) gives
         tr_t, rot_t = np.zeros(3), Rotation.identity()
         for f in up_t[: up_t.index(common)]:
             tr, rot = self._edges[f].at(t_s, self.tolerance_s)
