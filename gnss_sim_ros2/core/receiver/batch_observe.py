@@ -23,9 +23,13 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from ..ephemeris.states import SatelliteStates
+from ..memo import BoundedCache
 from ..time import GnssTime
 from .engine import Receiver, _Block
 from .observations import EpochObservations
+
+#: whether two ReceiverConfig objects are equal but for the seed, by their identities (held, so never reused)
+_SAME_CONFIG = BoundedCache(4096)
 
 
 @dataclass
@@ -96,7 +100,12 @@ def _same_pass(a: Receiver, b: Receiver) -> bool:
         return False
     if a.cfg is b.cfg:
         return True
-    return all(f.name == "seed" or getattr(a.cfg, f.name) == getattr(b.cfg, f.name) for f in fields(a.cfg))
+    key = (id(a.cfg), id(b.cfg))
+    hit = _SAME_CONFIG.get(key)
+    if hit is None or hit[0] is not a.cfg or hit[1] is not b.cfg:     # the configurations compared once
+        hit = _SAME_CONFIG.put(key, (a.cfg, b.cfg, all(f.name == "seed" or getattr(a.cfg, f.name) ==
+                                                       getattr(b.cfg, f.name) for f in fields(a.cfg))))
+    return hit[2]
 
 
 def observe_block(rxs: list[Receiver], epochs: list[ReceiverEpoch], prepared) -> list[EpochObservations]:

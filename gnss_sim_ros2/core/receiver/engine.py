@@ -109,6 +109,9 @@ class Receiver:
         #: which signals each satellite transmits on a date (core/signal_plans/plans.yaml)
         self._plans = default_plans()
         self._keep_cache = BoundedCache(64)
+        #: the signal rows of a block stacked, by the identity of its epochs' cached rows (a fleet's robots, whose
+        #: satellites change seldom, batch_observe.py)
+        self._stack_cache = BoundedCache(4)
         self._iono_terms = None
         self._tropo_terms = None
         self._doy_key = None
@@ -301,7 +304,14 @@ class Receiver:
         rxs = receivers or [self] * k_n
         parts = [rxs[e]._rows_of(svs[seg[e]:seg[e + 1]], glo[seg[e]:seg[e + 1]], gps_day(b.ts[e].sec),
                                  health[seg[e]:seg[e + 1]]) for e in range(k_n)]
-        b.rows = parts[0] if k_n == 1 else SignalRows.stack(parts, seg[:-1])
+        if k_n == 1:
+            b.rows = parts[0]
+        else:
+            key = (tuple(map(id, parts)), seg.tobytes())
+            hit = self._stack_cache.get(key)
+            if hit is None or any(a is not c for a, c in zip(hit[0], parts)):
+                hit = self._stack_cache.put(key, (parts, SignalRows.stack(parts, seg[:-1])))
+            b.rows = hit[1]
         b.sat_i, b.codes, b.freq, b.chip, _ = b.rows.signal_rows
         b.m_ep = np.array([len(p.signal_rows[0]) for p in parts], dtype=np.int64)
         b.sig_seg = np.concatenate([[0], np.cumsum(b.m_ep)])
@@ -494,7 +504,16 @@ class Receiver:
         z_cn0 = np.zeros(m)
         r = np.zeros((3, m))
         mp_x = np.zeros(m)
-        if cfg.noise:
+        if cfg.noise and len(m_ep) == 1:    # one epoch (a node): its draws are blocks of m, rows in order
+            lead = 1 if draw_cn0 else 0
+            w = self.rng_noise.standard_normal((3 + lead) * m).reshape(3 + lead, m)
+            if draw_cn0:
+                z_cn0 = w[0]
+            r = w[lead:]
+            w_mp = self.code_multipath.rng.standard_normal(m)
+            if not empty[0]:
+                mp_x = self.code_multipath.state(mp_idx, dt_ep[0], w_mp)
+        elif cfg.noise:
             lead = 1 if draw_cn0 else 0
             j0_row = sig_seg[e_sig]
             mb_row = m_ep[e_sig]
