@@ -220,7 +220,8 @@ class Receiver:
         for every row of the block in one go; the receiver clock, the tracking loops and the noise
         processes step epoch by epoch in order, drawing from their random streams exactly as
         :meth:`epoch` called K times does, so the observables are the same.  The stages below fill one
-        :class:`_Block` in this order.
+        :class:`_Block` in this order.  batch_observe.py runs them for several receivers' epochs as one block
+        (each receiver's memory on its own segment): a stage with memory is stepped per receiver there too.
         """
         b = _Block(ts)
         self._antenna(b, antenna_ecef_m, antenna_vel_ecef_mps)
