@@ -142,6 +142,44 @@ def test_dops_do_not_depend_on_the_satellites_order():
     np.testing.assert_allclose(runs, shuffled, rtol=1e-9)
 
 
+@pytest.mark.parametrize("profile", ["ublox_f9p", "ublox_m8t_hk"])     # link budget; fitted C/N0 tables
+def test_predicted_cn0_is_the_receivers_link_budget(profile):
+    """The planner's predicted C/N0 (each system's columns computed as blocks of rows) is receiver/cn0.cn0_dbhz of
+    each satellite's system and the profile's first code at its range and elevation, less the attenuation; -inf
+    where blocked, NaN off ``where``; systems interleaved (no run of columns) as well as sorted."""
+    from types import SimpleNamespace
+
+    from gnss_sim_ros2.core.planning import predicted_cn0
+    from gnss_sim_ros2.core.receiver import cn0 as cn0_model
+    from gnss_sim_ros2.core.receiver.config import ReceiverConfig
+    from gnss_sim_ros2.core.vocabulary import VisibilityState
+
+    pred = predicted_cn0.predictor_from_profile(profile, "GEC")
+    cfg = ReceiverConfig(profile=profile)
+    rng = np.random.default_rng(5)
+    m, sysv = 3 * predicted_cn0.COLUMN_BLOCK_ENTRIES // 7 + 11, np.array(list("GGGEEECC"))   # several row blocks
+    for order in (np.arange(len(sysv)), rng.permutation(len(sysv))):
+        s = sysv[order]
+        el = rng.uniform(-20.0, 90.0, (m, len(s)))
+        range_m = rng.uniform(1.9e7, 2.6e7, (m, len(s)))
+        att = np.where(rng.random((m, len(s))) < 0.2, rng.uniform(0.0, 15.0, (m, len(s))), 0.0)
+        state = rng.choice([int(VisibilityState.VISIBLE), int(VisibilityState.ATTENUATED),
+                            int(VisibilityState.BLOCKED)], (m, len(s)))
+        where = el >= 10.0
+        got = pred.cn0_dbhz(s, state, att, SimpleNamespace(el_deg=el), range_m, where=where)
+        blocked = state == int(VisibilityState.BLOCKED)
+        assert np.isnan(got[~where]).all() and np.isneginf(got[where & blocked]).all()
+        for j, letter in enumerate(s.tolist()):
+            codes = cfg.profile.get(letter) or []
+            rows = np.flatnonzero(where[:, j] & ~blocked[:, j])
+            if not codes:
+                assert np.isneginf(got[rows, j]).all()          # a system the profile does not track
+                continue
+            want = cn0_model.cn0_dbhz(letter, codes[0], range_m[rows, j], el[rows, j], att[rows, j],
+                                      budget=cfg.link_budget)
+            np.testing.assert_allclose(got[rows, j], want, rtol=0, atol=1e-9, err_msg=f"{profile} {letter}")
+
+
 @pytest.mark.parametrize("heading_deg", [0.0, 37.0])
 def test_geojson_back_to_world_within_a_centimetre(tmp_path, heading_deg):
     """Cell corners written as GeoJSON lon/lat/h (as rounded in the file) come back to world x, y within 1 cm."""

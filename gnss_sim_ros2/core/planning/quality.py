@@ -14,6 +14,7 @@ from the profile's link budget is >= ``good_cn0_dbhz`` (predicted_cn0.py; -1 wit
 """
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -82,18 +83,9 @@ def quality_block(scene, vis, antenna_world_m, inp: PlanInputs, stats=None, stat
     # elevation at the block's centre, less the largest tilt of the vertical across the block
     el_c = np.nan_to_num(_elevation_deg(centre_ecef, sat_all), nan=-90.0)
     up_all = np.isfinite(sat_all[..., 0]) & (el_c >= vis.mask_deg - margin_deg)                 # (T, S)
-    for tt in _time_windows(up_all, c, inp.max_rays):
-        cols = np.flatnonzero(up_all[tt].any(axis=0))
-        present_t = np.isfinite(sat_all[tt, :, 0])                     # (Tc, S)
-        sat = np.where(np.isfinite(sat_all[tt][:, cols]), sat_all[tt][:, cols], 0.0)     # (Tc, S', 3)
+    def finish(tt, cols, sat, present_t, state, att, v):
+        """Everything after a window's cast, in order (the RTK arcs step from window to window)."""
         m_rows = c * len(tt)
-        ant_rows = np.repeat(ant, len(tt), axis=0)                     # row = cell * Tc + time
-        sat_rows = np.broadcast_to(sat[None], (c,) + sat.shape).reshape(m_rows, len(cols), 3)
-        t_start = _time.perf_counter()
-        state, att, v = vis.cast(scene, ant_rows, sat_rows, azimuth=False)     # the elevations only
-        if stats is not None:
-            stats["cast_s"] = stats.get("cast_s", 0.0) + _time.perf_counter() - t_start
-            stats["rays"] = stats.get("rays", 0) + int(np.count_nonzero(np.asarray(v.el_deg) >= vis.mask_deg))
         present = np.broadcast_to(present_t[:, cols][None], (c, len(tt), len(cols))).reshape(m_rows, len(cols))
         above = present & (np.asarray(v.el_deg) >= vis.mask_deg)
         if states_out is not None:
@@ -116,6 +108,28 @@ def quality_block(scene, vis, antenna_world_m, inp: PlanInputs, stats=None, stat
         vals["n_good"] = _n_good(cn0, inp, m_rows)
         for k, val in vals.items():
             out[k][:, tt] = np.asarray(val).reshape(c, len(tt))
+
+    # a window's casts overlap the previous window's finish, which runs on one thread in window order (numpy and
+    # Open3D release the GIL): the same arithmetic in the same order as one after the other, on both cores
+    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="plan-finish") as pool:
+        pending = None
+        for tt in _time_windows(up_all, c, inp.max_rays):
+            cols = np.flatnonzero(up_all[tt].any(axis=0))
+            present_t = np.isfinite(sat_all[tt, :, 0])                     # (Tc, S)
+            sat = np.where(np.isfinite(sat_all[tt][:, cols]), sat_all[tt][:, cols], 0.0)     # (Tc, S', 3)
+            m_rows = c * len(tt)
+            ant_rows = np.repeat(ant, len(tt), axis=0)                     # row = cell * Tc + time
+            sat_rows = np.broadcast_to(sat[None], (c,) + sat.shape).reshape(m_rows, len(cols), 3)
+            t_start = _time.perf_counter()
+            state, att, v = vis.cast(scene, ant_rows, sat_rows, azimuth=False)     # the elevations only
+            if stats is not None:
+                stats["cast_s"] = stats.get("cast_s", 0.0) + _time.perf_counter() - t_start
+                stats["rays"] = stats.get("rays", 0) + int(np.count_nonzero(np.asarray(v.el_deg) >= vis.mask_deg))
+            if pending is not None:
+                pending.result()                       # at most one window waiting: two windows' arrays at a time
+            pending = pool.submit(finish, tt, cols, sat, present_t, state, att, v)
+        if pending is not None:
+            pending.result()
     return out
 
 
@@ -153,9 +167,15 @@ def _rows_quality(state, att, v, above, los_enu, sysv, clock, dual, inp: PlanInp
     blocked = above & (state == int(VisibilityState.BLOCKED))
     used = los | attn | refl
     gdop, pdop, hdop, vdop, _ = dops_from_los_enu(los_enu, used, clock)
-    r, k = np.nonzero(used)              # the used satellites only: sigma ignores the others
-    excess = np.where(refl[r, k], np.nan_to_num(np.asarray(v.extra_path_m, float)[r, k]), 0.0)
-    sig = inp.budget.sigma_of_columns_m(sysv, k, el[r, k], np.where(attn[r, k], att[r, k], 0.0), excess)
+    # the used satellites only (sigma ignores the others), gathered by flat index (row-major: r, k ascending)
+    flat = np.flatnonzero(used)
+    r, k = np.divmod(flat, used.shape[1])
+
+    def entries(x, dtype=None):
+        return np.asarray(x, dtype).reshape(-1).take(flat)
+
+    excess = np.where(entries(refl), np.nan_to_num(entries(v.extra_path_m, float)), 0.0)
+    sig = inp.budget.sigma_of_columns_m(sysv, k, entries(el), np.where(entries(attn), entries(att), 0.0), excess)
     var_sum = np.bincount(r, weights=sig * sig, minlength=len(used))
     n_used = used.sum(axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -177,6 +197,10 @@ def _rtk_geometry(los_enu, cont, clock, rule: RtkRule):
     count)."""
     n_rtk = cont.sum(axis=1)
     enough = np.flatnonzero(n_rtk >= min(rule.min_sats, rule.min_hold_sats))     # only those can pass: their PDOP
+    if 2 * len(enough) >= len(n_rtk):               # most rows: all of them, no gathered copies (each row's DOPs
+        pdop = dops_from_los_enu(los_enu, cont, clock)[1]          # are its own), the others' set back to inf
+        pdop[n_rtk < min(rule.min_sats, rule.min_hold_sats)] = np.inf
+        return n_rtk, np.nan_to_num(pdop, nan=np.inf)
     pdop = np.full(len(n_rtk), np.inf)
     pdop[enough] = dops_from_los_enu(tuple(x[enough] for x in los_enu), cont[enough], clock)[1]
     return n_rtk, np.nan_to_num(pdop, nan=np.inf)
