@@ -69,7 +69,7 @@ def epochs(tmp_path_factory):
             pr[rng.sample(range(n), min(n, 3))] = np.nan
             e["pseudorange_m"] = pr
         elif kind == 4:
-            keep = np.arange(min(n, rng.choice([3, 4, 5])))
+            keep = np.arange(min(n, rng.choice([2, 3, 4, 5])))
         if len(keep) != n:
             e = {k: (v[keep] if isinstance(v, np.ndarray) and v.ndim and len(v) == n else v) for k, v in e.items()}
         out.append(e)
