@@ -231,16 +231,12 @@ class _Prep:
 def _ascii_chars(v: np.ndarray):
     """(n, length + 1) bytes of a numpy str array whose strings are ASCII, of one length and without a trailing
     NUL character, the NUL appended; None otherwise."""
-    try:
-        enc = v.astype("S")
-    except UnicodeEncodeError:
+    size = v.dtype.itemsize // 4                 # numpy str: UCS-4 code points, NULs after a shorter string
+    codes = np.ascontiguousarray(v).view(np.uint32).reshape(len(v), size)
+    if size and (not codes[:, size - 1].all() or codes.max() > 127):   # not one length, or not ASCII
         return None
-    size = enc.dtype.itemsize
     chars = np.zeros((len(v), size + 1), dtype=np.uint8)
-    if size:
-        chars[:, :size] = enc.view(np.uint8).reshape(len(v), size)
-        if not chars[:, size - 1].all():        # a shorter string (its NULs fill the rest): not one length
-            return None
+    chars[:, :size] = codes
     return chars
 
 
