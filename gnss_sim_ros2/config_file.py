@@ -73,6 +73,10 @@ def load_config(path: str | Path | None = None, overrides: dict[str, dict] | Non
             params = body["ros__parameters"] or {}
             if not isinstance(params, dict):
                 raise ValueError(f"{where}: 'ros__parameters' must be a mapping of parameter names to values")
+            for p_name in params:       # YAML reads yes / 5 / ~ as a bool, number, null: a TypeError in difflib
+                if not isinstance(p_name, str):
+                    raise ValueError(f"{where}: parameter name {p_name!r} is a {type(p_name).__name__}, not a name "
+                                     f"(YAML reads yes, no, on, off, numbers and ~ as values: quote it)")
             name = str(section_name).lstrip("/")
             if section_name in (SHARED_KEY, "/**/"):
                 for key in NODE_NAMES:

@@ -30,9 +30,10 @@ FILE_PARAMETERS: dict[str, tuple | None] = {
 ALWAYS_READ = {("rtk", "nav_files")}
 
 
-def missing_files(cfg: Config) -> list[str]:
+def missing_files(cfg: Config, options: dict[str, str] | None = None) -> list[str]:
     """One message per file a parameter of ``cfg`` names that is not a readable file (section, parameter, path);
-    each (parameter, path) once, under the first section naming it."""
+    each (parameter, path) once, under the first section naming it; ``options``: {parameter: the command-line
+    option that gave it} (the message names the option instead of the file's section)."""
     out, seen = [], set()
     for key, values in cfg.values.items():
         for name, sources in FILE_PARAMETERS.items():
@@ -48,5 +49,6 @@ def missing_files(cfg: Config) -> list[str]:
                 seen.add((name, path))
                 entry = f"[{i}]" if isinstance(value, list) else ""
                 what = "no such file" if not Path(path).expanduser().exists() else "not a file"
-                out.append(f"{cfg.source}: {NODE_NAMES[key]}: parameter '{name}'{entry} {path}: {what}")
+                where = f"option {options[name]}" if options and name in options else f"{cfg.source}: {NODE_NAMES[key]}"
+                out.append(f"{where}: parameter '{name}'{entry} {path}: {what}")
     return out

@@ -97,6 +97,19 @@ def check_robots(n, name: str = "option --robots", fleet: bool = False) -> int:
     return n_int
 
 
+#: the words a launch argument switch takes (ROS 2 launch's own conditions: IfCondition takes true/false/1/0)
+LAUNCH_TRUE, LAUNCH_FALSE = ("true", "1", "yes", "on"), ("false", "0", "no", "off")
+
+
+def launch_flag(value: str, name: str) -> bool:
+    """A switch launch argument (``record:=true``); ValueError naming it for a value that is neither true nor false
+    (``record:=ture``, ``use_sim_time:=maybe`` were false without a word)."""
+    word = str(value).strip().lower()
+    if word in LAUNCH_TRUE or word in LAUNCH_FALSE:
+        return word in LAUNCH_TRUE
+    raise ValueError(f"launch argument {name} is {value!r}; true or false (also 1/0, yes/no, on/off)")
+
+
 def robot_namespace(k: int) -> str:
     return ROBOT_NAMESPACE.format(k=k)
 

@@ -227,6 +227,9 @@ def _check_marker_name(value: str, where: str) -> str:
         why = f"character {bad!r}" if bad is not None else f"{len(value)} characters"
         raise ValueError(f"{where} is {value!r}: {why}; a RINEX marker name is printable ASCII of at most 60 "
                          f"characters, without / or \\")
+    if not value[:4].strip() or " " in value[:4]:       # '' wrote XXXX00XXX_..., ' A' a file name with a space
+        raise ValueError(f"{where} is {value!r}: the RINEX file names start with its first 4 characters (RINEX 3.05 "
+                         f"section 4.1: the 4-character site name), which must not be empty or hold a space")
     return value
 
 

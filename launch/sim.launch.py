@@ -62,7 +62,7 @@ from launch_ros.descriptions import ComposableNode
 from gnss_sim_ros2 import graph
 from gnss_sim_ros2.config_file import load_config
 from gnss_sim_ros2.core.receiver.profile_file import builtin_names
-from gnss_sim_ros2.graph_params import check_robot_config, check_robots
+from gnss_sim_ros2.graph_params import LAUNCH_FALSE, LAUNCH_TRUE, check_robot_config, check_robots, launch_flag
 
 #: launch argument -> (default, description): `ros2 launch gnss_sim sim.launch.py --show-args` prints them
 ARGS = {
@@ -92,8 +92,6 @@ ARGS = {
 CONTAINER = "gnss_sim_container"
 
 
-def _true(v: str) -> bool:
-    return v.lower() in ("true", "1", "yes", "on")
 
 
 def _stop_launch_if_failed(action, what: str):
@@ -134,8 +132,10 @@ def _write_params(params: dict, name: str) -> str:
 
 
 #: composed:= values -> process layout (gnss_sim_ros2.graph.LAYOUTS)
-COMPOSED_LAYOUTS = {**dict.fromkeys(("true", "1", "yes", "on"), "composed"),
-                    **dict.fromkeys(("false", "0", "no", "off"), "node"), "robot": "robot", "fleet": "fleet"}
+COMPOSED_LAYOUTS = {**dict.fromkeys(LAUNCH_TRUE, "composed"), **dict.fromkeys(LAUNCH_FALSE, "node"), "robot": "robot",
+                    "fleet": "fleet"}
+#: the true/false launch arguments (graph_params.launch_flag)
+SWITCHES = ("use_sim_time", "trajectory_player", "record", "autostart", "rtk", "quality_map")
 
 
 def layout_of(composed: str) -> str:
@@ -162,6 +162,9 @@ def _container(name: str, namespace: str, specs, params, sim_time: bool) -> list
 
 def _setup(context):
     a = {k: LaunchConfiguration(k).perform(context) for k in ARGS}
+    if not a["output_dir"].strip():       # os.path.abspath('') is the working directory: a silent default
+        raise ValueError("launch argument output_dir is empty: give the folder of the RINEX files (and the bag)")
+    flag = {k: launch_flag(a[k], k) for k in SWITCHES}     # every switch checked before anything starts
     shared = {"output_dir": os.path.abspath(a["output_dir"])}
     if a["antenna_frame"]:
         shared["antenna_frame"] = a["antenna_frame"]
@@ -177,7 +180,7 @@ def _setup(context):
     if a["scenario"]:         # read and checked by the table; kept as its absolute path
         overrides.setdefault("receiver", {})["scenario"] = a["scenario"]
     layout = layout_of(a["composed"])
-    rtk = _true(a["rtk"])
+    rtk = flag["rtk"]
     robots = check_robots(a["robots"], "launch argument robots", fleet=layout == "fleet")
     if rtk and robots > 1:
         raise ValueError(f"launch arguments rtk:=true and robots:={robots} do not go together: an RTK run has one "
@@ -187,12 +190,12 @@ def _setup(context):
     cfg = load_config(a["config"] or None, overrides, {"strict_world": "strict_world:=", "profile": "profile:=",
                                                          "scenario": "scenario:="})
     check_robot_config(cfg, robots, "launch argument robots")
-    sim_time = _true(a["use_sim_time"])
-    quality_map = _true(a["quality_map"])
+    sim_time = flag["use_sim_time"]
+    quality_map = flag["quality_map"]
     params = {**cfg.ros_parameter_file_dict(), **(graph.rtk_parameter_sections(cfg) if rtk else {}),
               **(graph.quality_map_parameter_sections(cfg) if quality_map else {}),
               **graph.robot_parameter_sections(cfg, robots)}
-    specs = graph.nodes(_true(a["trajectory_player"]), robots, layout == "fleet") + \
+    specs = graph.nodes(flag["trajectory_player"], robots, layout == "fleet") + \
         (graph.rtk_nodes(cfg) if rtk else []) + ([graph.QUALITY_MAP_NODE] if quality_map else [])
     # the fleet layout's visibility and receiver node: the configuration's, serving every robot (fleet_robots)
     params.update({s.name: {"ros__parameters": graph.node_parameters(cfg, s, robots)}
@@ -207,7 +210,7 @@ def _setup(context):
                                         for node, sec in params.items()}, "composable_params.yaml"),
                          {"use_sim_time": sim_time}]
     actions = []
-    if _true(a["record"]):  # first: a recorder that cannot start fails the launch before any node runs
+    if flag["record"]:  # first: a recorder that cannot start fails the launch before any node runs
         actions += _recorder(shared["output_dir"], rtk, robots)
     if layout in ("composed", "fleet"):
         actions += _container(CONTAINER, "", specs, composable_params, sim_time)
@@ -225,7 +228,7 @@ def _setup(context):
                                          parameters=node_params))
     actions.append(Node(package=graph.PACKAGE, executable="lifecycle_manager", name="gnss_sim_lifecycle_manager",
                         output="screen", parameters=[{"node_names": [s.path for s in specs],
-                                                      "autostart": _true(a["autostart"]),
+                                                      "autostart": flag["autostart"],
                                                       "use_sim_time": sim_time}]))
     return actions
 

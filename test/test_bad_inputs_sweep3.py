@@ -14,7 +14,13 @@ traceback); ``simulate --rtcm`` naming the --trajectory CSV wrote the RTCM strea
 argument must be ... 'NoneType'" (a traceback); ``plan --scheduler not-an-address`` said "missing port number"
 naming no option; ``bench --speed --peer-python absent`` ran the whole benchmark before saying so in its report;
 ``config --check`` and ``threats-plot`` errors did not name the command (``error: ...``, ``gnss-sim threats-plot:
-...``).
+...``); a parameter named ``yes:`` or ``5:`` (YAML reads a bool, a number) ended in a TypeError traceback in
+difflib; ``marker_name: ''`` wrote XXXX00XXX_... files (' AB': a file name with a space); a trajectory row with more
+values than its header lost the extra without a word; a profile's ``dll_bn_hz: -1`` was refused by the noise model
+naming no file or key, ``mp_tau_s: 0`` ran; ``plan --path`` of a binary file said "'utf-8' codec can't decode";
+a world's <spherical_coordinates> with longitude 400 or elevation 1e9 m was exported and simulated; ``run --world
+absent.sdf`` started every node before the visibility node's configure failed; ``simulate --synthetic --nav F``
+and ``--clk F`` without --sp3 ignored the files, a navigation file given as --clk was read as a clock file.
 """
 from __future__ import annotations
 
@@ -60,6 +66,19 @@ def _cases(tmp: Path, write: bool = True):
         f"{'G    2 C1C L1C':<60}SYS / # / OBS TYPES\n{'':<60}END OF HEADER\n"
         "> 2022 01 01 00 00  0.0000000  0  1\nG01  20000000.000   105000000.000  \n"))
     short_truth = _write("truth.csv", "time,x_m,y_m,z_m\n2022-01-01T00:00:00,3149785.9,598260.8\n")
+    section = "/**:\n  ros__parameters:\n"
+    yes_key = _write("yes.yaml", section + "    yes: 5\n")
+    int_key = _write("five.yaml", section + "    5: 5\n")
+    marker_empty = _write("marker.yaml", section + "    marker_name: ''\n")
+    marker_space = _write("marker_space.yaml", section + "    marker_name: ' AB'\n")
+    long_row = _write("long_row.csv", "t_s,lat_deg,lon_deg,h_m\n0,48,11,500\n2,48,11,500,7\n")
+    profile = "gnss_sim_profile: 1\nname: t\nsignals:\n  G: [1C]\n"
+    dll_neg = _write("dll.yaml", profile + "dll_bn_hz: -1\n")
+    tau_zero = _write("tau.yaml", profile + "mp_tau_s: 0\n")
+    binary = _write("path.csv", bytes(range(128, 256)))
+    origin = WORLD.format(pose="0 0 0 0 0 0")
+    lon400 = _write("lon400.sdf", origin.replace("<longitude_deg>11<", "<longitude_deg>400<"))
+    up1e9 = _write("up1e9.sdf", origin.replace("<elevation>500<", "<elevation>1e9<"))
     folder = tmp / "a folder"
     if write:
         folder.mkdir()
@@ -106,6 +125,30 @@ def _cases(tmp: Path, write: bool = True):
          ["gnss-sim config: error: configuration file", "does not exist"]),
         ("threats-plot-error-names-command", ["threats-plot", folder, "--png", tmp / "t.png"],
          ["gnss-sim threats-plot: error:", "no fix.csv"]),
+        ("config-parameter-name-bool", ["config", "--check", yes_key], [str(yes_key), "parameter name True",
+                                                                        "quote it"]),
+        ("config-parameter-name-number", ["config", "--check", int_key], [str(int_key), "parameter name 5"]),
+        ("config-marker-empty", ["config", "--check", marker_empty], [str(marker_empty), "'marker_name' is ''",
+                                                                      "4 characters"]),
+        ("config-marker-leading-space", ["config", "--check", marker_space], ["'marker_name' is ' AB'"]),
+        ("trajectory-row-longer-than-header", ["simulate", "--quiet", *out, "--trajectory", long_row],
+         [f"{long_row}:3", "5 values under a header of 4 columns"]),
+        ("profile-dll-bandwidth-negative", [*sim, *out, "--profile", dll_neg],
+         [f"receiver profile {dll_neg}, line 5", "'dll_bn_hz'", "must be > 0"]),
+        ("profile-multipath-time-zero", [*sim, *out, "--profile", tau_zero],
+         [f"receiver profile {tau_zero}, line 5", "'mp_tau_s'"]),
+        ("plan-path-binary", ["plan", "--world", COURTYARD, "--hours", "0.2", "--quiet", "--out", tmp / "plan",
+                              "--path", binary], [f"option --path {binary}", "not a UTF-8 text file"]),
+        ("world-origin-longitude-400", ["export-world", lon400, "--quiet", "--out", tmp / "w.ply"],
+         [f"{lon400}:1: <spherical_coordinates>", "longitude 400 deg"]),
+        ("world-origin-height-1e9", [*sim, *out, "--world", up1e9], [f"{up1e9}:1: <spherical_coordinates>",
+                                                                    "height 1e+09 m"]),
+        ("run-world-missing", ["run", "--duration", "2", "--quiet", "--out", tmp / "run", "--world",
+                               tmp / "absent.sdf"], [f"option --world: parameter 'world_file' {tmp / 'absent.sdf'}",
+                                                     "no such file"]),
+        ("synthetic-and-nav", ["simulate", "--duration", "2", "--quiet", *out, "--synthetic", "--nav",
+                               tmp / "a.rnx"], ["option --synthetic and --nav", "reads no file"]),
+        ("clk-without-sp3", [*sim, *out, "--clk", tmp / "a.clk"], ["option --clk", "--sp3"]),
         ("skyplot-csv-is-default-skyline", [*sky, "--csv", tmp / "skyline.csv", "--png", tmp / "x.png"],
          ["options --csv and --skyline-csv", "same file"]),
     ]
@@ -152,3 +195,55 @@ def test_an_option_given_twice_is_said(tmp_path, capsys):
     assert "epochs 4" in text, text
     rc, text = run_cli(["simulate", "--duration", "2", "--position", "48,11,500", "--out", tmp_path / "out"], capsys)
     assert rc == 0 and "more than once" not in text, text
+
+
+def test_input_files_as_spreadsheets_and_ros_write_them(tmp_path, capsys):
+    """Files other tools write are read as they mean: a trajectory CSV from Excel ("CSV UTF-8": a byte order mark
+    first) and with a comment line above its header (both refused: "header must be ... got \\ufefft_s,..."), a
+    parameter file with ``rate_hz: 1e1`` (ROS 2's parser reads 10.0; PyYAML read the text '1e1': "must be double")."""
+    traj = tmp_path / "excel.csv"
+    traj.write_bytes("\ufeff# exported path\nt_s,lat_deg,lon_deg,h_m\n0,48,11,500\n2,48,11,500\n".encode())
+    rc, text = run_cli(["simulate", "--duration", "2", "--quiet", "--out", tmp_path / "out", "--trajectory", traj],
+                       capsys)
+    assert rc == 0 and "epochs 3" in text, text
+    cfg = tmp_path / "exp.yaml"
+    cfg.write_text("/**:\n  ros__parameters:\n    rate_hz: 1e1\n    elevation_mask_deg: 1.5e1\n")
+    rc, text = run_cli(["config", "--check", cfg], capsys)
+    assert rc == 0 and "rate_hz: 10.0" in text and "elevation_mask_deg: 15.0" in text, text
+    cfg.write_text("/**:\n  ros__parameters:\n    marker_name: '1e1'\n")      # quoted: text, as for ROS
+    rc, text = run_cli(["config", "--check", cfg], capsys)
+    assert rc == 0 and "marker_name: 1e1" in text, text
+
+
+@pytest.mark.parametrize("value, expected", [("true", True), ("False", False), (" 1", True), ("off", False)])
+def test_launch_switches_take_true_or_false(value, expected):
+    """sim.launch.py's switches (record:=, rtk:=, use_sim_time:= ...) go through graph_params.launch_flag."""
+    from gnss_sim_ros2.graph_params import launch_flag
+
+    assert launch_flag(value, "record") is expected
+
+
+@pytest.mark.parametrize("value", ["ture", "maybe", "", "2"])
+def test_a_launch_switch_neither_true_nor_false_is_refused(value):
+    """``record:=ture`` or ``use_sim_time:=maybe`` was false without a word."""
+    from gnss_sim_ros2.graph_params import launch_flag
+
+    with pytest.raises(ValueError, match=f"launch argument record is {value!r}; true or false"):
+        launch_flag(value, "record")
+
+
+def test_a_clock_file_that_is_not_one_is_refused(tmp_path):
+    """``--clk`` given a navigation file (RINEX VERSION / TYPE present, file type N) or a clock file without satellite
+    clocks added nothing to the run without a word (satpos / simulate ran, rc 0)."""
+    from gnss_sim_ros2.core.ephemeris.sp3 import read_rinex_clock
+
+    nav = tmp_path / "nav.rnx"
+    nav.write_text(f"{'     3.04           N: GNSS NAV DATA    M: MIXED':<60}RINEX VERSION / TYPE\n"
+                   f"{'':<60}END OF HEADER\n")
+    with pytest.raises(ValueError, match=r"nav\.rnx, line 1: not a RINEX clock file \(file type 'N'"):
+        read_rinex_clock(nav)
+    empty = tmp_path / "empty.clk"
+    empty.write_text(f"{'     3.04           C                   G':<60}RINEX VERSION / TYPE\n{'':<60}END OF HEADER\n"
+                     "AR ABCD 2022 01 01 00 00  0.000000  1    1.0E-09\n")
+    with pytest.raises(ValueError, match=r"empty\.clk: no satellite clock record \(AS\)"):
+        read_rinex_clock(empty)

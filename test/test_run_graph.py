@@ -75,12 +75,15 @@ def test_one_process_per_node(tmp_path):
 
 
 def test_bad_parameter_stops_the_start(tmp_path):
+    # a world file that is there but no SDF (a missing one is refused before the start: test_bad_inputs_sweep3)
+    world = tmp_path / "world.sdf"
+    world.write_text("not an SDF world\n")
     cfg = tmp_path / "bad.yaml"
-    cfg.write_text("gnss_sim_visibility:\n  ros__parameters:\n    world_file: /nonexistent/world.sdf\n")
+    cfg.write_text(f"gnss_sim_visibility:\n  ros__parameters:\n    world_file: {world}\n")
     res = _run(tmp_path / "out", "--config", str(cfg), "--duration", "3", "--no-record")
     assert res.returncode == 3
     assert "gnss_sim_visibility: configure failed" in res.stderr
-    assert "/nonexistent/world.sdf" in res.stderr
+    assert str(world) in res.stderr
 
 
 @pytest.mark.slow

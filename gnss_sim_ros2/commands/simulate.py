@@ -104,6 +104,11 @@ def parameter_overrides(args) -> tuple[dict, dict]:
         ov.setdefault(section, {})[name] = value
         names[name] = opt
     eph = ov.setdefault("ephemeris", {})
+    if args.synthetic and (args.nav or args.sp3):     # the files were ignored without a word
+        raise ValueError(f"option --synthetic and {'--nav' if args.nav else '--sp3'}: the synthetic constellation "
+                         f"reads no file; give one of them")
+    if args.clk and not args.sp3:
+        raise ValueError("option --clk: clock files go with --sp3 (precise orbits); without it they were ignored")
     if args.nav:
         eph["source"] = "broadcast"
     if args.sp3:

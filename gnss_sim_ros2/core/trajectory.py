@@ -106,21 +106,26 @@ class Trajectory:
         except OSError as exc:
             raise ValueError(f"trajectory file {path}: {exc.strerror}") from None
         rows = [r for r in csv.reader(text.splitlines())]
-        if not rows:
+        first = next((i for i, r in enumerate(rows) if "".join(r).strip() and not r[0].lstrip().startswith("#")),
+                     None)           # '#' comment lines before the header too, as between the rows
+        if first is None:
             raise ValueError(f"{path}: empty trajectory file")
-        header = [h.strip() for h in rows[0]]
+        header = [h.strip() for h in rows[first]]
         frame = None
         for cols, name in FRAMES.items():
             if header[:1] == ["t_s"] and tuple(header[1:4]) == cols:
                 frame = name
         if frame is None:
-            raise ValueError(f"{path}:1: header must be t_s,e_m,n_m,u_m[,yaw_deg] or t_s,lat_deg,lon_deg,h_m "
+            raise ValueError(f"{path}:{first + 1}: header must be t_s,e_m,n_m,u_m[,yaw_deg] or t_s,lat_deg,lon_deg,h_m "
                              f"or t_s,x_m,y_m,z_m; got {','.join(header)}")
         has_yaw = len(header) > 4 and header[4] == "yaw_deg"
         ts, pos, yaw, lines = [], [], [], []
-        for lineno, row in enumerate(rows[1:], start=2):
+        for lineno, row in enumerate(rows[first + 1:], start=first + 2):
             if not row or not "".join(row).strip() or row[0].lstrip().startswith("#"):
                 continue
+            if "".join(row[len(header):]).strip():      # a value no column names was dropped without a word
+                raise ValueError(f"{path}:{lineno}: {len(row)} values under a header of {len(header)} columns "
+                                 f"({','.join(header)}), got {','.join(row)}")
             try:
                 vals = [float(v) for v in row[: 5 if has_yaw else 4]]
                 if len(vals) < (5 if has_yaw else 4):

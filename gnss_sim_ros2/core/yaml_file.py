@@ -4,12 +4,19 @@ PyYAML keeps the last of two equal keys of a mapping without a word (``duration_
 reads 20; two sections of one node: only the second); YAML 1.2 requires keys to be unique
 (https://yaml.org/spec/1.2.2/#mapping, "the content of a mapping node is an unordered set of key/value node
 pairs, with the restriction that each of the keys is unique").  :func:`unique_keys` refuses them naming both lines.
+PyYAML (YAML 1.1) also reads ``1e9`` and ``1.5e3`` (an exponent without a dot or without a sign) as text
+("must be double, got '1e9'") where ROS 2's parameter parser (rcl_yaml_param_parser: strtod) and YAML 1.2's core
+schema (https://yaml.org/spec/1.2.2/#1032-tag-resolution) read a number: the loader reads them as numbers too
+(:data:`EXPONENT_FLOAT`), so a file means here what it means to the nodes.
 """
 from __future__ import annotations
 
 import functools
+import re
 
 MERGE_TAG = "tag:yaml.org,2002:merge"
+#: YAML 1.2 floats with an exponent that YAML 1.1 reads as text (no dot or no exponent sign: 1e9, 1.5e3, .5E2)
+EXPONENT_FLOAT = re.compile(r"^[-+]?(\.[0-9]+|[0-9][0-9_]*(\.[0-9_]*)?)[eE][-+]?[0-9]+$")
 
 
 @functools.cache
@@ -33,6 +40,7 @@ def unique_keys(base):
                     first_line[key] = key_node.start_mark.line + 1
             return super().construct_mapping(node, deep=deep)
 
+    Loader.add_implicit_resolver("tag:yaml.org,2002:float", EXPONENT_FLOAT, list("-+.0123456789"))
     Loader.__name__ = f"Unique{base.__name__}"
     return Loader
 

@@ -14,6 +14,7 @@ from gnss_sim_ros2.commands import fail
 from gnss_sim_ros2.commands.run.isolation import OutputBusy, OutputFolder, OutputNotOurs, choose_domain_id
 from gnss_sim_ros2.commands.run.runner import Runner
 from gnss_sim_ros2.config_file import load_config
+from gnss_sim_ros2.file_parameters import missing_files
 from gnss_sim_ros2.graph import LAYOUTS
 from gnss_sim_ros2.graph_params import check_robot_config, check_robots
 
@@ -116,6 +117,10 @@ def run(args) -> int:
         ov = _overrides(args)
         ov["/**"]["output_dir"] = str(folder.staging)
         cfg = load_config(args.config, ov, PARAM_OPTIONS)
+        given = {name: opt for name, opt in PARAM_OPTIONS.items() if any(name in sec for sec in ov.values())}
+        missing = missing_files(cfg, given)   # before the graph starts (a missing --world failed the visibility
+        if missing:                           # node's configure after every node had started: config --check's list)
+            raise ValueError("; ".join(missing))
         check_robot_config(cfg, args.robots, "option --robots")
         robot_sections = graph.robot_parameter_sections(cfg, args.robots)   # a robot's bad path file stops here
         # the base station's (and moving baseline's) sections: a bad base_position stops here, before any start

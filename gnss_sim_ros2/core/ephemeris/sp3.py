@@ -179,6 +179,9 @@ def read_rinex_clock(path) -> tuple[dict[str, tuple[GnssTime, np.ndarray]], str]
                 label = line[60:].strip()
                 if lineno == 1 and "RINEX VERSION" not in label:
                     raise ValueError(f"{path}: line 1 is not a RINEX clock header ('RINEX VERSION / TYPE' missing)")
+                if lineno == 1 and line[20:21].upper() != "C":   # RINEX clock 3.04 table A1: file type C (A1)
+                    raise ValueError(f"{path}, line 1: not a RINEX clock file (file type {line[20:21]!r}, "
+                                     f"{line[20:40].strip()!r}; a clock file's is 'C')")
                 if label == "TIME SYSTEM ID":
                     ts = line[:60].strip().upper()
                     if ts not in _SP3_TIME_SYSTEMS:
@@ -198,6 +201,8 @@ def read_rinex_clock(path) -> tuple[dict[str, tuple[GnssTime, np.ndarray]], str]
             except (ValueError, IndexError) as exc:
                 raise ValueError(f"{path} line {lineno}: bad AS record {line!r}") from exc
             data.setdefault(sv, []).append((dt, frac, bias_s))
+    if not data:          # a clock file without satellite clocks added nothing, without a word
+        raise ValueError(f"{path}: no satellite clock record (AS) after the header")
     out: dict[str, tuple[GnssTime, np.ndarray]] = {}
     for sv, recs in data.items():
         times = GnssTime.stack([_time_in_scale(dt, fr, scale) for dt, fr, _ in recs])

@@ -14,6 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..input_file import read_utf8
+
 
 @dataclass
 class PlanArea:
@@ -167,7 +169,7 @@ def read_path_csv(path) -> PlanArea:
     """A path CSV with columns x_m,y_m (or x,y), world metres, one row per point; ValueError naming file and line."""
     p = Path(path)
     try:
-        rows = list(csv.reader(p.open()))
+        rows = list(csv.reader(read_utf8(p, f"option --path {path}").splitlines()))    # binary, UTF-16, BOM
     except OSError as exc:
         raise ValueError(f"option --path {path}: cannot read ({exc.strerror})") from None
     rows = [r for r in rows if r and not r[0].lstrip().startswith("#")]

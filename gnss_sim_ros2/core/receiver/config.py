@@ -110,7 +110,7 @@ class ReceiverConfig:
     #: Fields a profile owns (every field but profile_file.RUN_FIELDS) default to None: the profile's value, else
     #: the field's ``builtin`` (a profile that leaves it out, a bare signal mapping); an argument overrides both.
     #: DLL: noise bandwidth [Hz], early-late spacing [chips]
-    dll_bn_hz: float | None = _owned(0.5)
+    dll_bn_hz: float | None = _owned(0.5, check=_positive)     # checked here: the noise model named no file
     dll_spacing_chips: float | None = _owned(0.2, check=_spacing)
     #: DLL coherent integration [s] (receiver/noise.py; the PLL's loop: tracking.pll_bn_hz, tracking.pll_t_int_s,
     #: for the carrier-phase noise as for the cycle slips)
@@ -129,9 +129,9 @@ class ReceiverConfig:
     #: code multipath/residual model (code_multipath.py): sigma = mp_zenith_m + mp_low_m exp(-el / 15 deg) [m]
     #: (builtin None: the antenna class's open-sky values, code_multipath.OPEN_SKY_MP_M), correlation time [s];
     #: code_multipath_m: per signal ("G1C") {el_deg: [...], sigma_m: [...]} replacing that formula for it
-    mp_zenith_m: float | None = _owned(None)
-    mp_low_m: float | None = _owned(None)
-    mp_tau_s: float | None = _owned(60.0)
+    mp_zenith_m: float | None = _owned(None, check=_nonnegative)
+    mp_low_m: float | None = _owned(None, check=_nonnegative)
+    mp_tau_s: float | None = _owned(60.0, check=_positive)
     code_multipath_m: dict | None = _owned({}, check=code_multipath.check_table)
     #: true ionosphere = model x (1 + iono_error_frac * g(t)), g smooth, unit variance (world_errors.py), per model.
     #: Klobuchar 0.5: it removes about 50 % of the RMS ionospheric delay (Navipedia, physics-anchors.md).

@@ -91,7 +91,12 @@ def spherical_from_sdf(world_el, file) -> SphericalCoordinates | None:
     lat = val("latitude_deg")
     if not -90.0 <= lat <= 90.0:
         raise SdfError(f"{where(sc, file)}: latitude_deg {lat} outside [-90, 90]")
-    return SphericalCoordinates(lat, val("longitude_deg"), val("elevation"), val("heading_deg"), surface)
+    lon, h = val("longitude_deg"), val("elevation")      # longitude 400 or an origin 1e9 m up were taken
+    try:
+        frames.check_receiver_position([lat, lon, h], "geodetic", where(sc, file))
+    except ValueError as exc:
+        raise SdfError(str(exc)) from None
+    return SphericalCoordinates(lat, lon, h, val("heading_deg"), surface)
 
 
 def spherical_of_world_file(sdf_path) -> SphericalCoordinates | None:
