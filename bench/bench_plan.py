@@ -11,14 +11,14 @@ time is extrapolated by the cell count (the work is linear in the cells: same sa
 Printed, on the same rays:
   * planner: rays / wall time of quality_block (casts, states, DOPs, accuracy, predicted C/N0, RTK rule: everything
     a cell costs);
-  * planner casts: rays / time inside VisibilityOptions.cast (directions, rotations, casts; the previous window's
-    states, DOPs, C/N0 and RTK rule run meanwhile on a second thread: quality.py);
+  * planner casts: rays / time inside VisibilityOptions.cast (directions, rotations, casts; with ``--overlap`` the
+    previous window's states, DOPs, C/N0 and RTK rule run meanwhile on a second thread: quality.OVERLAP_FINISH);
   * raw Open3D: test_occlusions on a float32 (K, 6) tensor of the same number of rays (the same antennas, the
     satellites' world directions), prepared beforehand; both timed interleaved, best of --repeat;
 and the ratio planner / raw (the issue's goal: >= 50 %); the CPU seconds of both (all threads: the work, whatever
 the other processes on the machine take).
 
-    .venv/bin/python bench/bench_plan.py [--cells 2000] [--repeat 3] [--synthetic-city] [--full]
+    .venv/bin/python bench/bench_plan.py [--cells 2000] [--repeat 3] [--synthetic-city] [--full] [--overlap]
 
 ``--full`` plans every cell of the area instead (runner.run_blocks in this process, as ``gnss-sim plan`` without
 ``--workers``; no map or file written) and prints its time: the 1 km2 x 24 h plan timed, not extrapolated.
@@ -89,9 +89,14 @@ def main() -> int:
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--synthetic-city", action="store_true", help="the generated box city even when HK is here")
     ap.add_argument("--full", action="store_true", help="plan every cell of the 1 km2 area (minutes) and time it")
+    ap.add_argument("--overlap", action="store_true",
+                    help="quality.OVERLAP_FINISH on: a window's finish on a second thread during the next casts")
     args = ap.parse_args()
     import open3d as o3d
 
+    from gnss_sim_ros2.core.planning import quality
+
+    quality.OVERLAP_FINISH = args.overlap
     with tempfile.TemporaryDirectory() as tmp:
         name, scene, box = scene_and_box(args.synthetic_city, Path(tmp))
     area = grid_area(2.0, box)

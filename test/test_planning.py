@@ -142,6 +142,30 @@ def test_dops_do_not_depend_on_the_satellites_order():
     np.testing.assert_allclose(runs, shuffled, rtol=1e-9)
 
 
+def test_overlapped_finish_gives_the_same_fields(courtyard, sky, monkeypatch):
+    """quality.OVERLAP_FINISH (a window finished on a second thread while the next is cast) gives the fields and
+    states of the windows finished one after the other (several windows: the RTK arcs carried across them)."""
+    from gnss_sim_ros2.core.planning import quality
+    from gnss_sim_ros2.core.planning.predicted_cn0 import predictor_from_profile
+    from gnss_sim_ros2.core.planning.ranging import budget_from_profile
+    from gnss_sim_ros2.core.visibility import VisibilityOptions
+
+    xy = np.random.default_rng(4).uniform(-40, 40, (30, 2))
+    ant = np.c_[xy, np.full(len(xy), 1.5)]
+    inp = quality.PlanInputs(sky.pos_ecef_m, sky.system, budget_from_profile("ublox_f9p", "GEC"), max_rays=2000,
+                             cn0=predictor_from_profile("ublox_f9p", "GEC"), t_s=sky.t_s)
+    runs = []
+    for on in (False, True):
+        monkeypatch.setattr(quality, "OVERLAP_FINISH", on)
+        states = np.full((len(ant),) + sky.pos_ecef_m.shape[:2], -2, np.int8)
+        runs.append((quality.quality_block(courtyard, VisibilityOptions(mask_deg=10.0), ant, inp,
+                                           states_out=states), states))
+    assert len(quality._time_windows(np.ones(sky.pos_ecef_m.shape[:2], bool), len(ant), 2000)) > 2
+    for k in quality.FIELDS:
+        np.testing.assert_array_equal(runs[1][0][k], runs[0][0][k], err_msg=k)
+    np.testing.assert_array_equal(runs[1][1], runs[0][1])
+
+
 @pytest.mark.parametrize("profile", ["ublox_f9p", "ublox_m8t_hk"])     # link budget; fitted C/N0 tables
 def test_predicted_cn0_is_the_receivers_link_budget(profile):
     """The planner's predicted C/N0 (each system's columns computed as blocks of rows) is receiver/cn0.cn0_dbhz of

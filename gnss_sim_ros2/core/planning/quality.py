@@ -14,7 +14,7 @@ from the profile's link budget is >= ``good_cn0_dbhz`` (predicted_cn0.py; -1 wit
 """
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -109,9 +109,9 @@ def quality_block(scene, vis, antenna_world_m, inp: PlanInputs, stats=None, stat
         for k, val in vals.items():
             out[k][:, tt] = np.asarray(val).reshape(c, len(tt))
 
-    # a window's casts overlap the previous window's finish, which runs on one thread in window order (numpy and
-    # Open3D release the GIL): the same arithmetic in the same order as one after the other, on both cores
-    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="plan-finish") as pool:
+    # OVERLAP_FINISH: a window's casts overlap the previous window's finish, which runs on one thread in window order
+    # (numpy and Open3D release the GIL): the same arithmetic in the same order as one after the other
+    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="plan-finish") if OVERLAP_FINISH else _InOrder() as pool:
         pending = None
         for tt in _time_windows(up_all, c, inp.max_rays):
             cols = np.flatnonzero(up_all[tt].any(axis=0))
@@ -131,6 +131,28 @@ def quality_block(scene, vis, antenna_world_m, inp: PlanInputs, stats=None, stat
         if pending is not None:
             pending.result()
     return out
+
+
+#: finish a window (states, C/N0, DOPs, RTK rule) on a second thread while the next window is cast.  Off: at load
+#: 7-10 on the 2-core machine (other processes on both cores) it gave no gain (2,000 HK cells x 24 h, alternated with
+#: it off: 8.2-15.8 s against 9.3-10.9 s, the same CPU seconds); to be measured on a quiet machine
+#: (``bench_plan.py --overlap``)
+OVERLAP_FINISH = False
+
+
+class _InOrder:
+    """ThreadPoolExecutor's submit / result, run at once in the caller's thread."""
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    def submit(self, fn, *args):
+        fut = Future()
+        fut.set_result(fn(*args))
+        return fut
 
 
 #: a chunk's times share one set of satellite columns: a step joins the chunk while the union of the satellites up
