@@ -178,3 +178,67 @@ def test_reflected_paths_share_the_pass_with_each_robots_bits(canyon_epochs, mon
                                     multipath=e.multipath)
             assert len(want.sv) and _obs_differ(want, obs) is None, (k, _obs_differ(want, obs))
     assert passes == [3] * len(epochs)
+
+
+@pytest.mark.parametrize("aided", [None, 15.4])
+def test_trackers_stepped_together_keep_each_ones_state_and_stream(aided, monkeypatch):
+    """tracking.update_trackers (every robot's rows in one call) against each robot's own Tracker.update: robots
+    with their own seeds, keys and C/N0 (steady epochs, fades below the thresholds, slips near 25 dB-Hz, keys
+    that come and go, skipped and empty epochs); every output row and each tracker's stream state bit-equal."""
+    from gnss_sim_ros2.core.receiver.tracking import Tracker, TrackingConfig, update_trackers
+    from gnss_sim_ros2.core.time import GnssTime
+
+    cfg = TrackingConfig(acquisition_cn0_dbhz=25.0, tracking_cn0_dbhz=23.0, aided_cn0_dbhz=aided,
+                         acquisition_time_s=0.25, start="cold")
+    alone = [Tracker(cfg, 100 + r) for r in range(6)]
+    together = [Tracker(cfg, 100 + r) for r in range(6)]
+    sats = np.array([f"G{p:02d}" for p in range(1, 11)])
+    keys_sv, keys_code = np.repeat(sats, 2), np.tile(np.array(["1C", "2W"]), len(sats))
+    rng = np.random.default_rng(3)
+    base = rng.uniform(36.0, 50.0, (6, len(keys_sv)))
+    updates = []
+    original_update = Tracker.update
+    monkeypatch.setattr(Tracker, "update", lambda self, *a, **kw: updates.append(self) or original_update(
+        self, *a, **kw))
+    t0 = GnssTime.from_iso("2024-01-01T00:00:00")
+    calls = slips = acquired = robot_epochs = 0
+    for i in range(80):
+        t = t0 + 0.1 * i
+        rows = []
+        for r in range(6):
+            if r == 1 and i % 9 == 4:
+                continue                                   # robot 1 skips epochs
+            keep = np.ones(len(keys_sv), dtype=bool)
+            if r >= 3 and i % 11 == r:
+                keep[rng.choice(len(keys_sv), size=3, replace=False)] = False    # keys that come and go
+            if r == 5 and 30 <= i < 33:
+                keep[:] = False                            # no signal at all
+            cn0 = base[r].copy()
+            if i % 13 == r:
+                cn0[rng.choice(len(cn0), size=4, replace=False)] = rng.uniform(20.0, 30.0, 4)   # fades, slips
+            if r == 0:
+                cn0[0] = 26.0 if i % 4 < 2 else 24.5      # about the acquisition threshold: the wait restarts
+            if r == 2 and i >= 40:
+                cn0[:3] = 25.5                             # weak, tracked: a slip probability every epoch
+            vis = rng.random(len(cn0)) > (0.1 if i % 17 == r else 0.0)
+            rows.append((r, t, keys_sv[keep], keys_code[keep], cn0[keep], vis[keep]))
+        updates.clear()
+        want = [original_update(alone[r], t, sv, code, cn0, visible=vis) for r, t, sv, code, cn0, vis in rows]
+        seg = np.concatenate([[0], np.cumsum([len(x[2]) for x in rows])])
+        got = update_trackers([together[x[0]] for x in rows], [x[1] for x in rows],
+                              np.concatenate([x[2] for x in rows]), np.concatenate([x[3] for x in rows]),
+                              np.concatenate([x[4] for x in rows]), np.concatenate([x[5] for x in rows]), seg)
+        calls += len(updates)
+        robot_epochs += len(rows)
+        slips += sum(int(w.slipped.sum()) for w in want)
+        acquired += sum(int(w.new_track.sum()) for w in want) if i else 0
+        for k, w in enumerate(want):
+            s = slice(seg[k], seg[k + 1])
+            for name, a, b in zip(("tracked", "lli", "lock", "amb"), (w.tracked, w.lli, w.lock_time_s,
+                                                                       w.ambiguity_cyc), got):
+                assert a.dtype == b[s].dtype and a.tobytes() == b[s].tobytes(), (i, rows[k][0], name)
+    for a, b in zip(alone, together):
+        assert a.rng.bit_generator.state == b.rng.bit_generator.state
+        assert a._lock_start[: a._n].tobytes() == b._lock_start[: b._n].tobytes()
+    assert robot_epochs - calls > 100       # steady robot-epochs filled together, not through Tracker.update
+    assert slips > 0 and acquired > 0

@@ -22,11 +22,12 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from ..ephemeris.states import SatelliteStates
+from ..ephemeris.states import ROW_FIELDS, SatelliteStates
 from ..memo import BoundedCache
 from ..time import GnssTime
 from .engine import Receiver, _Block
 from .observations import EpochObservations
+from .tracking import update_trackers
 
 #: whether two ReceiverConfig objects are equal but for the seed, by their identities (held, so never reused)
 _SAME_CONFIG = BoundedCache(4096)
@@ -121,20 +122,15 @@ def observe_block(rxs: list[Receiver], epochs: list[ReceiverEpoch], prepared) ->
         if v is not None:
             b.vel_ep[r] = v
     b.lat_ep, b.lon_ep, b.h_ep = np.array([rx._geodetic(p) for rx, p in zip(rxs, b.rx_ep)], dtype=float).T
-    # each receiver's clock, stepped from its own last epoch (its own stream)
-    clocks = []
-    for rx, e in zip(rxs, epochs):
-        one = _Block([e.t])
-        rx._receiver_clock(one)
-        clocks.append(one)
-    b.bias_ep = np.array([c.bias_ep[0] for c in clocks])
-    b.drift_ep = np.array([c.drift_ep[0] for c in clocks])
-    b.dt_ep = np.array([c.dt_ep[0] for c in clocks])
-    b.t_true = GnssTime(np.array([np.asarray(c.t_true.sec) for c in clocks], dtype=np.int64),
-                        np.array([np.asarray(c.t_true.frac) for c in clocks], dtype=float))
+    # each receiver's clock, stepped from its own last epoch (its own stream); the true reception times at once
+    # (GnssTime's scalar and array arithmetic are the same IEEE operations)
+    b.bias_ep, b.drift_ep, b.dt_ep = (np.array(c, dtype=float) for c in
+                                      zip(*[rx._clock_step(e.t) for rx, e in zip(rxs, epochs)]))
+    b.t_true = GnssTime(np.array([e.t.sec for e in epochs], dtype=np.int64),
+                        np.array([e.t.frac for e in epochs], dtype=float)) - b.bias_ep
     # the satellites of every receiver, one after another
-    states = SatelliteStates.concatenate([e.states for e in epochs])
     n_r = [len(e.states) for e in epochs]
+    states = _stacked_states([e.states for e in epochs], n_r)
     e_all = np.repeat(np.arange(r_n), n_r)
     vis = np.concatenate([np.zeros(n, dtype=np.int64) if e.vis_state is None else np.asarray(e.vis_state, np.int64)
                           for e, n in zip(epochs, n_r)])
@@ -158,19 +154,24 @@ def observe_block(rxs: list[Receiver], epochs: list[ReceiverEpoch], prepared) ->
     return lead._assemble(b)
 
 
+def _stacked_states(parts: list[SatelliteStates], n_r: list[int]) -> SatelliteStates:
+    """SatelliteStates.concatenate of ``parts`` (``n_r`` rows each): the instants of states at one instant each
+    repeated per row at once (the values concatenate's per-part rows hold)."""
+    if (not sum(n_r) or len({p.source for p in parts}) > 1
+            or not all(np.ndim(p.t.sec) == 0 and np.ndim(p.t.frac) == 0 for p in parts)):
+        return SatelliteStates.concatenate(parts)
+    t = GnssTime(np.repeat(np.array([p.t.sec for p in parts], dtype=np.int64), n_r),
+                 np.repeat(np.array([p.t.frac for p in parts], dtype=float), n_r))
+    kw = {name: np.concatenate([np.asarray(getattr(p, name)) for p in parts]) for name in ROW_FIELDS}
+    return SatelliteStates(t=t, source=parts[0].source, **kw)
+
+
 def _tracking(rxs, b: _Block) -> None:
-    """Each receiver's tracking loops on its signal rows (Receiver._tracking; _empty's update without rows)."""
+    """Each receiver's tracking loops on its signal rows (Receiver._tracking), every receiver's rows in one
+    tracking.update_trackers (each tracker's state and stream its own)."""
     ok = b.ok_all & (b.el_j >= rxs[0].cfg.elevation_mask_deg)
-    parts = []
-    for r, rx in enumerate(rxs):
-        j0, j1 = int(b.sig_seg[r]), int(b.sig_seg[r + 1])
-        if j0 == j1:
-            rx.tracker.update(b.ts[r], np.zeros(0, dtype="<U3"), np.zeros(0, dtype="<U2"), np.zeros(0))
-            continue
-        s = slice(j0, j1)
-        parts.append(rx.tracker.update_many([b.ts[r]], b.rows.sv_j[s], b.codes[s], b.cn0[s], ok[s],
-                                            np.array([0, j1 - j0])))
-    b.tracked, b.lli, b.lock, b.amb = (np.concatenate(c) for c in zip(*parts))
+    b.tracked, b.lli, b.lock, b.amb = update_trackers([rx.tracker for rx in rxs], b.ts, b.rows.sv_j, b.codes,
+                                                      b.cn0, ok, b.sig_seg)
 
 
 def _noise_draws(rxs, b: _Block):

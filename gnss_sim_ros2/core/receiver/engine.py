@@ -265,13 +265,7 @@ class Receiver:
         k_n = b.k_n
         b.bias_ep, b.drift_ep, b.dt_ep = np.empty(k_n), np.empty(k_n), np.empty(k_n)
         for e, t in enumerate(b.ts):
-            dt_s = 0.0 if self._t_prev is None else float(t - self._t_prev)
-            if dt_s > 0:
-                b.bias_ep[e], b.drift_ep[e], _ = self.clock.step(dt_s)
-            else:
-                b.bias_ep[e], b.drift_ep[e] = self.clock.bias_s, self.clock.steered_drift_sps
-            b.dt_ep[e] = dt_s
-            self._t_prev = t
+            b.bias_ep[e], b.drift_ep[e], b.dt_ep[e] = self._clock_step(t)
         if self.threats is not None and (jump := self.threats.clock_offset_s(b.ts)) is not None:
             b.bias_ep = b.bias_ep + jump      # a receiver clock fault (core/threats/faults.py)
         if k_n == 1:      # one epoch (a node)
@@ -279,6 +273,16 @@ class Receiver:
         else:
             b.t_true = GnssTime(np.array([np.asarray(t.sec) for t in b.ts], dtype=np.int64),
                                 np.array([np.asarray(t.frac) for t in b.ts], dtype=float)) - b.bias_ep
+
+    def _clock_step(self, t) -> tuple:
+        """The receiver clock stepped to epoch tag ``t`` from the previous epoch (its own stream; not stepped at
+        the first epoch): (bias [s], drift [s/s], interval [s])."""
+        dt_s = 0.0 if self._t_prev is None else float(t - self._t_prev)
+        self._t_prev = t
+        if dt_s > 0:
+            bias, drift, _ = self.clock.step(dt_s)
+            return bias, drift, dt_s
+        return self.clock.bias_s, self.clock.steered_drift_sps, dt_s
 
     def _satellites_above_horizon(self, b: _Block, states, epoch_of_row, vis_state, attenuation_db) -> None:
         """The rows of ``states`` the receiver looks at (received systems, above the horizon): az/el, visibility."""

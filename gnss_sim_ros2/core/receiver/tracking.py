@@ -439,3 +439,89 @@ class Tracker:
     def is_tracked(self, sv: str, code: str) -> bool:
         i = self._index.get((sv, code))
         return bool(i is not None and self._tracked[i])
+
+
+def update_trackers(trackers, ts, sv, code, cn0_dbhz, visible, seg):
+    """``trackers[r].update_many([ts[r]], rows seg[r]:seg[r + 1])`` for every tracker r (several receivers' one
+    epoch each, core/receiver/batch_observe.py; the trackers' configurations equal): (tracked, lli, lock_time_s,
+    ambiguity_cyc) per row, the bits of the separate calls.
+
+    What has no memory -- thresholds, the slip probabilities -- is evaluated once over every row; a tracker whose
+    epoch is steady (update_many's run of one epoch: its previous keys, nothing to acquire, lose or slip) is
+    filled from its own state with the others' steady rows, drawing its uniforms from its own stream as update
+    does; every other tracker goes through its own update."""
+    n_all = len(sv)
+    tracked = np.zeros(n_all, dtype=bool)
+    lli = np.zeros(n_all, dtype=np.int8)
+    lock = np.zeros(n_all)
+    amb = np.zeros(n_all, dtype=np.int64)
+    seg = np.asarray(seg, dtype=np.int64)
+    sv, code = np.asarray(sv, dtype=str), np.asarray(code, dtype=str)
+    cn0 = np.asarray(cn0_dbhz, dtype=np.float64)
+    vis = np.asarray(visible, dtype=bool)
+    c = trackers[0].config
+    ts = [t if isinstance(t, GnssTime) else float(t) for t in ts]
+    t_s = [tr._seconds(t) for tr, t in zip(trackers, ts)]
+    dt = [t - tr._t_prev if tr._t_prev is not None else 0.0 for tr, t in zip(trackers, t_s)]
+    n_ep = np.diff(seg)
+    bounds = seg.tolist()
+    if c.aided_cn0_dbhz is None:
+        thr_track, thr_acq = c.tracking_cn0_dbhz, c.acquisition_cn0_dbhz
+    else:
+        thr_track, thr_acq = np.empty(n_all), np.empty(n_all)
+        for r in range(len(trackers)):
+            s = slice(bounds[r], bounds[r + 1])
+            thr_track[s], thr_acq[s], _ = trackers[r]._thresholds(sv[s])
+    ok_track = vis & (cn0 >= thr_track)
+    stop_tracked = ~ok_track
+    if c.random_slips and n_all:
+        dt_row = np.repeat(np.array([d if d > 0 else 1.0 for d in dt]), n_ep)
+        stop_tracked |= slip_probability(np.where(ok_track, cn0, 99.0), dt_row, c.pll_bn_hz, c.pll_t_int_s) > 0
+    start_untracked = vis & (cn0 >= thr_acq)
+    # the steady candidates: their previous epoch's keys; steady when no row would change its state
+    cand, idx_of, held_of = [], [], []
+    for r, tr in enumerate(trackers):
+        j0, j1 = bounds[r], bounds[r + 1]
+        if j1 > j0 and dt[r] > 0:
+            idx = tr._rows(sv[j0:j1], code[j0:j1])
+            if idx is tr._idx_prev and tr._n == tr._n_prev:
+                cand.append(r)
+                idx_of.append(idx)
+                held_of.append(tr._tracked[idx])
+    steady = np.zeros(len(trackers), dtype=bool)
+    if cand:
+        held = np.concatenate(held_of)
+        rows = np.repeat(np.isin(np.arange(len(trackers)), cand), n_ep)
+        change = np.where(held, stop_tracked[rows], start_untracked[rows])
+        lens = n_ep[cand]
+        moved = np.logical_or.reduceat(change, np.concatenate([[0], np.cumsum(lens)[:-1]]))
+        steady[np.asarray(cand)[~moved]] = True
+        keep_c = np.repeat(~moved, lens)
+        if keep_c.any():
+            on = held[keep_c]
+            sel = [i for i, mv in enumerate(moved.tolist()) if not mv]
+            parts = []
+            for i in sel:
+                tr, idx = trackers[cand[i]], idx_of[i]
+                if c.random_slips and held_of[i].any():
+                    tr.rng.random(len(idx))           # the draws update makes (every slip probability is 0)
+                tr._cand_since[idx] = np.nan
+                tr._t_prev = t_s[cand[i]]
+                parts.append((tr._amb[idx], tr._lock_start[idx], tr._track_start[idx], tr._pilot[idx],
+                              tr._half_end[idx]))
+            amb_c, lock_start, track_start, pilot, half_end = (np.concatenate(p) for p in zip(*parts))
+            tt = np.repeat(np.array([t_s[cand[i]] for i in sel]), lens[sel])
+            at = np.repeat(steady, n_ep)
+            tracked[at] = on
+            amb[at] = amb_c
+            lock[at] = np.where(on, tt - lock_start, 0.0)
+            if c.half_cycle_flags:
+                half = on & ~pilot & (tt - track_start < half_end - 1e-9)
+                lli[np.flatnonzero(at)[half]] = LLI_HALF_CYCLE
+    for r, tr in enumerate(trackers):
+        if steady[r]:
+            continue
+        s = slice(bounds[r], bounds[r + 1])
+        out = tr.update(ts[r], sv[s], code[s], cn0[s], visible=vis[s])
+        tracked[s], lli[s], lock[s], amb[s] = out.tracked, out.lli, out.lock_time_s, out.ambiguity_cyc
+    return tracked, lli, lock, amb
