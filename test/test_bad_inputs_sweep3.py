@@ -79,6 +79,7 @@ def _cases(tmp: Path, write: bool = True):
     origin = WORLD.format(pose="0 0 0 0 0 0")
     lon400 = _write("lon400.sdf", origin.replace("<longitude_deg>11<", "<longitude_deg>400<"))
     up1e9 = _write("up1e9.sdf", origin.replace("<elevation>500<", "<elevation>1e9<"))
+    empty_materials = _write("materials.yaml", "# nothing yet\n")
     folder = tmp / "a folder"
     if write:
         folder.mkdir()
@@ -149,6 +150,8 @@ def _cases(tmp: Path, write: bool = True):
         ("synthetic-and-nav", ["simulate", "--duration", "2", "--quiet", *out, "--synthetic", "--nav",
                                tmp / "a.rnx"], ["option --synthetic and --nav", "reads no file"]),
         ("clk-without-sp3", [*sim, *out, "--clk", tmp / "a.clk"], ["option --clk", "--sp3"]),
+        ("export-materials-empty", ["export-world", COURTYARD, "--quiet", "--out", tmp / "w.ply", "--materials",
+                                    empty_materials], [f"materials file {empty_materials} is empty"]),
         ("skyplot-csv-is-default-skyline", [*sky, "--csv", tmp / "skyline.csv", "--png", tmp / "x.png"],
          ["options --csv and --skyline-csv", "same file"]),
     ]
@@ -247,3 +250,22 @@ def test_a_clock_file_that_is_not_one_is_refused(tmp_path):
                      "AR ABCD 2022 01 01 00 00  0.000000  1    1.0E-09\n")
     with pytest.raises(ValueError, match=r"empty\.clk: no satellite clock record \(AS\)"):
         read_rinex_clock(empty)
+
+
+def test_sp3_files_of_another_span_say_which_span_they_cover(tmp_path):
+    """SP3 files whose epochs all lie outside the span asked said "SP3 data have 0 epochs, fewer than the 11
+    interpolation points"; the error names the span asked and the one the files cover."""
+    from gnss_sim_ros2.core.ephemeris.sp3 import Sp3Ephemeris
+    from gnss_sim_ros2.core.time import GnssTime
+
+    lines = ["#dP2017  2 14  0  0  0.00000000      16 ORBIT IGS14 HLM  IGS", "+    1   G01", "%c G  cc GPS"]
+    for k in range(16):
+        lines += [f"*  2017  2 14  0 {k:2d}  0.00000000", "PG01  15000.000000  10000.000000  18000.000000      1.0"]
+    sp3 = tmp_path / "old.sp3"
+    sp3.write_text("\n".join([*lines, "EOF"]) + "\n")
+    start = GnssTime.from_iso("2022-01-01T00:00:00")
+    with pytest.raises(ValueError, match=r"old\.sp3: no epoch near the span asked \(2022-01-01T00:00:00 \.\. "
+                                         r"2022-01-01T01:00:00 GPS\): the files cover 2017-02-14T00:00:00 \.\. "
+                                         r"2017-02-14T00:15:00"):
+        Sp3Ephemeris.from_files([sp3], start=start, end=start + 3600.0)
+    assert len(Sp3Ephemeris.from_files([sp3]).svs()) == 1          # the file itself reads

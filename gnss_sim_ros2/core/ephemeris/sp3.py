@@ -348,6 +348,11 @@ class Sp3Ephemeris:
             if end is not None:
                 keep &= tf <= end.to_gps_seconds() + margin
             idx = np.flatnonzero(keep)
+            if len(idx) == 0 and len(tf):     # was "SP3 data have 0 epochs": the files cover another span
+                lo, hi = grid[0], grid[len(tf) - 1]
+                asked = " .. ".join(t.isoformat("GPS") for t in (start, end) if t is not None)
+                raise ValueError(f"{', '.join(map(str, sp3_paths))}: no epoch near the span asked ({asked} GPS): "
+                                 f"the files cover {lo.isoformat('GPS')} .. {hi.isoformat('GPS')}")
             grid, pos, clk = grid[idx], pos[idx], clk[idx]
         try:
             return cls(grid, svs, pos, clk, clk_files=clk_files, **kwargs)

@@ -177,7 +177,9 @@ def load_materials_yaml(path) -> MaterialTable:
         text = read_utf8(path, f"materials file {path}")
     except OSError as exc:
         raise ValueError(f"materials file {path}: cannot read: {exc}") from exc
-    data = yaml_file.parse(text, yaml_file.unique_keys(yaml.SafeLoader), f"materials file {path}") or {}
+    data = yaml_file.parse(text, yaml_file.unique_keys(yaml.SafeLoader), f"materials file {path}")
+    if data is None or data == {}:     # an empty file gave the built-in table without a word
+        raise ValueError(f"materials file {path} is empty: give 'classes' and/or 'rules' (or leave the option out)")
     if not isinstance(data, dict):
         raise ValueError(f"materials file {path}: top level must be a mapping with 'classes' and/or 'rules'")
     unknown = sorted(set(data) - {"classes", "rules", "foliage_names", "opaque_names"})
