@@ -125,6 +125,15 @@ def _attach_negative_values(parser: argparse.ArgumentParser, argv: list[str]) ->
     return out
 
 
+def _option_action(by_string: dict, opt: str):
+    """The action of option ``opt`` as argparse resolves it: the option itself, or the one option it abbreviates
+    (``--dur`` for --duration); None otherwise."""
+    if opt in by_string:
+        return by_string[opt]
+    matches = {id(a): a for s, a in by_string.items() if opt.startswith("--") and s.startswith(opt)}
+    return next(iter(matches.values())) if len(matches) == 1 else None
+
+
 def _check_values(parser: argparse.ArgumentParser, args, tokens: list[str]) -> list[tuple[str, str]]:
     """Refuse (exit 2, one line) an empty or blank value of an option or argument, naming it (``--out ''``
     meant the current folder, ``--position ''`` the configuration's position, ``--rtcm ''`` the default file, a
@@ -146,11 +155,11 @@ def _check_values(parser: argparse.ArgumentParser, args, tokens: list[str]) -> l
             current = None
             continue
         opt, eq, value = token.partition("=") if token.startswith("--") else (token, "", "")
-        action = by_string.get(opt) if token.startswith("-") else None
+        action = _option_action(by_string, opt) if token.startswith("-") else None
         if action is not None:
             if action.nargs != 0 and not isinstance(action, argparse._AppendAction):
                 if action.dest in seen:
-                    twice[action.dest] = opt
+                    twice[action.dest] = max(action.option_strings, key=len)      # --duration for --dur
                 seen.add(action.dest)
             current = None if eq or action.nargs == 0 else action
             if eq and not value.strip():

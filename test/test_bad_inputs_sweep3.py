@@ -94,6 +94,7 @@ def _cases(tmp: Path, write: bool = True):
          ["option --position", "empty value"]),
         ("rtcm-empty", [*sim, *out, "--rtcm", ""], ["option --rtcm", "empty value"]),
         ("marker-blank", [*sim, *out, "--marker", "  "], ["option --marker", "empty value"]),
+        ("marker-abbreviated-empty", [*sim, *out, "--mark="], ["option --marker", "empty value ''"]),
         ("nav-empty-element", ["simulate", "--duration", "2", *static, *out, "--nav", tmp / "a.rnx", ""],
          ["option --nav", "empty value"]),
         ("export-world-empty", ["export-world", "", "--out", tmp / "w.ply"], ["argument WORLD.sdf", "empty value"]),
@@ -196,6 +197,9 @@ def test_an_option_given_twice_is_said(tmp_path, capsys):
     assert "warning: option --duration is given more than once: the last (3.0) is used" in text, text
     assert "option --position is given more than once: the last (-33.9,151.2,10) is used" in text, text
     assert "epochs 4" in text, text
+    rc, text = run_cli(["simulate", "--duration", "2", "--position", "48,11,500", "--out", tmp_path / "out",
+                        "--dur", "3"], capsys)          # an abbreviation argparse takes for --duration
+    assert rc == 0 and "option --duration is given more than once: the last (3.0) is used" in text, text
     rc, text = run_cli(["simulate", "--duration", "2", "--position", "48,11,500", "--out", tmp_path / "out"], capsys)
     assert rc == 0 and "more than once" not in text, text
 
