@@ -25,6 +25,7 @@ import numpy as np
 from ..ephemeris.states import ROW_FIELDS, SatelliteStates
 from ..memo import BoundedCache
 from ..time import GnssTime
+from .code_multipath import advance_states
 from .engine import Receiver, _Block
 from .observations import EpochObservations
 from .tracking import update_trackers
@@ -94,7 +95,7 @@ def _same_pass(a: Receiver, b: Receiver) -> bool:
     ephemeris provider, the same true ionosphere (model and coefficients)."""
     if a.provider is not b.provider or a.iono_truth != b.iono_truth:
         return False
-    if not (np.array_equal(a.iono_alpha, b.iono_alpha) and np.array_equal(a.iono_beta, b.iono_beta)):
+    if not (_same_bits(a.iono_alpha, b.iono_alpha) and _same_bits(a.iono_beta, b.iono_beta)):
         return False
     if (a._nequick is None) != (b._nequick is None) or (
             a._nequick is not None and a._nequick.coefficients != b._nequick.coefficients):
@@ -107,6 +108,15 @@ def _same_pass(a: Receiver, b: Receiver) -> bool:
         hit = _SAME_CONFIG.put(key, (a.cfg, b.cfg, all(f.name == "seed" or getattr(a.cfg, f.name) ==
                                                        getattr(b.cfg, f.name) for f in fields(a.cfg))))
     return hit[2]
+
+
+def _same_bits(x, y) -> bool:
+    """Arrays of the same shape, type and bytes (stricter than equal values: -0.0 is not 0.0; what gives the same
+    bits is all a shared pass needs)."""
+    if x is y:
+        return True
+    x, y = np.asarray(x), np.asarray(y)
+    return x.shape == y.shape and x.dtype == y.dtype and x.tobytes() == y.tobytes()
 
 
 def observe_block(rxs: list[Receiver], epochs: list[ReceiverEpoch], prepared) -> list[EpochObservations]:
@@ -162,7 +172,10 @@ def _stacked_states(parts: list[SatelliteStates], n_r: list[int]) -> SatelliteSt
         return SatelliteStates.concatenate(parts)
     t = GnssTime(np.repeat(np.array([p.t.sec for p in parts], dtype=np.int64), n_r),
                  np.repeat(np.array([p.t.frac for p in parts], dtype=float), n_r))
-    kw = {name: np.concatenate([np.asarray(getattr(p, name)) for p in parts]) for name in ROW_FIELDS}
+    if all(p is parts[0] for p in parts):          # the fleet node's robots share one decoded message's states
+        kw = {name: np.concatenate([np.asarray(getattr(parts[0], name))] * len(parts)) for name in ROW_FIELDS}
+    else:
+        kw = {name: np.concatenate([np.asarray(getattr(p, name)) for p in parts]) for name in ROW_FIELDS}
     return SatelliteStates(t=t, source=parts[0].source, **kw)
 
 
@@ -176,16 +189,23 @@ def _tracking(rxs, b: _Block) -> None:
 
 def _noise_draws(rxs, b: _Block):
     """(z_cn0, r, mp_x) of every signal row, each receiver's from its own streams (Receiver._noise_draws of its
-    epoch alone)."""
-    z, r3, mp = [], [], []
+    epoch alone: C/N0, code, phase and Doppler noise as blocks of its m rows from rng_noise, the code multipath's
+    innovations from its own stream), the code multipath states of every receiver advanced at once."""
+    cfg, m = rxs[0].cfg, b.m
+    if not cfg.noise:
+        return np.zeros(m), np.zeros((3, m)), np.zeros(m)
+    lead = 1 if cfg.cn0_noise_db > 0 else 0
+    w, w_mp, models, slots, dt = [], [], [], [], []
+    bounds = b.sig_seg.tolist()
     for r, rx in enumerate(rxs):
-        j0, j1 = int(b.sig_seg[r]), int(b.sig_seg[r + 1])
+        j0, j1 = bounds[r], bounds[r + 1]
         if j0 == j1:                     # alone: no signal row, no draw (Receiver.epochs returns before)
             continue
-        m = j1 - j0
-        zc, rr, mx = rx._noise_draws(m, np.array([0, m]), np.array([m]), np.zeros(m, dtype=np.int64),
-                                     np.array([False]), b.dt_ep[r:r + 1], b.rows.mp_idx[j0:j1])
-        z.append(zc)
-        r3.append(rr)
-        mp.append(mx)
-    return np.concatenate(z), np.concatenate(r3, axis=1), np.concatenate(mp)
+        w.append(rx.rng_noise.standard_normal((3 + lead) * (j1 - j0)).reshape(3 + lead, j1 - j0))
+        w_mp.append(rx.code_multipath.rng.standard_normal(j1 - j0))
+        models.append(rx.code_multipath)
+        slots.append(b.rows.mp_idx[j0:j1])
+        dt.append(b.dt_ep[r])
+    w = np.concatenate(w, axis=1)
+    mp_x = advance_states(models, slots, dt, np.concatenate(w_mp))
+    return (w[0] if lead else np.zeros(m)), w[lead:], mp_x

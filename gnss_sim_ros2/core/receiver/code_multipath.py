@@ -32,6 +32,27 @@ def check_table(table):
     return table
 
 
+def _advanced(prev, phi, w):
+    """Unit-variance Gauss-Markov states ``prev`` (NaN: not seen yet) advanced with correlation ``phi`` (scalar or
+    per state) and unit draws ``w``."""
+    return np.where(np.isnan(prev), w, phi * prev + np.sqrt(1 - phi * phi) * w)
+
+
+def advance_states(models, slots, dt_s, w):
+    """``models[i].state(slots[i], dt_s[i], w_i)`` for every i at once (several receivers' one epoch each,
+    core/receiver/batch_observe.py): ``w`` the draws of every part one after another; each model's own states
+    read and written.  The bits of the separate calls (the same operations per element)."""
+    n = [len(i) for i in slots]
+    prev = np.concatenate([mdl._x[i] for mdl, i in zip(models, slots)])
+    phi = np.repeat(np.array([mdl._phi(dt) for mdl, dt in zip(models, dt_s)], dtype=float), n)
+    x = _advanced(prev, phi, w)
+    j = 0
+    for mdl, i, k in zip(models, slots, n):
+        mdl._x[i] = x[j:j + k]
+        j += k
+    return x
+
+
 class CodeMultipath:
     """The Gauss-Markov states, one slot per (sv, code) kept for the receiver's lifetime (NaN until first seen)."""
 
@@ -79,13 +100,15 @@ class CodeMultipath:
     def state(self, idx, dt_s, w=None):
         """Unit-variance Gauss-Markov states of the slots ``idx`` advanced by ``dt_s`` (one draw each: ``w``, or
         drawn now)."""
-        phi = np.exp(-dt_s / self.cfg.mp_tau_s) if dt_s > 0 else 0.0
         if w is None:
             w = self.rng.standard_normal(len(idx))
-        prev = self._x[idx]
-        x = np.where(np.isnan(prev), w, phi * prev + np.sqrt(1 - phi * phi) * w)
+        x = _advanced(self._x[idx], self._phi(dt_s), w)
         self._x[idx] = x
         return x
+
+    def _phi(self, dt_s):
+        """The states' correlation over ``dt_s`` (0 when no time passed: a fresh draw)."""
+        return np.exp(-dt_s / self.cfg.mp_tau_s) if dt_s > 0 else 0.0
 
     def values_m(self, sv_j, codes, el_deg, dt_s):
         """Code multipath [m] of signals (sv_j, codes) at elevations ``el_deg``, ``dt_s`` after the last step."""
