@@ -8,7 +8,12 @@ run once over robots x satellites x signals, and each robot's own state acts on 
 (stepped from its own last epoch), its signal rows (its code multipath's slots), its tracking loops, its noise
 streams (rng_noise and the code multipath's, drawn in the order and counts of its epoch alone).  So every robot's
 EpochObservations are the bits its ReceiverChain.observe gives alone (test/test_batch_observe.py), as
-core/receiver/batch_fix.py does for the fixes.
+core/receiver/batch_fix.py does for the fixes.  Where a stage with memory has arithmetic, it runs once over
+every robot's rows too, each robot's state gathered from and written back to its own object: the tracking step
+(tracking.update_trackers: thresholds, slip probabilities, the steady robots' outputs), the code multipath
+states (code_multipath.advance_states), the true reception times; only the draws from each robot's streams and
+its clock's step stay a call per robot.  The geodetic position stays per robot too: ecef_to_geodetic of one
+point is computed in Python's math (libm), of an array in numpy, whose bits differ.
 
 What cannot share a pass goes through the receiver's own path (ReceiverChain.observe, one robot at a time): a
 receiver alone in its group (configurations differ beyond the seed: profile, systems, models...; another
