@@ -12,30 +12,23 @@ import numpy as np
 import pytest
 
 from gnss_sim_ros2.core.calibration.reading import read_recording
-from gnss_sim_ros2.core.calibration.signal_stats import arc_ids
+from gnss_sim_ros2.core.calibration.signal_stats import GAP_INTERVALS
+from gnss_sim_ros2.core.calibration.track_events import TAIL_PERCENT, track_events
 from gnss_sim_ros2.core.receiver.profiles import load_profile
 
 FIRST_SIGNALS = (("G", "S1C"), ("E", "S1C"), ("C", "S2I"))
-TAIL_PERCENT = 5.0
 
 
 def _start_end_cn0(rec, system, code):
-    """(C/N0 at arc starts after the file's first epoch, C/N0 at arc ends before its last) [dB-Hz]."""
+    """(C/N0 at every track start after the file's first epoch, at every track end before its last) [dB-Hz]: rises
+    and sets included (core/calibration/track_events, the arcs calibrate forms)."""
     cols = np.array([sv.startswith(system) for sv in rec.table.sv])
     cn0 = rec.table.values[code][:, cols]
-    valid = np.isfinite(cn0) & (cn0 > 0) & np.isfinite(rec.el_deg[:, cols])
+    el = rec.el_deg[:, cols]
+    valid = np.isfinite(cn0) & (cn0 > 0) & np.isfinite(el)
     t_s = (rec.table.time - rec.table.time[0]).astype("timedelta64[ns]").astype(np.int64) / 1e9
-    arcs = arc_ids(valid, t_s, max_gap_s=1.5 * rec.interval_s)
-    starts, ends = [], []
-    last = len(t_s) - 1
-    for a in range(int(arcs.max()) + 1):
-        r, c = np.nonzero(arcs == a)
-        i0, i1 = np.argmin(r), np.argmax(r)
-        if r[i0] > 0:
-            starts.append(cn0[r[i0], c[i0]])
-        if r[i1] < last:
-            ends.append(cn0[r[i1], c[i1]])
-    return np.array(starts), np.array(ends)
+    ev = track_events(valid, cn0, el, t_s, max_gap_s=GAP_INTERVALS * rec.interval_s + 1e-3)
+    return ev.start_cn0_dbhz, ev.end_cn0_dbhz
 
 
 @pytest.fixture(scope="module")

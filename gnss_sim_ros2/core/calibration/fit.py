@@ -15,10 +15,14 @@ What is fitted and how:
   DLL bandwidth, correlator spacing, integration time and front end), floored at 0, made non-increasing with
   elevation (pool-adjacent-violators); bins beyond the signal's range filled like the C/N0 (the reference's
   shape scaled);
-- ``tracking``: acquisition / tracking thresholds = the fitted C/N0 table of each system's first signal at the
-  median elevation of its rising / setting arcs below ``MAX_RISE_SET_EL_DEG``, median over systems
-  (table_thresholds: the simulated arcs start and end where the real ones do in the median; their spread comes
-  from the satellites' power, not from the threshold); without tables the median measured C/N0 at arc ends;
+- ``tracking``: acquisition / tracking thresholds where the receiver itself starts and ends its tracks
+  (event_thresholds): per system's first signal the ``TAIL_PERCENT`` (5th) percentile of the C/N0 at its track
+  starts / ends away from a rise / set (core/calibration/track_events.py: reacquisitions after a gap, losses while
+  the satellite stays up; the rise and set of an open sky are the horizon's, not the receiver's), with at least
+  ``MIN_TRACK_EVENTS`` of them; median over systems; the tracking threshold at least ``HYSTERESIS_DB`` under the
+  acquisition one; with too few events in every system the lowest C/N0 the receiver holds (``HELD_PERCENT``, 5th,
+  percentile over the first signals' tracks of each track's lowest C/N0), or the base profile's value where lower
+  (the file only bounds it; with a scene the base profile's), said in the notes;
   ``aided_cn0_dbhz``: the lowest table C/N0 at which the other signals set (they are tracked aided by the
   first; aided_threshold);
   ``start`` warm when under ``COLD_LLI_SHARE`` of the phases carry LLI bit 0 at the first epoch;
@@ -48,6 +52,7 @@ from ..signal_plans import default_plans, gps_day
 from ..signals import SIGNALS
 from .reading import gnss_times
 from .signal_stats import RecordingStats, SignalStats
+from .track_events import HELD_PERCENT, threshold_from_events
 
 #: an elevation bin needs this many samples to enter a table
 MIN_BIN_SAMPLES = 30
@@ -57,10 +62,12 @@ LOW_SHAPE_EL_DEG = 10.0
 MAX_LOW_SLOPE_DB_PER_DEG = 1.5
 #: the DLL thermal noise may exceed the measured code noise in this share of the elevation bins (fit_dll_bn_hz)
 DLL_EXCEED_SHARE = 0.05
-#: arcs starting / ending above this elevation are re-acquisitions, not rises / sets [deg]
+#: arcs starting / ending above this elevation are re-acquisitions, not rises / sets (aided_threshold) [deg]
 MAX_RISE_SET_EL_DEG = 30.0
-#: the thresholds need this many rising and setting arcs (all signals together)
-MIN_ARCS = 3
+#: a system's threshold needs this many track starts (ends) away from rise (set) on its first signal
+MIN_TRACK_EVENTS = 15
+#: the tracking threshold lies at least this far under the acquisition threshold [dB]
+HYSTERESIS_DB = 1.0
 #: a satellite tracked on other signals this many epochs but never on one is excluded from it (excluded_signals)
 MIN_EXCLUDE_EPOCHS = 20
 #: the zenith C/N0 scatter is measured at and above this elevation [deg]
@@ -257,24 +264,49 @@ def zenith_cn0_scatter_db(stats: RecordingStats) -> float:
     return math.sqrt(max(s2 / n - stats.cn0_resolution_db**2 / 12.0, 0.0))
 
 
-def table_thresholds(stats: RecordingStats, signals: dict, cn0_table: dict) -> tuple[float, float]:
-    """(acquisition, tracking) thresholds [dB-Hz] at which a receiver whose C/N0 follows the fitted tables rises and
-    sets where the real one did: per system, its first signal's table at the median elevation of that signal's
-    rising / setting arcs below MAX_RISE_SET_EL_DEG; the median over systems (NaN without tables or arcs).  The
-    measured C/N0 at arc ends lies below the table's low bins (5-deg means), so thresholds taken from it would let
-    simulated satellites set at the horizon (ESBC: fitted 24.4 dB-Hz against a table of 30 dB-Hz at 0 deg)."""
-    acq, trk = [], []
+def event_thresholds(stats: RecordingStats, signals: dict, base_tracking: dict | None = None
+                     ) -> tuple[float, float, list[str]]:
+    """(acquisition, tracking) thresholds [dB-Hz] and notes: per system, its first signal's TAIL_PERCENT percentile
+    of the C/N0 at track starts / ends away from rise and set (track_events.py) with at least MIN_TRACK_EVENTS of
+    them, the median over systems.  A threshold no system gives enough events for falls back to the lowest C/N0 the
+    receiver holds (median over systems of track_events' lowest_held_dbhz): the receiver held that, so its threshold
+    is at most there; the ``base_tracking`` profile's value where it is lower (the file does not say it is higher:
+    a short span whose tracks never reach the receiver's limit); with a line-of-sight selection (a scene) the
+    base profile's value.  A note says which (NaN: no C/N0 at all)."""
+    acq, trk, held, n_starts, n_ends = [], [], [], 0, 0
     for sys_, codes in signals.items():
-        key = sys_ + codes[0]
-        st, tab = stats.signals.get(key), cn0_table.get(key)
-        if st is None or tab is None:
+        st = stats.signals.get(sys_ + codes[0])
+        ev = None if st is None else st.track_events
+        if ev is None:
             continue
-        for el, out in ((st.rise_el_deg, acq), (st.set_el_deg, trk)):
-            el = np.asarray(el, dtype=float)
-            el = el[np.isfinite(el) & (el < MAX_RISE_SET_EL_DEG)]
-            if el.size:
-                out.append(float(np.interp(np.median(el), tab["el_deg"], tab["cn0_dbhz"])))
-    return _median(acq), _median(trk)
+        n_starts, n_ends = n_starts + ev.acquisitions_dbhz.size, n_ends + ev.losses_dbhz.size
+        acq.append(threshold_from_events(ev.acquisitions_dbhz, MIN_TRACK_EVENTS))
+        trk.append(threshold_from_events(ev.losses_dbhz, MIN_TRACK_EVENTS))
+        held.append(ev.lowest_held_dbhz)
+    notes, out = [], []
+    low = _median(held)
+    for vals, field, what, n in ((acq, "acquisition_cn0_dbhz", "track starts after a gap", n_starts),
+                                 (trk, "tracking_cn0_dbhz", "track ends", n_ends)):
+        v = _median(vals)
+        base_v = (base_tracking or {}).get(field)
+        if not np.isfinite(v) and stats.scene and base_v is not None:
+            # the scene's line of sight keeps weak tracks the model calls clear (HK drive: 13 dB-Hz): no bound
+            v = float(base_v)
+            notes.append(f"tracking.{field}: {n} {what} away from rise / set in the line of sight on the systems' "
+                         f"first signals, fewer than {MIN_TRACK_EVENTS} on each: set to the base profile's "
+                         f"{base_v:g} dB-Hz")
+        elif not np.isfinite(v) and np.isfinite(low):
+            v = low
+            why = (f"the lowest C/N0 the receiver holds ({HELD_PERCENT:g} % percentile over its tracks of each "
+                   f"track's lowest C/N0), {low:.1f} dB-Hz")
+            if base_v is not None and float(base_v) < low:
+                v = float(base_v)
+                why = f"the base profile's {base_v:g} dB-Hz (under the lowest C/N0 the receiver holds, {low:.1f})"
+            notes.append(f"tracking.{field}: {n} {what} away from rise / set on the systems' first signals, fewer "
+                         f"than {MIN_TRACK_EVENTS} on each (an open sky's tracks start and end at the horizon): "
+                         f"set to {why}")
+        out.append(v)
+    return out[0], out[1], notes
 
 
 def aided_threshold(stats: RecordingStats, signals: dict, cn0_table: dict) -> float:
@@ -331,7 +363,8 @@ def fit_profile(stats: RecordingStats, header: dict, source_file: str, name: str
                 base_profile: str | None = None) -> tuple[dict, list]:
     """(profile dict in the YAML schema, notes): what could not be fitted and why, for the report.
     ``base_profile``: the built-in profile of the receiver's class (default: guessed from the RINEX header's
-    receiver type); its loops and front end are used, and its tracking thresholds where the recording gives none."""
+    receiver type); its loops and front end are used, and its tracking thresholds where they lie under what the
+    recording bounds them by (event_thresholds)."""
     notes: list[str] = []
     signals: dict[str, list[str]] = {}
     for key, st in stats.signals.items():
@@ -384,30 +417,16 @@ def fit_profile(stats: RecordingStats, header: dict, source_file: str, name: str
         else:
             code_mp[key] = t
 
-    def arc_cn0(cn0, el):
-        ok = np.isfinite(cn0) & (el < MAX_RISE_SET_EL_DEG)
-        return cn0[ok]
-
-    rise = [arc_cn0(st.rise_cn0_dbhz, st.rise_el_deg) for st in stats.signals.values()]
-    sets = [arc_cn0(st.set_cn0_dbhz, st.set_el_deg) for st in stats.signals.values()]
     tracking: dict = {}
-    if sum(r.size for r in rise) >= MIN_ARCS and sum(r.size for r in sets) >= MIN_ARCS:
-        acq, trk = table_thresholds(stats, signals, cn0_table)
-        if not (np.isfinite(acq) and np.isfinite(trk)):
-            acq = _median(np.median(r) for r in rise if r.size)
-            trk = _median(np.median(r) for r in sets if r.size)
-        tracking["acquisition_cn0_dbhz"] = round(acq, 1)
-        tracking["tracking_cn0_dbhz"] = round(min(trk, acq - 1.0), 1)
-        aided = aided_threshold(stats, signals, cn0_table)
-        if np.isfinite(aided) and aided < tracking["tracking_cn0_dbhz"]:
-            tracking["aided_cn0_dbhz"] = round(aided, 1)
-    elif has_cn0:
-        base_tr = base.get("tracking") or {}
-        for f in ("acquisition_cn0_dbhz", "tracking_cn0_dbhz"):
-            if base_tr.get(f) is not None:
-                tracking[f] = float(base_tr[f])
-        notes.append(f"fewer than {MIN_ARCS} rising or setting arcs (below {MAX_RISE_SET_EL_DEG:g} deg) in the span: "
-                     f"tracking thresholds of the {traits_name} profile")
+    if has_cn0:
+        acq, trk, t_notes = event_thresholds(stats, signals, base.get("tracking"))
+        notes += t_notes
+        if np.isfinite(acq) and np.isfinite(trk):
+            tracking["acquisition_cn0_dbhz"] = round(acq, 1)
+            tracking["tracking_cn0_dbhz"] = round(min(trk, acq - HYSTERESIS_DB), 1)
+            aided = aided_threshold(stats, signals, cn0_table)
+            if np.isfinite(aided) and aided < tracking["tracking_cn0_dbhz"]:
+                tracking["aided_cn0_dbhz"] = round(aided, 1)
     first = stats.lli_share("lli_first")
     if first["n"]:
         tracking["start"] = "cold" if first["bit0"] / first["n"] >= COLD_LLI_SHARE else "warm"

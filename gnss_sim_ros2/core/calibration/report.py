@@ -10,9 +10,10 @@ import numpy as np
 
 from ..markdown_table import fmt
 from ..markdown_table import md_table as _md_table
-from .fit import dll_noise_m
+from .fit import MIN_TRACK_EVENTS, dll_noise_m
 from .reading import Recording
 from .signal_stats import RecordingStats
+from .track_events import HORIZON_MARGIN_DEG, TAIL_PERCENT
 
 
 def _interp(table: dict | None, key: str, el: float) -> float:
@@ -121,7 +122,12 @@ def write_report(rec: Recording, stats: RecordingStats, profile: dict, notes: li
           "(Estey & Meertens 1999, TEQC), mean removed per continuous arc (split at LLI bit 0, gaps over 2 "
           "intervals, jumps over 5 sigma); the profile's code_multipath_m is its sigma minus the DLL thermal noise "
           f"(B_n {profile['dll_bn_hz']:g} Hz, spacing {profile['dll_spacing_chips']:g} chip) in quadrature.",
-          "- Rise / set: elevation at the first / last epoch of arcs that rise / set inside the span.", ""]
+          "- Rise / set: elevation at the first / last epoch of arcs that rise / set inside the span.",
+          f"- Tracking thresholds: {TAIL_PERCENT:g} % percentile of the C/N0 at the first signal's track starts "
+          f"(acquisition) and ends (loss) away from a satellite's rise / set (within {HORIZON_MARGIN_DEG:g} deg of "
+          f"it: the horizon's, not the receiver's), median over systems, with {MIN_TRACK_EVENTS} such events per "
+          "system; else the lowest C/N0 the receiver holds (\"Not fitted\" above; core/calibration/track_events.py).",
+          ""]
     rows = []
     cn0_tab = profile.get("link_budget", {}).get("cn0_table_dbhz", {})
     mp_tab = profile.get("code_multipath_m", {})

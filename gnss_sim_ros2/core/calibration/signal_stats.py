@@ -12,6 +12,8 @@ each (epoch, satellite):
   per continuous arc.  The constant is removed per arc (arcs split at LLI bit 0 on either phase, gaps over
   ``GAP_INTERVALS`` intervals and jumps over ``JUMP_SIGMAS`` sigma of the epoch differences); the standard
   deviation of what remains per elevation bin and per C/N0 bin;
+- track starts / ends with their C/N0, at a rise / set or away from it (core/calibration/track_events.py: the
+  tracking thresholds);
 - tracking arcs (the signal's code or C/N0 present, split at gaps): rise and set elevations (first / last epoch of
   arcs where the satellite rises / sets; an arc starting at the span's first epoch gives no rise, one ending at
   its last no set), C/N0 there;
@@ -34,12 +36,16 @@ from __future__ import annotations
 import math
 import warnings
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..rinex.obs_table import ObsTable
 from ..signals import SIGNALS
 from .reading import CALIBRATED_SYSTEMS
+
+if TYPE_CHECKING:
+    from .track_events import TrackEvents
 
 #: a gap longer than this many epoch intervals ends an arc
 GAP_INTERVALS = 2.0
@@ -84,6 +90,8 @@ class SignalStats:
     n_code: int = 0                      #: code observations in the span (any elevation, known or not)
     #: with a line-of-sight selection: C/N0 samples with a known elevation, all / in the line of sight
     los_samples: tuple[int, int] | None = None
+    #: C/N0 at track starts / ends, at rise / set or not (core/calibration/track_events.py; tracking thresholds)
+    track_events: TrackEvents | None = None
 
     @property
     def system(self) -> str:
@@ -112,6 +120,7 @@ class SignalStats:
                 "cn0_scatter_db": arr([self.cn0_scatter_db])[0],
                 "cn0_scatter_by_el_db": arr(self.cn0_scatter_by_el_db), "lli_first": self.lli_first,
                 "lli_arc_start": self.lli_arc_start} | (
+            {} if self.track_events is None else {"track_events": self.track_events.to_json()}) | (
             {} if self.los_samples is None else {"cn0_samples_all": self.los_samples[0],
                                                  "cn0_samples_line_of_sight": self.los_samples[1]})
 
@@ -275,6 +284,8 @@ def signal_statistics(tab: ObsTable, el_deg: np.ndarray, interval_s: float | Non
                       bin_deg: float = 5.0, los: np.ndarray | None = None, scene: str = "") -> RecordingStats:
     """Per-signal statistics of ``tab`` with ``el_deg`` ((E, S) elevation of ``tab.sv``, NaN unknown); ``los``:
     (E, S) bool line-of-sight selection (module docstring; None: every sample), ``scene`` its source's name."""
+    from .track_events import track_events  # it builds on arc_ids of this module
+
     if bin_deg <= 0 or 90.0 % bin_deg:
         raise ValueError(f"signal statistics: bin_deg {bin_deg!r} must divide 90")
     t_s = (tab.time - tab.time[0]).astype("timedelta64[ns]").astype(np.int64) / 1e9 if len(tab.time) else np.zeros(0)
@@ -286,6 +297,9 @@ def signal_statistics(tab: ObsTable, el_deg: np.ndarray, interval_s: float | Non
     sysc = np.array([s[0] for s in tab.sv.tolist()])
     out: dict[str, SignalStats] = {}
     n_e = len(tab.time)
+    seen = np.zeros((n_e, len(tab.sv)), dtype=bool)        # the satellite observed on any signal (its passes)
+    for a in tab.values.values():
+        seen |= np.isfinite(a)
     for key in signal_keys(tab):
         system, code = key[0], key[1:]
         cols = sysc == system
@@ -319,6 +333,7 @@ def signal_statistics(tab: ObsTable, el_deg: np.ndarray, interval_s: float | Non
         st.rise_el_deg, st.set_el_deg = el_a[rising], el_b[setting]
         st.rise_cn0_dbhz = cn0[first_ep[rising, 0], first_ep[rising, 1]]
         st.set_cn0_dbhz = cn0[last_ep[setting, 0], last_ep[setting, 1]]
+        st.track_events = track_events(present, cn0, el, t_s, max_gap, seen[:, cols], sel)
 
         # C/N0 scatter, epoch to epoch within arcs
         same = (arcs[1:] == arcs[:-1]) & (arcs[1:] >= 0)
