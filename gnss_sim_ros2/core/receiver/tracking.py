@@ -351,14 +351,7 @@ class Tracker:
         changes no state but the time: a run of such epochs is filled together, its uniform draws (one per
         key and epoch, as update makes them) taken in one call; every other epoch goes through update."""
         n_all = len(sv)
-        tracked = np.zeros(n_all, dtype=bool)
-        lli = np.zeros(n_all, dtype=np.int8)
-        lock = np.zeros(n_all)
-        amb = np.zeros(n_all, dtype=np.int64)
-        seg = np.asarray(seg, dtype=np.int64)
-        sv, code = np.asarray(sv, dtype=str), np.asarray(code, dtype=str)
-        cn0 = np.asarray(cn0_dbhz, dtype=np.float64)
-        vis = np.asarray(visible, dtype=bool)
+        (tracked, lli, lock, amb), (seg, sv, code, cn0, vis) = _rows_io(seg, sv, code, cn0_dbhz, visible)
         c = self.config
         ts = [t if isinstance(t, GnssTime) else float(t) for t in ts]
         t_s = [self._seconds(t) for t in ts]
@@ -441,6 +434,16 @@ class Tracker:
         return bool(i is not None and self._tracked[i])
 
 
+def _rows_io(seg, sv, code, cn0_dbhz, visible):
+    """The outputs (tracked, lli, lock_time_s, ambiguity_cyc) of update_many / update_trackers, zeroed per row, and
+    their inputs (seg, sv, code, cn0_dbhz, visible) as arrays."""
+    n_all = len(sv)
+    out = (np.zeros(n_all, dtype=bool), np.zeros(n_all, dtype=np.int8), np.zeros(n_all),
+           np.zeros(n_all, dtype=np.int64))
+    return out, (np.asarray(seg, dtype=np.int64), np.asarray(sv, dtype=str), np.asarray(code, dtype=str),
+                 np.asarray(cn0_dbhz, dtype=np.float64), np.asarray(visible, dtype=bool))
+
+
 def update_trackers(trackers, ts, sv, code, cn0_dbhz, visible, seg):
     """``trackers[r].update_many([ts[r]], rows seg[r]:seg[r + 1])`` for every tracker r (several receivers' one
     epoch each, core/receiver/batch_observe.py; the trackers' configurations equal): (tracked, lli, lock_time_s,
@@ -451,14 +454,7 @@ def update_trackers(trackers, ts, sv, code, cn0_dbhz, visible, seg):
     filled from its own state with the others' steady rows, drawing its uniforms from its own stream as update
     does; every other tracker goes through its own update."""
     n_all = len(sv)
-    tracked = np.zeros(n_all, dtype=bool)
-    lli = np.zeros(n_all, dtype=np.int8)
-    lock = np.zeros(n_all)
-    amb = np.zeros(n_all, dtype=np.int64)
-    seg = np.asarray(seg, dtype=np.int64)
-    sv, code = np.asarray(sv, dtype=str), np.asarray(code, dtype=str)
-    cn0 = np.asarray(cn0_dbhz, dtype=np.float64)
-    vis = np.asarray(visible, dtype=bool)
+    (tracked, lli, lock, amb), (seg, sv, code, cn0, vis) = _rows_io(seg, sv, code, cn0_dbhz, visible)
     c = trackers[0].config
     ts = [t if isinstance(t, GnssTime) else float(t) for t in ts]
     t_s = [tr._seconds(t) for tr, t in zip(trackers, ts)]
