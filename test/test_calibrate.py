@@ -16,6 +16,7 @@ import yaml
 
 from gnss_sim_ros2 import cli
 from gnss_sim_ros2.core import constants as k
+from gnss_sim_ros2.core.calibration.arcs import arc_ids
 from gnss_sim_ros2.core.calibration.fit import (
     event_thresholds,
     fit_cn0_table,
@@ -28,7 +29,6 @@ from gnss_sim_ros2.core.calibration.reading import read_recording
 from gnss_sim_ros2.core.calibration.signal_stats import (
     RecordingStats,
     SignalStats,
-    arc_ids,
     cn0_resolution_db,
     mp_combination,
     remove_arc_means,

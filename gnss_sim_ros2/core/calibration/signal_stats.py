@@ -36,16 +36,14 @@ from __future__ import annotations
 import math
 import warnings
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..rinex.obs_table import ObsTable
 from ..signals import SIGNALS
+from .arcs import arc_ends, arc_ids
 from .reading import CALIBRATED_SYSTEMS
-
-if TYPE_CHECKING:
-    from .track_events import TrackEvents
+from .track_events import TrackEvents, track_events
 
 #: a gap longer than this many epoch intervals ends an arc
 GAP_INTERVALS = 2.0
@@ -161,22 +159,6 @@ class RecordingStats:
 
 
 # ---------------------------------------------------------------------------- building blocks
-def arc_ids(valid: np.ndarray, t_s: np.ndarray, max_gap_s: float, breaks: np.ndarray | None = None) -> np.ndarray:
-    """(E, S) int: the continuous arc of each valid sample (-1 where not valid).  A new arc starts at a column's
-    first valid sample, after a gap over ``max_gap_s`` and where ``breaks`` is True."""
-    out = np.full(valid.shape, -1, dtype=np.int64)
-    cols, rows = np.nonzero(valid.T)            # sorted by column, then epoch
-    if not len(rows):
-        return out
-    new = np.ones(len(rows), dtype=bool)
-    same = cols[1:] == cols[:-1]
-    new[1:] = ~same | (t_s[rows[1:]] - t_s[rows[:-1]] > max_gap_s)
-    if breaks is not None:
-        new |= breaks[rows, cols]
-    out[rows, cols] = np.cumsum(new) - 1
-    return out
-
-
 def remove_arc_means(x: np.ndarray, arcs: np.ndarray, min_len: int = MIN_ARC_EPOCHS) -> np.ndarray:
     """``x`` minus the mean of its arc; NaN outside arcs and in arcs shorter than ``min_len`` samples."""
     ok = arcs >= 0
@@ -284,8 +266,6 @@ def signal_statistics(tab: ObsTable, el_deg: np.ndarray, interval_s: float | Non
                       bin_deg: float = 5.0, los: np.ndarray | None = None, scene: str = "") -> RecordingStats:
     """Per-signal statistics of ``tab`` with ``el_deg`` ((E, S) elevation of ``tab.sv``, NaN unknown); ``los``:
     (E, S) bool line-of-sight selection (module docstring; None: every sample), ``scene`` its source's name."""
-    from .track_events import track_events  # it builds on arc_ids of this module
-
     if bin_deg <= 0 or 90.0 % bin_deg:
         raise ValueError(f"signal statistics: bin_deg {bin_deg!r} must divide 90")
     t_s = (tab.time - tab.time[0]).astype("timedelta64[ns]").astype(np.int64) / 1e9 if len(tab.time) else np.zeros(0)
@@ -319,7 +299,7 @@ def signal_statistics(tab: ObsTable, el_deg: np.ndarray, interval_s: float | Non
         # tracking arcs: the signal's code or C/N0 present
         present = np.isfinite(pr) | np.isfinite(cn0)
         arcs = arc_ids(present, t_s, max_gap)
-        first_ep, last_ep = _arc_ends(arcs)
+        first_ep, last_ep = arc_ends(arcs)
         longer = last_ep[:, 0] > first_ep[:, 0]
         el_a = el_sel[first_ep[:, 0], first_ep[:, 1]]
         el_a2 = el[np.minimum(first_ep[:, 0] + 1, n_e - 1), first_ep[:, 1]]
@@ -384,23 +364,6 @@ def cn0_resolution_db(values: np.ndarray) -> float:
         if np.all(np.abs(v / q - np.round(v / q)) < 1e-3):
             return q
     return 0.0
-
-
-def _arc_ends(arcs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(first, last) (epoch, column) of every arc id 0..N-1 ((N, 2) each)."""
-    r, c = np.nonzero(arcs >= 0)
-    a = arcs[r, c]
-    n = int(a.max()) + 1 if a.size else 0
-    first = np.zeros((n, 2), dtype=np.int64)
-    last = np.zeros((n, 2), dtype=np.int64)
-    if n:
-        order = np.lexsort((r, a))
-        a_s, r_s, c_s = a[order], r[order], c[order]
-        start = np.flatnonzero(np.r_[True, a_s[1:] != a_s[:-1]])
-        end = np.r_[start[1:] - 1, len(a_s) - 1]
-        first[a_s[start]] = np.stack([r_s[start], c_s[start]], axis=1)
-        last[a_s[end]] = np.stack([r_s[end], c_s[end]], axis=1)
-    return first, last
 
 
 def _code_noise(st: SignalStats, tab, cols, svs, code, partners, pr, cn0, el, t_s, max_gap, mask_deg,

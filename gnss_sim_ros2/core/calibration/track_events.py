@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .signal_stats import _arc_ends, arc_ids
+from .arcs import arc_ends, arc_ids
 
 #: an absence longer than this ends a satellite's pass (a set; the next observation is a rise) [s]
 PASS_GAP_S = 1800.0
@@ -72,7 +72,7 @@ class TrackEvents:
 
 def _arc_first_last(ids: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(first epoch, last epoch, column) of each arc id 0..N-1 of ``ids`` ((E, S), -1 outside arcs)."""
-    ends = _arc_ends(ids)
+    ends = arc_ends(ids)
     return ends[0][:, 0], ends[1][:, 0], ends[0][:, 1]
 
 
