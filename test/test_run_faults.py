@@ -84,7 +84,10 @@ def test_a_failed_rerun_keeps_the_previous_results(tmp_path):
                         capture_output=True, text=True, env=_env(), timeout=300)
     assert ok.returncode == 0, ok.stderr[-2000:]
     before = {p.name: p.stat().st_size for p in out.rglob("*") if p.is_file()}
-    bad = subprocess.run(CLI + ["--out", str(out), "--duration", "5", "--world", str(tmp_path / "typo.sdf"),
+    # a world that is there but no SDF fails the run at configure (a missing one is refused before the start)
+    broken = tmp_path / "typo.sdf"
+    broken.write_text("<sdf version='1.9'><world name='w'><model name='m'>\n")
+    bad = subprocess.run(CLI + ["--out", str(out), "--duration", "5", "--world", str(broken),
                                 "--quiet"], capture_output=True, text=True, env=_env(), timeout=300)
     assert bad.returncode == 3 and "typo.sdf" in bad.stderr and "Traceback" not in bad.stderr
     assert {p.name: p.stat().st_size for p in out.rglob("*") if p.is_file()} == before

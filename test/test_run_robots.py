@@ -158,6 +158,7 @@ def test_rtk_with_several_robots_refused_naming_both(tmp_path):
 
 
 def test_path_files_one_per_robot(tmp_path):
+    (tmp_path / "a.csv").write_text("t_s,e_m,n_m,u_m\n0,0,0,1.5\n10,5,0,1.5\n")   # there: the count is what is wrong
     cfg = tmp_path / "c.yaml"
     cfg.write_text(f"gnss_sim_trajectory_player:\n  ros__parameters:\n    robot_trajectory_files: "
                    f"['{tmp_path / 'a.csv'}']\n")
