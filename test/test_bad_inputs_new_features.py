@@ -20,7 +20,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from cli_helpers import assert_refused, run_cli
+from cli_helpers import case_ids, refuse_case, run_cli
 
 REPO = Path(__file__).resolve().parents[1]
 COURTYARD = str(REPO / "worlds" / "courtyard.sdf")
@@ -76,14 +76,12 @@ def _cases(tmp: Path, write: bool = True):
     ]
 
 
-CASE_IDS = [c[0] for c in _cases(Path("."), write=False)]
+CASE_IDS = case_ids(_cases)
 
 
 @pytest.mark.parametrize("case", CASE_IDS)
 def test_bad_input_is_refused_naming_the_option(case, tmp_path, capsys):
-    _, argv, words = next(c for c in _cases(tmp_path) if c[0] == case)
-    rc, text = run_cli(argv, capsys)
-    assert_refused(rc, text, words)
+    refuse_case(_cases, case, tmp_path, capsys)
     for out in ("plan", "sim", "cal", "cmp"):
         assert not (tmp_path / out).exists() or not any((tmp_path / out).iterdir()), f"{out}: written on a refusal"
     assert not (tmp_path / "figure.txt").exists()

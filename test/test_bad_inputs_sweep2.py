@@ -22,7 +22,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from cli_helpers import assert_refused, run_cli
+from cli_helpers import case_ids, refuse_case
 
 REPO = Path(__file__).resolve().parents[1]
 COURTYARD = str(REPO / "worlds" / "courtyard.sdf")
@@ -127,14 +127,12 @@ def _cases(tmp: Path, write: bool = True):
     ]
 
 
-CASE_IDS = [c[0] for c in _cases(Path("."), write=False)]
+CASE_IDS = case_ids(_cases)
 
 
 @pytest.mark.parametrize("case", CASE_IDS)
 def test_bad_input_is_refused_naming_the_culprit(case, tmp_path, capsys):
-    _, argv, words = next(c for c in _cases(tmp_path) if c[0] == case)
-    rc, text = run_cli(argv, capsys)
-    assert_refused(rc, text, words)
+    refuse_case(_cases, case, tmp_path, capsys)
     for out in ("out", "cmp", "sweep", "run"):
         assert not list((tmp_path / out).glob("*")) if (tmp_path / out).is_dir() else True, out
     assert not (tmp_path / "sat.csv").exists() and not list(tmp_path.glob("*.ply"))

@@ -28,7 +28,7 @@ import os
 from pathlib import Path
 
 import pytest
-from cli_helpers import assert_refused, run_cli
+from cli_helpers import assert_refused, case_ids, run_cli
 
 REPO = Path(__file__).resolve().parents[1]
 COURTYARD = str(REPO / "worlds" / "courtyard.sdf")
@@ -158,13 +158,13 @@ def _cases(tmp: Path, write: bool = True):
     ]
 
 
-CASE_IDS = [c[0] for c in _cases(Path("."), write=False)]
+CASE_IDS = case_ids(_cases)
 
 
 @pytest.mark.parametrize("case", CASE_IDS)
 def test_bad_input_is_refused_naming_the_culprit(case, tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)          # a blank --out named the current folder: it stays empty
-    _, argv, words = next(c for c in _cases(tmp_path) if c[0] == case)
+    _, argv, words = next(c for c in _cases(tmp_path) if c[0] == case)     # the case's inputs written first
     before = _listing(tmp_path)
     rc, text = run_cli(argv, capsys)
     assert_refused(rc, text, words)
