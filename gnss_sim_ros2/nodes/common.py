@@ -329,11 +329,22 @@ class StopSignals:
             signal.signal(s, self._on_signal)
 
     def _on_signal(self, signum, _frame):
+        if self.signum is None:
+            # a process that has not ended STOP_WATCHDOG_S after the first signal hangs (ros2 launch would SIGKILL
+            # it at 5 + 10 s, silently): every thread's stack to stderr, then exit 1, so the log says where
+            import faulthandler
+
+            faulthandler.dump_traceback_later(STOP_WATCHDOG_S, exit=True)
         self.signum = signum
 
     @property
     def stopped(self) -> bool:
         return self.signum is not None
+
+
+#: seconds from the first SIGINT / SIGTERM to the stack dump and exit of a process that has not ended (StopSignals):
+#: under ros2 launch's SIGINT 5 s + SIGTERM 10 s before its SIGKILL
+STOP_WATCHDOG_S = 12.0
 
 
 def init_ros(args=None) -> StopSignals:
