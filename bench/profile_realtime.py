@@ -15,12 +15,13 @@ from __future__ import annotations
 
 import argparse
 import functools
-import importlib
 import json
 import sys
 import tempfile
 import time
 from pathlib import Path
+
+from gnss_sim_ros2.benchmarks.timing import wrap_attribute
 
 #: (label, module, attribute path): the entry points timed; a missing one is skipped (old or new code); an empty
 #: label adds to the stage above
@@ -79,15 +80,7 @@ class StageClock:
         return timed
 
     def wrap(self, label: str, module: str, path: str) -> bool:
-        owner = importlib.import_module(module)
-        *parents, name = path.split(".")
-        for p in parents:
-            owner = getattr(owner, p, None)
-        inner = getattr(owner, name, None) if owner is not None else None
-        if inner is None:
-            return False
-        setattr(owner, name, self.timed(label, inner))
-        return True
+        return wrap_attribute(module, path, lambda inner: self.timed(label, inner))
 
     def wrap_executor(self, label: str):
         """spin_once of whichever executor the run makes (a C++ EventsExecutor cannot be patched: wrapped at

@@ -16,7 +16,6 @@ from __future__ import annotations
 import argparse
 import collections
 import functools
-import importlib
 import json
 import sys
 import tempfile
@@ -24,6 +23,8 @@ import time
 from pathlib import Path
 
 import numpy as np
+
+from gnss_sim_ros2.benchmarks.timing import wrap_attribute
 
 EVENTS: list = []          # (t0, t1, label)
 MARKS: dict = {}           # ("states", stamp) -> t; ("obs", robot label, stamp) -> t
@@ -60,13 +61,8 @@ def timed(label, inner, on_end=None):
 
 
 def wrap(label, module, path, on_end=None):
-    owner = importlib.import_module(module)
-    *parents, name = path.split(".")
-    for p in parents:
-        owner = getattr(owner, p, None)
-    inner = getattr(owner, name, None) if owner is not None else None
-    if inner is not None:          # an entry point this version of the code lacks: not timed
-        setattr(owner, name, timed(label, inner, on_end))
+    # an entry point this version of the code lacks: not timed
+    wrap_attribute(module, path, lambda inner: timed(label, inner, on_end))
 
 
 def install():

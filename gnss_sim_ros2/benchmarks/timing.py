@@ -1,6 +1,8 @@
-"""Wall-clock timing of a call repeated in one process, for the benchmark scripts (bench/*.py)."""
+"""Wall-clock timing of a call repeated in one process, and timers put around named functions, for the benchmark
+scripts (bench/*.py)."""
 from __future__ import annotations
 
+import importlib
 import time
 
 import numpy as np
@@ -38,3 +40,17 @@ def mean_per_call_s(fn, calls: int) -> float:
     for k in range(calls):
         fn(k)
     return (time.perf_counter() - t0) / calls
+
+
+def wrap_attribute(module: str, path: str, make_wrapper) -> bool:
+    """Replace ``module``'s attribute at ``path`` ("Class.method" or "function") by ``make_wrapper(inner)``, so that
+    every later call goes through the wrapper; False (nothing replaced) when this version of the code lacks it."""
+    owner = importlib.import_module(module)
+    *parents, name = path.split(".")
+    for p in parents:
+        owner = getattr(owner, p, None)
+    inner = getattr(owner, name, None) if owner is not None else None
+    if inner is None:
+        return False
+    setattr(owner, name, make_wrapper(inner))
+    return True
