@@ -9,7 +9,9 @@ obstacle frame is looked up at the epoch's stamp without waiting for it (nodes/v
 loaded machine the first epochs may or may not find another robot's player's transform (seen in 2 of 3 tries:
 robot 1 or 2 tracked 2 satellites in one run and solved in the other) -- a race of the TF sources, not of the
 layout. Also: the graph's fleet nodes and robot k's parameters, the robot limit of the fleet layout named in the
-error.
+error. The visibility handed in-process to the fleet receiver (nodes/in_process.py): the same outputs as through
+the middleware (GNSS_SIM_IN_PROCESS=off), the columns handed those the message's decode gives, the link made only
+within one context and executor.
 """
 from __future__ import annotations
 
@@ -72,12 +74,13 @@ pytest.importorskip("gnss_sim_msgs", reason="gnss_sim_msgs is not built (run mak
 import subprocess  # noqa: E402
 
 
-def _run(out: Path, layout: str, visibility: dict):
+def _run(out: Path, layout: str, visibility: dict, env_extra: dict | None = None):
     cfg = out.parent / f"{out.name}.yaml"
     cfg.write_text(yaml.safe_dump({"gnss_sim_visibility": {"ros__parameters": visibility},
                                    "gnss_sim_trajectory_player": {"ros__parameters": {"convoy_spacing_s": 1.0}}}))
     env = dict(os.environ, ROS_DOMAIN_ID=str((os.getpid() + 11) % 100 + 1))
     env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    env.update(env_extra or {})
     res = subprocess.run(CLI + ["run", "--out", str(out), "--quiet", "--robots", str(ROBOTS), "--layout", layout,
                                 "--duration", str(DURATION_S), "--systems", "GE", "--config", str(cfg)],
                          capture_output=True, text=True, env=env, timeout=300)
@@ -136,7 +139,113 @@ def test_fleet_equals_separate_robots_with_the_same_seeds(tmp_path):
         assert fa.name == fb.name and _rinex_without_run_line(fa) == _rinex_without_run_line(fb), f"robot{k}"
     # the robots' seeds differ (seed + k): their observations are not one another's
     assert a[topics[1]] != a[topics[4]]
+    # the visibility through the middleware instead of handed in-process (nodes/in_process.py): the same outputs
+    from gnss_sim_ros2.nodes.in_process import IN_PROCESS_ENV
+
+    _run(tmp_path / "dds", "fleet", {}, {IN_PROCESS_ENV: "off"})
+    c = _raw_messages(tmp_path / "dds" / "bag", topics)
+    for t in topics:
+        assert c[t] == a[t], f"{t}: the messages differ between the hand-over in-process and the middleware"
+    for k in range(ROBOTS):
+        (fa,) = (tmp_path / "fleet" / f"robot{k}").glob("*_MO.rnx")
+        (fc,) = (tmp_path / "dds" / f"robot{k}").glob("*_MO.rnx")
+        assert _rinex_without_run_line(fa) == _rinex_without_run_line(fc), f"robot{k} in-process vs middleware"
     # the bodies block: the same fleet with them sees more satellite-epochs out of direct sight
     bodies = _run(tmp_path / "bodies", "fleet", BODIES)
     assert _blocked(tmp_path / "bodies" / "bag") > _blocked(tmp_path / "fleet" / "bag")
     assert bodies["epochs_without_output"] == 0
+
+
+def _columns_equal(a: dict, b: dict, where: str = ""):
+    assert a.keys() == b.keys(), where
+    for key, x in a.items():
+        y = b[key]
+        if isinstance(x, tuple):
+            assert x[0].tolist() == y[0].tolist(), where + key
+            _columns_equal(x[1], y[1], f"{where}{key}/")
+        elif x.dtype.kind == "U":
+            assert x.tolist() == y.tolist(), where + key
+        else:
+            assert (x.dtype, x.shape, x.tobytes()) == (y.dtype, y.shape, y.tobytes()), where + key
+
+
+def test_handed_visibility_is_the_message_decoded():
+    """The columns the fleet visibility node hands in-process are decode_visibility(encode_visibility(...)) bit for
+    bit: float32 fraction blocked rounded alike, the rows' reflections (NaN slots left out, the rest in order),
+    no satellite at all."""
+    import numpy as np
+
+    from gnss_sim_ros2.core.multipath.reflections import ScenePaths
+    from gnss_sim_ros2.messages.conversions import decode_visibility, encode_visibility
+    from gnss_sim_ros2.nodes.fleet_visibility_node import handed_visibility
+
+    rng = np.random.default_rng(7)
+    n, k = 6, 3
+    paths = ScenePaths.empty(1, n, k).take(0)
+    paths.excess_m[rng.random((n, k)) < 0.5] = 1.0
+    paths.excess_m *= rng.uniform(0.1, 40.0, (n, k))
+    paths.gamma_co[:] = rng.normal(size=(n, k)) + 1j * rng.normal(size=(n, k))
+    paths.gamma_cross[:] = rng.normal(size=(n, k)) + 1j * rng.normal(size=(n, k))
+    paths.arrival_el_deg[:] = rng.uniform(-10, 80, (n, k))
+    rows = np.array([0, 2, 3, 5])
+    m = len(rows)
+    sv = np.array(["G01", "E11", "C22", "R05", "J02", "G30"])[rows]
+    fields = [(123, 456_000_000), "map", rng.normal(size=3), rng.normal(size=3) * 6e6, sv,
+              rng.uniform(0, 360, m), rng.uniform(0, 90, m), np.array([0, 1, 2, 3]), rng.uniform(0, 30, m),
+              rng.uniform(0, 5, m), rng.random(m) / 3.0]          # fraction blocked: float64, not a float32 value
+    for case in (fields + [paths, rows], fields + [None, None]):
+        _columns_equal(handed_visibility(*case), decode_visibility(encode_visibility(*case)))
+    empty = np.zeros(0, dtype=np.int64)
+    none = [(1, 2), "map", np.zeros(3), np.ones(3)] + [empty] * 7 + [None, empty]
+    _columns_equal(handed_visibility(*none), decode_visibility(encode_visibility(*none)))
+
+
+class _Node:
+    """What nodes/in_process.py reads of a node: its context, executor and topic names."""
+
+    def __init__(self, context, executor):
+        self.context, self.executor = context, executor
+
+    def resolve_topic_name(self, topic):
+        return topic
+
+
+class _Publisher:
+    topic_name = "/robot0/gnss/visibility"
+
+
+def test_in_process_link_one_context_and_executor(monkeypatch):
+    """A taker is handed the topic by an offer of its own context and executor and has no middleware subscription
+    while the offer is there; another context is never linked; GNSS_SIM_IN_PROCESS=off links nothing."""
+    from gnss_sim_ros2.nodes import in_process
+
+    ctx, executor = object(), object()
+    middleware = []
+
+    def deliver(payload):
+        pass
+    taker = in_process.Taker(_Node(ctx, executor), "/robot0/gnss/visibility", deliver, middleware.append)
+    assert middleware == [True]                      # no offer yet: through the middleware
+    offer = in_process.Offer(_Node(ctx, executor), _Publisher())
+    assert middleware == [True, False] and offer.taker() is deliver
+    other = in_process.Offer(_Node(object(), executor), _Publisher())       # another context
+    assert other.taker() is None
+    elsewhere = in_process.Offer(_Node(ctx, object()), _Publisher())        # another executor: not handed
+    assert elsewhere.taker() is None
+    second = in_process.Taker(_Node(ctx, executor), "/robot0/gnss/visibility", print, middleware.append)
+    assert middleware[-1] is True and offer.taker() is deliver           # one taker per topic
+    second.close()
+    for o in (offer, elsewhere):
+        o.withdraw()
+    assert middleware[-1] is True                    # the last offer of the context gone: the middleware again
+    other.withdraw()
+    taker.close()
+    assert not in_process._LINKS
+    monkeypatch.setenv(in_process.IN_PROCESS_ENV, "off")
+    middleware.clear()
+    taker = in_process.Taker(_Node(ctx, executor), "/robot0/gnss/visibility", deliver, middleware.append)
+    offer = in_process.Offer(_Node(ctx, executor), _Publisher())
+    assert middleware == [True] and offer.taker() is None
+    monkeypatch.setenv(in_process.IN_PROCESS_ENV, "maybe")
+    with pytest.raises(ValueError, match="GNSS_SIM_IN_PROCESS is 'maybe': one of on, off"):
+        in_process.enabled()

@@ -169,6 +169,16 @@ class GnssSimNode(LifecycleNode):
         self._owned_active.append(sub)
         return sub
 
+    def drop_active(self, entity):
+        """Destroy one subscription or timer of ``active_subscription`` / ``active_timer`` before deactivate (a
+        topic taken in-process instead: nodes/in_process.py)."""
+        if any(e is entity for e in self._owned_active):
+            self._owned_active = [e for e in self._owned_active if e is not entity]
+            if hasattr(entity, "timer_period_ns"):
+                self.destroy_timer(entity)
+            else:
+                self.destroy_subscription(entity)
+
     def _release_active(self):
         for handle in self._jump_handles:
             handle.unregister()

@@ -14,7 +14,8 @@ rclcpp_components' container on ``<container>/_container/{load_node,unload_node,
 * ``list_nodes`` gives the full names and ids.
 
 Extra arguments: ``use_intra_process_comms`` (bool; rclpy has no intra-process
-transport, so true only logs that the middleware carries the messages),
+transport, so true only logs that the middleware carries the messages; the fleet visibility and receiver nodes
+hand their robots' visibility over in-process whenever they share the container: nodes/in_process.py),
 ``forward_global_arguments`` (bool), ``enable_rosout`` (bool); any other is refused.
 Every loaded node spins in the one executor of the process (rclpy's
 EventsExecutor, or its SingleThreadedExecutor: nodes/common.py make_executor).  Lifecycle nodes

@@ -6,10 +6,13 @@ node's own), each its own core/receiver/chain.ReceiverChain (noise streams, cloc
 publishing on its own topics (/robot<k>/gnss/observations, fix, vel, status, nmea, ...).  One subscription to
 ``satellite_states`` serves all, and each message is decoded once for every robot (``decoded_states``: the robots
 read the same arrays); robot k's ``visibility`` (the fleet visibility node's, one per robot) pairs with it by
-stamp in robot k's core/receiver/epoch_pairing.EpochPairing.  Each robot is a nodes/receiver_session.ReceiverSession,
-the object a receiver node holds one of (configure, the observations then the fix of an epoch, the threat
-services, cleanup), here publishing on robot k's topics and serving ~/robot<k>/threats/..., so a fleet's robot k
-gives what robot k's own receiver node gives, byte for byte (test_fleet_layout).
+stamp in robot k's core/receiver/epoch_pairing.EpochPairing.  A fleet visibility node of the same process and
+executor hands robot k's epoch over directly instead (nodes/in_process.py: the visibility as its decode gives it,
+with the states it cast, decoded), and robot k's visibility topic then has no middleware subscription here.
+Each robot is a nodes/receiver_session.ReceiverSession, the object a receiver node holds one of (configure, the
+observations then the fix of an epoch, the threat services, cleanup), here publishing on robot k's topics and
+serving ~/robot<k>/threats/..., so a fleet's robot k gives what robot k's own receiver node gives, byte for byte
+(test_fleet_layout).
 
 The robots' observables are one numpy pass over robots x satellites x signals: a robot's paired epoch waits in its
 session (ReceiverSession.paired) and the first one queues an executor task (``observe_robots``) behind the
@@ -24,8 +27,8 @@ each epoch's bits those it gets alone), then writes each robot's NMEA, RINEX and
 observations of an epoch go out before their fixes when the executor holds them together (4 robots: robot 0's
 fix after robot 3's observations at the median).  What the fleet pays once: the states' decoding, the visibility
 cast, the observables' stages without memory, the fix's iterations, the executor's and the middleware's per-node
-work; per robot it still pays its clock, tracking and noise draws, its visibility decoded, its messages encoded and
-published (docs/BENCHMARKS.md, fleet figures).
+work; per robot it still pays its clock, tracking and noise draws, its messages encoded and published, and its
+visibility decoded when it comes through the middleware (docs/BENCHMARKS.md, fleet figures).
 """
 from __future__ import annotations
 
@@ -37,6 +40,7 @@ from gnss_sim_ros2.graph import FLEET_NODE_NAMES, fleet_topic
 from gnss_sim_ros2.graph_params import fleet_robot_params, robot_namespace
 from gnss_sim_ros2.messages.conversions import states_from_cdr
 from gnss_sim_ros2.nodes.common import GnssSimNode, run_node
+from gnss_sim_ros2.nodes.in_process import Taker
 from gnss_sim_ros2.nodes.receiver_session import ReceiverSession
 
 #: SatelliteStates messages kept decoded: epochs whose robots' visibility is still awaited (a late robot's TF)
@@ -54,16 +58,22 @@ class FleetReceiverNode(GnssSimNode):
         self._decoded: dict = {}
         #: an observe_robots task is queued and has not run yet
         self._observe_queued = False
+        #: robot k's visibility taken in-process (nodes/in_process.py; activate .. deactivate)
+        self._takers: list[Taker] = []
 
     def decoded_states(self, data: bytes):
         """states_from_cdr of ``data`` (the one message object every robot's pairing holds), decoded once: the
         robots read the same arrays (the chain does not write into the states)."""
         hit = self._decoded.get(id(data))
         if hit is None or hit[0] is not data:
-            hit = self._decoded[id(data)] = (data, states_from_cdr(data))
-            while len(self._decoded) > DECODED_KEPT:
-                del self._decoded[next(iter(self._decoded))]
+            hit = self._keep_decoded(data, states_from_cdr(data))
         return hit[1]
+
+    def _keep_decoded(self, data: bytes, decoded):
+        hit = self._decoded[id(data)] = (data, decoded)
+        while len(self._decoded) > DECODED_KEPT:
+            del self._decoded[next(iter(self._decoded))]
+        return hit
 
     def observe_due(self):
         """A robot's epoch is paired: observe it with the other robots' paired by then, in a task queued behind the
@@ -151,14 +161,38 @@ class FleetReceiverNode(GnssSimNode):
 
         self.active_subscription(SatelliteStates, "satellite_states", self._on_states, 100, raw=True)
         n = len(self.robots)
-        for k, r in enumerate(self.robots):
-            self.active_subscription(Visibility, fleet_topic(k, n, "visibility"), r.on_visibility, 100, raw=True)
+        self._takers = [self._take_visibility(k, fleet_topic(k, n, "visibility"), Visibility) for k in range(n)]
+
+    def _take_visibility(self, k: int, topic: str, msg_type) -> Taker:
+        """Robot k's visibility: handed by a fleet visibility node of this process (nodes/in_process.py), else
+        from the middleware (a raw subscription)."""
+        r = self.robots[k]
+        sub = []
+
+        def over_middleware(on: bool):
+            if on and not sub:
+                sub.append(self.active_subscription(msg_type, topic, r.on_visibility, 100, raw=True))
+            elif not on and sub:
+                self.drop_active(sub.pop())
+        return Taker(self, topic, self.speaking(lambda handed: self._handed(r, *handed)), over_middleware)
+
+    def _handed(self, r: ReceiverSession, stamp, columns: dict, states_data: bytes, states_decoded):
+        """Robot ``r``'s epoch handed by the fleet visibility node: its visibility decoded (the columns the
+        message's decode gives) and the SatelliteStates it cast (its bytes and their decode: every robot's, decoded
+        once), paired at once (the middleware's copy of the states then comes after its epoch: dropped)."""
+        if self._decoded.get(id(states_data), (None,))[0] is not states_data:
+            self._keep_decoded(states_data, states_decoded)
+        r.on_states(states_data)
+        r.on_visibility(columns, stamp)
 
     def _on_states(self, data: bytes):
         for r in self.robots:
             r.on_states(data)
 
     def deactivate(self):
+        for t in self._takers:
+            t.close()
+        self._takers = []
         self.observe_robots()            # the epochs paired, while the publishers are on
         for r in self.robots:
             r.deactivate()

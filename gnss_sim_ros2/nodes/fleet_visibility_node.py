@@ -13,6 +13,13 @@ Moving obstacles as the per-robot node takes them: a box on each ``obstacle_fram
 ``obstacle_models`` boxes (Gazebo poses) are seen alike by every robot (``MovingBoxes.repeat_rows``).  A robot whose
 antenna TF lacks at a stamp (TfSource.frame_missing) is left out of that epoch's cast (counted as dropped), the
 others are cast; an epoch waits while a robot's TF is only late.  The sky view image is robot 0's.
+
+A fleet receiver node of the same process (the fleet layout of ``gnss-sim run``) is handed each robot's epoch
+in-process (nodes/in_process.py): the columns its decode of the message would give (:func:`handed_visibility`,
+float32 fields rounded alike) with the SatelliteStates cast (bytes and decode), without the middleware and without
+encoding or decoding on the way; the Visibility messages are then published after the receiver's observations
+(an executor task queued behind them), and only on topics some other node subscribes to (recorder, users).  In
+separate processes the receiver takes the messages from the middleware as before.
 """
 from __future__ import annotations
 
@@ -28,6 +35,7 @@ from gnss_sim_ros2.graph_params import fleet_robot_params
 from gnss_sim_ros2.messages.conversions import encode_visibility, states_from_cdr
 from gnss_sim_ros2.messages.images import rgb8_image
 from gnss_sim_ros2.nodes.common import run_node
+from gnss_sim_ros2.nodes.in_process import Offer
 from gnss_sim_ros2.nodes.visibility_node import SKY_VIEW_PERIOD_S, VisibilityNode
 
 
@@ -39,6 +47,7 @@ class FleetVisibilityNode(VisibilityNode):
         self.own_body_rows = None             # (robots, obstacle frames) bool: frame b is robot k's own body
         self.fleet_obstacle_frames: list[str] = []
         self._head = None                     # (head epoch's bytes, antennas (N, 3), found (N,)) while TF is awaited
+        self.offers: list[Offer] = []         # robot k's visibility handed in-process (nodes/in_process.py)
 
     def configure(self, p):
         n = p["fleet_robots"]
@@ -59,6 +68,7 @@ class FleetVisibilityNode(VisibilityNode):
         self.image_pub = self.lifecycle_publisher(Image, fleet_topic(0, n, "sky_view"), 2)
         self.antenna_frames = [fleet_robot_params(p, k, "visibility")["antenna_frame"] for k in range(n)]
         self.pubs = [self.lifecycle_publisher(Visibility, fleet_topic(k, n, "visibility"), 100) for k in range(n)]
+        self.offers = [Offer(self, pub) for pub in self.pubs]
         self.fleet_obstacle_frames = list(p["obstacle_frames"])
         self.own_body_rows = np.array([[own_body(f, a) for f in self.fleet_obstacle_frames]
                                        for a in self.antenna_frames], dtype=bool).reshape(n, -1)
@@ -66,6 +76,9 @@ class FleetVisibilityNode(VisibilityNode):
         self._head = None
 
     def cleanup(self):
+        for offer in self.offers:
+            offer.withdraw()
+        self.offers = []
         super().cleanup()
         self.pubs = []
 
@@ -124,14 +137,17 @@ class FleetVisibilityNode(VisibilityNode):
         return boxes
 
     def process_fleet(self, data: bytes, robots, antennas_world_m):
-        """One epoch for the robots ``robots`` at ``antennas_world_m`` (M, 3): one cast, one Visibility each."""
-        (sec, nanosec), _, states, _ = states_from_cdr(data)
+        """One epoch for the robots ``robots`` at ``antennas_world_m`` (M, 3): one cast, one Visibility each
+        (handed in-process first where a receiver of this process takes it, published after its observations)."""
+        decoded = states_from_cdr(data)
+        (sec, nanosec), _, states, _ = decoded
         stamp = Time(sec=sec, nanosec=nanosec)
         obstacles = self.fleet_obstacles(stamp, robots)
         ecef = self.scene.antenna_ecef(antennas_world_m)
         frame = self.params["world_frame"]
         empty = np.zeros(0, dtype=np.int64)
         v = paths = None
+        messages = []                        # (robot, handed in-process, encode_visibility's arguments)
         if len(states):
             state_all, att_all, v = self.options.cast(self.scene, antennas_world_m, states.pos_ecef_m,
                                                       obstacles=obstacles)
@@ -147,13 +163,31 @@ class FleetVisibilityNode(VisibilityNode):
                 state, att = state_all[i][rows], att_all[i][rows]
                 extra, frac = v.extra_path_m[i][rows], v.fraction_blocked[i][rows]
                 path_i = paths.take(i) if paths is not None else None
-            self.pubs[k].publish(encode_visibility((sec, nanosec), frame, antennas_world_m[i], ecef[i], sv, az, el,
-                                                   state, att, extra, frac, path_i, rows))
-            if k == 0:
-                self._sky_view(sec, nanosec, antennas_world_m[i], az, el, state)
+            fields = ((sec, nanosec), frame, antennas_world_m[i], ecef[i], sv, az, el, state, att, extra, frac,
+                      path_i, rows)
+            deliver = self.offers[k].taker() if self.offers else None
+            if deliver is not None:
+                deliver(((sec, nanosec), handed_visibility(*fields), data, decoded))
+            messages.append((k, deliver is not None, fields))
+        if self.executor is not None and any(m[1] for m in messages):
+            self.executor.create_task(self.speaking(self._publish), messages)     # behind the receiver's epoch
+        else:
+            self._publish(messages)
         self.processed += 1
         if self.processed % 10 == 1:
             self._diagnose(len(rows))          # the last robot's satellites above the horizon
+
+    def _publish(self, messages):
+        """The Visibility messages of one epoch (a robot's handed in-process: only if another node subscribes),
+        robot 0's sky view."""
+        if not self.pubs:                    # cleaned up since (a task queued before the deactivation)
+            return
+        for k, handed, fields in messages:
+            if not handed or self.pubs[k].get_subscription_count() > 0:
+                self.pubs[k].publish(encode_visibility(*fields))
+            if k == 0:
+                (sec, nanosec), _, antenna_world_m, _, _, az, el, state = fields[:8]
+                self._sky_view(sec, nanosec, antenna_world_m, az, el, state)
 
     def _sky_view(self, sec, nanosec, antenna_world_m, az, el, state):
         t_s = sec + nanosec * 1e-9
@@ -161,6 +195,43 @@ class FleetVisibilityNode(VisibilityNode):
             self._last_image_s = t_s
             header = Header(stamp=Time(sec=sec, nanosec=nanosec), frame_id=self.params["world_frame"])
             self.image_pub.publish(rgb8_image(header, self.sky_view.rgb(antenna_world_m, az, el, state)))
+
+
+def handed_visibility(stamp, frame_id: str, antenna_world_m, antenna_ecef_m, sv, az_deg, el_deg, state,
+                      attenuation_db, extra_path_m, fraction_blocked, paths=None, path_rows=None) -> dict:
+    """The columns messages/conversions.decode_visibility gives of encode_visibility(same arguments), without the
+    bytes: the message's types (state uint8, fraction_blocked float32: rounded as the message rounds it), the
+    reflections of the rows ``path_rows`` of ``paths`` flattened as the message carries them (test_fleet_layout
+    holds the two equal)."""
+    n = len(sv)
+    counts = np.zeros(n, dtype=np.int64)
+    refl = {k: np.zeros(0) for k in ("excess_path_m", "gamma_co_re", "gamma_co_im", "gamma_cross_re",
+                                     "gamma_cross_im", "arrival_elevation_deg")}
+    if paths is not None:
+        rows = slice(None) if path_rows is None else path_rows
+        excess = np.asarray(paths.excess_m)[rows]
+        valid = np.isfinite(excess)
+        counts = valid.sum(axis=1).astype(np.int64)
+        co, cross = np.asarray(paths.gamma_co)[rows][valid], np.asarray(paths.gamma_cross)[rows][valid]
+        refl = {"excess_path_m": excess[valid].astype(np.float64), "gamma_co_re": co.real.astype(np.float64),
+                "gamma_co_im": co.imag.astype(np.float64), "gamma_cross_re": cross.real.astype(np.float64),
+                "gamma_cross_im": cross.imag.astype(np.float64),
+                "arrival_elevation_deg": np.asarray(paths.arrival_el_deg)[rows][valid].astype(np.float64)}
+    sec, nanosec = (stamp.sec, stamp.nanosec) if hasattr(stamp, "sec") else stamp
+    w, e = (np.asarray(a, dtype=np.float64).reshape(3) for a in (antenna_world_m, antenna_ecef_m))
+    cols = {"header.stamp.sec": np.array([sec], dtype=np.int32), "header.stamp.nanosec": np.array([nanosec], np.uint32),
+            "header.frame_id": np.array([frame_id])}
+    for name, xyz in (("antenna_world_m", w), ("antenna_ecef_m", e)):
+        for i, a in enumerate("xyz"):
+            cols[f"{name}.{a}"] = xyz[i:i + 1].copy()
+    def col(a, dtype):
+        return np.asarray(a).astype(dtype, copy=False).reshape(n)
+    cols["satellites"] = (np.array([n], dtype=np.int64), {
+        "sv": col(sv, str), "azimuth_deg": col(az_deg, np.float64), "elevation_deg": col(el_deg, np.float64),
+        "state": col(state, np.uint8), "attenuation_db": col(attenuation_db, np.float64),
+        "extra_path_m": col(extra_path_m, np.float64), "fraction_blocked": col(fraction_blocked, np.float32),
+        "reflections": (counts, refl)})
+    return cols
 
 
 def main(args=None):

@@ -1,0 +1,128 @@
+"""In-process hand-over of a topic between two nodes of one process, ROS context and executor.
+
+rclcpp hands a message from a publisher to a subscription of its own process without the middleware
+(intra-process communication); rclpy has no such transport, so a message between two nodes of one process is
+serialised, goes through DDS and comes back as another callback (the fleet layout's Visibility messages: about
+0.9 ms each, docs/BENCHMARKS.md "Where the latency goes").  Here a node that *offers* a topic (:class:`Offer`,
+made with its publisher) hands what it publishes, as the subscriber would decode it, to the node that *takes* the
+topic in the same process, context and executor (:class:`Taker`), and the taker has no middleware subscription to
+the topic while such a publisher is there (no message taken twice; a topic with a publisher in this process is
+taken from it alone).  The publisher still publishes on the topic for every other subscriber (recorder, users).
+Nodes in different processes or contexts are never linked: their messages go through the middleware as before.
+Used by the fleet layout: nodes/fleet_visibility_node.py offers each robot's visibility, nodes/fleet_receiver_node.py
+takes them.  ``GNSS_SIM_IN_PROCESS=off`` turns the hand-over off (every message through the middleware).
+
+The registry is keyed by (context, resolved topic name); one taker per key (a second one takes the middleware's
+copies).  Lifecycle: an offer from configure to cleanup, a taker from activate to deactivate.
+"""
+from __future__ import annotations
+
+import os
+import threading
+from collections.abc import Callable
+
+#: environment variable: "off" sends every message through the middleware (default "on")
+IN_PROCESS_ENV = "GNSS_SIM_IN_PROCESS"
+
+_LOCK = threading.Lock()
+_LINKS: dict = {}          # (context, topic) -> _Link
+
+
+class _Link:
+    __slots__ = ("offers", "taker")
+
+    def __init__(self):
+        self.offers = 0
+        self.taker: Taker | None = None
+
+
+def enabled() -> bool:
+    """Whether in-process hand-overs are on (environment variable GNSS_SIM_IN_PROCESS: on, the default, or off)."""
+    value = os.environ.get(IN_PROCESS_ENV, "on")
+    if value not in ("on", "off"):
+        raise ValueError(f"environment variable {IN_PROCESS_ENV} is {value!r}: one of on, off")
+    return value == "on"
+
+
+def _changed(link: _Link, key):
+    """The taker of ``link`` follows its offers: linked while one is there (no middleware subscription)."""
+    if not link.offers and link.taker is None:
+        _LINKS.pop(key, None)
+    return link.taker, link.offers > 0
+
+
+class Offer:
+    """``node``'s publisher ``publisher`` handing its messages to a taker of the same process (:meth:`taker`)."""
+
+    def __init__(self, node, publisher):
+        self.node = node
+        self.key = (node.context, publisher.topic_name)
+        self._link = None
+        if not enabled():
+            return
+        with _LOCK:
+            link = self._link = _LINKS.setdefault(self.key, _Link())
+            link.offers += 1
+            taker, linked = _changed(link, self.key)
+        if taker is not None:
+            taker.set_linked(linked)
+
+    def taker(self) -> Callable | None:
+        """The ``deliver`` of the topic's taker in this process, context and executor, or None (publish only)."""
+        link = self._link
+        taker = link.taker if link is not None else None
+        if taker is None or taker.node.executor is None or taker.node.executor is not self.node.executor:
+            return None
+        return taker.deliver
+
+    def withdraw(self):
+        """No more hand-overs (idempotent); a taker left without an offer subscribes through the middleware."""
+        link, self._link = self._link, None
+        if link is None:
+            return
+        with _LOCK:
+            link.offers -= 1
+            taker, linked = _changed(link, self.key)
+        if taker is not None:
+            taker.set_linked(linked)
+
+
+class Taker:
+    """``node`` taking ``topic`` in-process: ``deliver(payload)`` gets what an :class:`Offer` hands;
+    ``over_middleware(on)`` makes (True) or drops (False) the node's middleware subscription to the topic: on
+    while no publisher of this process offers the topic."""
+
+    def __init__(self, node, topic: str, deliver: Callable, over_middleware: Callable[[bool], None]):
+        self.node = node
+        self.key = (node.context, node.resolve_topic_name(topic))
+        self.deliver = deliver
+        self._over_middleware = over_middleware
+        self.linked = False
+        self._registered = False
+        linked = False
+        if enabled():
+            with _LOCK:
+                link = _LINKS.setdefault(self.key, _Link())
+                if link.taker is None:
+                    link.taker, self._registered = self, True
+                    _, linked = _changed(link, self.key)
+                else:
+                    _changed(link, self.key)
+        self.linked = not linked      # set_linked acts on a change
+        self.set_linked(linked)
+
+    def set_linked(self, linked: bool):
+        if linked != self.linked:
+            self.linked = linked
+            self._over_middleware(not linked)
+
+    def close(self):
+        """Out of the registry (idempotent); the middleware subscription is the node's to drop."""
+        if not self._registered:
+            return
+        self._registered = False
+        with _LOCK:
+            link = _LINKS.get(self.key)
+            if link is not None and link.taker is self:
+                link.taker = None
+                _changed(link, self.key)
