@@ -135,8 +135,10 @@ class ReceiverSession:
         for s, v in self.pairing.add_states(stamp_of(data), data):     # keyed by (sec, nanosec) of the stamp
             self.process(s, v)
 
-    def on_visibility(self, data: bytes):
-        for s, v in self.pairing.add_visibility(stamp_of(data), data):
+    def on_visibility(self, data, stamp=None):
+        """``data``: serialised Visibility, or its decode_visibility columns handed in-process with their ``stamp``
+        (nodes/in_process.py)."""
+        for s, v in self.pairing.add_visibility(stamp_of(data) if stamp is None else stamp, data):
             self.process(s, v)
 
     def process(self, states_data: bytes, vis_data: bytes):
@@ -167,7 +169,8 @@ class ReceiverSession:
         stamp, t, states, iono = self._decode_states(states_data)
         self.chain.set_iono_coefficients(iono)
         # below the horizon = not in the visibility message: blocked, no attenuation
-        ecef, vis_state, att, paths = chain_inputs_from_visibility(visibility_from_cdr(vis_data), states.sv)
+        vis = vis_data if isinstance(vis_data, dict) else visibility_from_cdr(vis_data)    # dict: handed decoded
+        ecef, vis_state, att, paths = chain_inputs_from_visibility(vis, states.sv)
         self.last_t = t
         return stamp, ReceiverEpoch(t, ecef, states, vis_state, att, paths)
 
