@@ -176,7 +176,8 @@ class ReceiverSession:
 
     def observed(self, stamp, e: ReceiverEpoch, obs):
         """Publish an epoch's observations (ReceiverChain.observe of :meth:`epoch_inputs`); its fix is due."""
-        self.pubs["obs"].publish(encode_observations(stamp, self.params["antenna_frame"], e.t, obs))
+        if self.wanted("obs"):
+            self.pubs["obs"].publish(encode_observations(stamp, self.params["antenna_frame"], e.t, obs))
         self.unfinished.append((stamp, e.t, e.antenna_ecef_m, e.states, obs))
 
     def finish(self):
@@ -194,27 +195,41 @@ class ReceiverSession:
     def publish_fix(self, stamp, t, ecef, states, obs, sol=None):
         """The fix half of one epoch and its messages; ``sol``: its fix solved already (the fleet node's robots
         in one solve), None: solved by the chain."""
-        frame = self.params["antenna_frame"]
-        ep = self.chain.finish(t, ecef, states, obs, sol)
+        nmea = self.wanted("nmea")
+        ep = self.chain.finish(t, ecef, states, obs, sol, nmea=nmea)
         sol = ep.sol
-        header = Header(stamp=Time(sec=stamp[0], nanosec=stamp[1]), frame_id=frame)
-        self.pubs["fix"].publish(fix_to_msg(header, sol))
-        self.pubs["vel"].publish(vel_to_msg(header, sol))
-        bands = self.chain.threats.status(t) if self.chain.threats is not None else None
-        self.pubs["status"].publish(status_to_msg(header, obs, sol, self.chain.settings.receiver.elevation_mask_deg,
-                                                  bands))
-        self.pubs["nmea"].publish(nmea_to_msg(ep.nmea))
-        if "threats" in self.pubs:     # the truth labels of the epoch (messages/threats.py)
+        fix, vel, status = self.wanted("fix"), self.wanted("vel"), self.wanted("status")
+        if fix or vel or status:
+            header = Header(stamp=Time(sec=stamp[0], nanosec=stamp[1]), frame_id=self.params["antenna_frame"])
+            if fix:
+                self.pubs["fix"].publish(fix_to_msg(header, sol))
+            if vel:
+                self.pubs["vel"].publish(vel_to_msg(header, sol))
+            if status:
+                bands = self.chain.threats.status(t) if self.chain.threats is not None else None
+                self.pubs["status"].publish(status_to_msg(header, obs, sol,
+                                                          self.chain.settings.receiver.elevation_mask_deg, bands))
+        if nmea:
+            self.pubs["nmea"].publish(nmea_to_msg(ep.nmea))
+        if "threats" in self.pubs and self.wanted("threats"):     # the epoch's truth labels (messages/threats.py)
             from gnss_sim_ros2.messages.threats import threats_to_msg
 
             th = self.chain.threats
             self.pubs["threats"].publish(threats_to_msg(stamp, th.labels(t), th.status(t)))
         if ep.rtcm:
-            self.pubs["rtcm"].publish(rtcm_to_msg(ep.rtcm))
+            if self.wanted("rtcm"):
+                self.pubs["rtcm"].publish(rtcm_to_msg(ep.rtcm))
             if self.tcp is not None:
                 self.tcp.write(ep.rtcm)
-        if self.chain.epochs % 10 == 1:
+        if self.chain.epochs % 10 == 1 and self.wanted("diag"):
             self._diagnose(obs, sol)
+
+    def wanted(self, key: str) -> bool:
+        """Whether the message of publisher ``key`` has anyone to go to: a topic without subscribers gets no
+        message built (its publishers are volatile: a message published before a subscriber matched is not
+        delivered to it either), so a robot's products nobody listens to cost nothing (files are written
+        regardless)."""
+        return self.pubs[key].get_subscription_count() > 0
 
     # ------------------------------------------------------------------ threats started and stopped at run time
     def _scenario_scene(self, p):

@@ -229,11 +229,15 @@ class ReceiverChain:
             self.rx = self._receiver(states)
         return ecef, (backward if antenna_vel_ecef_mps is None else antenna_vel_ecef_mps)
 
-    def finish(self, t: GnssTime, antenna_ecef_m, states, obs, sol: PvtSolution | None = None) -> EpochProducts:
+    def finish(self, t: GnssTime, antenna_ecef_m, states, obs, sol: PvtSolution | None = None,
+               nmea: bool = True) -> EpochProducts:
         """The second half of :meth:`step`: the fix, NMEA, files and RTCM of the observables :meth:`observe`
         gave for this epoch (called once per observe, in order); ``sol``: the fix of :meth:`fix_inputs` of
-        ``obs``, solved by the caller (several receivers' in one solver.solve_pvt_many), or None: solved here."""
-        products = self._products(t, np.asarray(antenna_ecef_m, dtype=float), states, obs, sol)
+        ``obs``, solved by the caller (several receivers' in one solver.solve_pvt_many), or None: solved here;
+        ``nmea`` False: no NMEA text this epoch unless the NMEA file wants it (a node's topic without
+        subscribers)."""
+        products = self._products(t, np.asarray(antenna_ecef_m, dtype=float), states, obs, sol,
+                                  nmea or self.settings.write_nmea_file)
         self._flush_files()
         return products
 
@@ -266,8 +270,9 @@ class ReceiverChain:
         finally:
             self._flush_files()           # the block's RINEX epochs and fix.csv rows, written together
 
-    def _products(self, t, ecef, states, obs, sol=None) -> EpochProducts:
-        """The fix (unless given), NMEA, files and RTCM of one epoch's observables."""
+    def _products(self, t, ecef, states, obs, sol=None, nmea: bool = True) -> EpochProducts:
+        """The fix (unless given), NMEA (``nmea`` and the chain's ``want_nmea``), files and RTCM of one epoch's
+        observables."""
         if sol is None:
             sol = solve_pvt_many([self.fix_inputs(obs)], self.settings.solver)[0]
         self.epochs += 1
@@ -278,7 +283,7 @@ class ReceiverChain:
         if sol.is_fix:
             self.fixes += 1
         text = ""
-        if self.want_nmea:
+        if self.want_nmea and nmea:
             from ..nmea import join_sentences, sentences_from_solution
 
             text = join_sentences(sentences_from_solution(t, sol, cn0_dbhz=obs.cn0_dbhz[
