@@ -16,6 +16,7 @@ OUTER = (("header", cdr.HEADER), ("items", ("seq", (("tag", "str"), ("w", "f4"),
 
 def _element_by_element(monkeypatch):
     monkeypatch.setattr(cdr, "_scan_fixed", lambda *a, **k: None)
+    monkeypatch.setattr(cdr.Codec, "_encode_records", lambda *a, **k: None)
 
 
 def _columns_equal(a, b, where="") -> None:
@@ -133,3 +134,42 @@ def test_broken_and_unlike_elements_read_as_element_by_element(length, monkeypat
         else:
             _columns_equal(fast, slow)
     assert "shorter" in _decoded(codec, data[:-40])
+
+
+@pytest.mark.parametrize("n", [3, 4, 11])
+def test_observations_encoded_as_records_without_a_layout(n, monkeypatch):
+    """Codec._encode_records (a message whose one sequence comes last, of flat elements: Observations) gives the
+    general path's bytes, whatever the residue modulo 8 the sequence starts at (frame ids of 0-8 characters) and
+    the padding value; it leaves to the general path what it does not lay out (unlike strings, not ASCII, n <= 2)."""
+    rng = np.random.default_rng(n)
+    obs = {"sv": np.array([f"{'GRE'[i % 3]}{i + 1:02d}" for i in range(n)]),
+           "code": np.array(["1C", "5Q", "7Q"] * n)[:n]}
+    obs.update({k: rng.normal(size=n) for k in ("frequency_hz", "pseudorange_m", "carrier_phase_cycles",
+                                                "doppler_hz", "cn0_dbhz", "lock_time_s")})
+    obs.update(lli=rng.integers(0, 4, n), loss_of_lock=rng.integers(0, 2, n).astype(bool),
+               half_cycle_ambiguity=rng.integers(0, 2, n).astype(bool))
+    codec = cdr.OBSERVATIONS_CODEC
+    calls = []
+    real = cdr.Codec._encode_records
+
+    def spy(self, cols, pad):
+        got = real(self, cols, pad)
+        calls.append(got is not None)
+        return got
+
+    for frame in ["abcdefgh"[:k] for k in range(9)]:
+        cols = {"header.stamp.sec": -3, "header.stamp.nanosec": 7, "header.frame_id": frame, "gps_week": 2369,
+                "gps_tow_s": 0.1, "receiver_clock_offset_s": -2e-4, "observations": ([n], obs)}
+        with monkeypatch.context() as m:
+            m.setattr(cdr.Codec, "_encode_records", spy)
+            fast = [codec.encode(cols, pad=pad) for pad in (0, 0xFF)]
+        with monkeypatch.context() as m:
+            _element_by_element(m)
+            slow = [codec.encode(cols, pad=pad) for pad in (0, 0xFF)]
+        assert fast == slow, frame
+    assert calls and all(calls)
+    for other in (dict(obs, sv=np.array(["G1"] + [f"G{i:02d}" for i in range(1, n)])),      # unlike lengths
+                  dict(obs, code=np.array(["1ä"] * n))):                                     # not ASCII
+        cols = {"header.stamp.sec": 1, "header.stamp.nanosec": 0, "header.frame_id": "a", "gps_week": 1,
+                "gps_tow_s": 0.0, "receiver_clock_offset_s": 0.0, "observations": ([n], other)}
+        assert real(codec, cols, 0) is None

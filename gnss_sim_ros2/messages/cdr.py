@@ -673,6 +673,13 @@ class Codec:
     def __init__(self, schema):
         self.schema = schema
         self.root = _Struct(schema)
+        self._top_seq_names = {s[1] for s in self.root.steps if s[0] == "seq" and isinstance(s[2], _Struct)}
+        #: (name, element _Struct) of a message whose one sequence is its last field, of flat elements
+        #: (_encode_records), else None
+        seqs = [s for s in self.root.steps if s[0] == "seq"]
+        last = self.root.steps[-1]
+        self._tail = ((last[1], last[2]) if len(seqs) == 1 and last[0] == "seq" and isinstance(last[2], _Struct)
+                      and last[2].flat else None)
 
     def decode(self, data) -> dict:
         data = bytes(data)
@@ -691,6 +698,9 @@ class Codec:
         """``pad``: the value of the padding bytes (the tests tell padding from data by encoding twice)."""
         cols = {k: (v if isinstance(v, tuple) or k not in self._top_seqs else ([len(_first(v))], v))
                 for k, v in cols.items()}
+        fast = self._encode_records(cols, pad)
+        if fast is not None:
+            return fast
         try:
             prep, lay = _Prep(self.root, cols, 1), Layout()
             end = _scan(self.root, 1, 0, lay, prep)
@@ -703,7 +713,87 @@ class Codec:
 
     @property
     def _top_seqs(self):
-        return {s[1] for s in self.root.steps if s[0] == "seq" and isinstance(s[2], _Struct)}
+        return self._top_seq_names
+
+    def _encode_records(self, cols: dict, pad: int):
+        """encode's bytes laid out as records without a Layout, for a message whose one sequence is its last field
+        and holds flat elements (no sequence inside) whose string columns are numpy ASCII strings of one length
+        (Observations: the header and epoch fields, then the signals): the message's fields up to the count as
+        one record (_Struct.fixed_template of the root, its sequence empty), the elements as _scan_fixed lays them
+        out (runs of one start offset modulo 8, each a record array); the same bytes as the general path.  None
+        when the message or the columns are not of that kind (the general path encodes them)."""
+        tail = self._tail
+        if tail is None:
+            return None
+        name, elem = tail
+        seq = cols.get(name)
+        if not isinstance(seq, tuple):
+            return None
+        counts, values = seq
+        counts = np.atleast_1d(np.asarray(counts, dtype=np.int64))
+        n = int(counts[0]) if len(counts) == 1 else -1
+        if n <= 2 or not isinstance(values, dict):
+            return None
+        chars, lengths = {}, []
+        for step in elem.steps:
+            if step[0] == "str":
+                v = values.get(step[1])
+                c = _ascii_chars(v) if isinstance(v, np.ndarray) and v.dtype.kind == "U" and v.shape == (n,) else None
+                if c is None:
+                    return None
+                chars[step[1]] = c
+                lengths.append(c.shape[1])
+        head, head_lengths = {}, []
+        for step in self.root.steps:
+            if step[0] == "str":
+                v = cols[step[1]]
+                if isinstance(v, np.ndarray):
+                    v = v.reshape(-1)[0] if v.size == 1 else None
+                if not isinstance(v, str):
+                    return None
+                b = v.encode("utf-8") + b"\x00"
+                head[step[1]] = np.frombuffer(b, np.uint8)
+                head[step[1] + "#len"] = len(b)
+                head_lengths.append(len(b))
+        head[name + "#count"] = n
+        root_sizes, _, root_dtypes = self.root.fixed_template(tuple(head_lengths))
+        sizes, _, dtypes = elem.fixed_template(tuple(lengths))
+        runs, p = [], root_sizes[0]          # [residue, first element, end element, byte offset of the first]
+        i = 0
+        while i < n:
+            r = p & 7
+            if (p + sizes[r]) & 7 == r:      # the residue repeats from here: one run of the rest
+                runs.append((r, i, n, p))
+                p += (n - i) * sizes[r]
+                break
+            runs.append((r, i, i + 1, p))
+            p += sizes[r]
+            i += 1
+        body = np.full(_align(p, 4), pad, dtype=np.uint8)
+        rec = body[:root_sizes[0]].view(root_dtypes[0])
+        for field_name in root_dtypes[0].names:
+            v = head.get(field_name)
+            if v is None:
+                v = np.asarray(cols[field_name]).reshape(-1)
+                if len(v) != 1:
+                    raise ValueError(f"column {field_name}: {len(v)} values for 1 elements")
+            rec[field_name] = v
+        element = {}
+        for step in elem.steps:
+            if step[0] == "block":
+                for field_name in step[1].names:
+                    v = element[field_name] = np.asarray(values[field_name]).reshape(-1)
+                    if len(v) != n:
+                        raise ValueError(f"column {field_name}: {len(v)} values for {n} elements")
+            else:
+                element[step[1] + "#len"] = chars[step[1]].shape[1]
+                element[step[1]] = chars[step[1]]
+        for r, i0, i1, b0 in runs:
+            rec = body[b0:b0 + (i1 - i0) * sizes[r]].view(dtypes[r])
+            whole = i0 == 0 and i1 == n
+            for field_name, v in element.items():
+                rec[field_name] = v if whole or np.ndim(v) == 0 else v[i0:i1]
+        return HEADER_LE + body.tobytes()
 
 
 def _first(cols):
