@@ -90,6 +90,18 @@ def test_rmc_midnight_rollover_date():
     assert m.timestamp == dt.time(23, 59, 59, 990000, tzinfo=dt.timezone.utc)
 
 
+def test_utc_fields_of_the_last_instant_remembered_exactly():
+    """utc_time_fields remembers the last instant's fields (GGA, RMC and a fleet's robots ask for one instant): an
+    instant one rounding step or one second away, or fewer decimals, gets its own fields."""
+    from gnss_sim_ros2.core import nmea
+
+    t = GnssTime.from_iso("2021-12-31T23:59:59", scale="UTC")
+    asked = [(t + 0.994, 2), (t + 0.996, 2), (t + 0.994, 2), (t + 0.994, 1), (t + 1.994, 2), (t + 0.994, 2)]
+    got = [nmea.utc_time_fields(x, d) for x, d in asked]
+    assert got == [nmea._utc_time_fields(x, d) for x, d in asked]
+    assert got[0] == ("235959.99", "311221") and got[1] == ("000000.00", "010122") and got[3][0] == "000000.0"
+
+
 def test_rmc_fields_and_gps_to_utc():
     # GPS time runs 18 s ahead of UTC in 2022 (IERS Bulletin C)
     t = GnssTime.from_iso("2022-06-30T10:00:18", scale="GPS")

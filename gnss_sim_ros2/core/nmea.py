@@ -95,10 +95,24 @@ def format_lon(lon_deg: float, decimals: int = 5) -> tuple[str, str]:
     return _angle(lon, 3, decimals, "E", "W")
 
 
+#: the last instant utc_time_fields formatted and its fields: GGA and RMC of an epoch, and every robot of a fleet,
+#: ask for the same instant
+_UTC_LAST: list = [None, None]
+
+
 def utc_time_fields(t: GnssTime, decimals: int = 2) -> tuple[str, str]:
     """(``hhmmss.ss``, ``ddmmyy``) in UTC of a GPS-time instant, rounded to ``decimals``
     with the carry into the next second, minute, hour and day (the date follows the rounded time).
     During a leap second the time shows 23:59:59."""
+    key = (type(t.sec), t.sec, type(t.frac), t.frac, decimals) if np.ndim(t.sec) == 0 == np.ndim(t.frac) else None
+    if key is not None and _UTC_LAST[0] == key:
+        return _UTC_LAST[1]
+    fields = _utc_time_fields(t, decimals)
+    _UTC_LAST[:] = key, fields
+    return fields
+
+
+def _utc_time_fields(t: GnssTime, decimals: int) -> tuple[str, str]:
     sec, frac = t.seconds_in("UTC")
     sec = int(sec)
     scale = 10**decimals
@@ -196,19 +210,26 @@ def gsa(sat_numbers: Sequence[int], fix_type: int, pdop: float | None, hdop: flo
     return out
 
 
+_DIGITS2 = tuple(f"{i:02d}" for i in range(100))
+_DIGITS3 = tuple(f"{i:03d}" for i in range(360))
+
+
 def gsv(talker: str, satellites: Sequence[tuple[int, float, float, float | None]],
         signal_id: int | None = None) -> list[str]:
     """GSV messages of one talker: (satellite number, elevation [deg], azimuth [deg],
     C/N0 [dB-Hz] or None when not tracked), 4 per sentence; (NMEA 4.10) signal ID last."""
     sats = list(satellites)
     n_msg = max(1, math.ceil(len(sats) / 4))
-    # each satellite's four fields (number, elevation, azimuth, C/N0 or empty) as one piece of the sentence
+    # each satellite's four fields (number, elevation, azimuth, C/N0 or empty) as one piece of the sentence;
+    # the zero-padded numbers from tables (_DIGITS2: 0-99, _DIGITS3: 0-359)
     blocks = []
+    d2, d3 = _DIGITS2, _DIGITS3
     for num, el, az, snr in sats:
         el_i = max(min(int(round(float(el))), 90), 0)
         az_i = int(round(float(az))) % 360
-        snr_s = "" if snr is None or not math.isfinite(snr) else f"{int(round(min(max(snr, 0), 99))):02d}"
-        blocks.append(f"{int(num):02d},{el_i:02d},{az_i:03d},{snr_s}")
+        snr_s = "" if snr is None or not math.isfinite(snr) else d2[int(round(min(max(snr, 0), 99)))]
+        num = int(num)
+        blocks.append(f"{d2[num] if 0 <= num < 100 else f'{num:02d}'},{d2[el_i]},{d3[az_i]},{snr_s}")
     out = []
     for m in range(n_msg):
         fields = [n_msg, m + 1, f"{len(sats):02d}"] + blocks[4 * m:4 * m + 4]
@@ -232,10 +253,11 @@ def epoch_sentences(t: GnssTime, *, lat_deg: float, lon_deg: float, h_m: float, 
     used_sys = sorted({sv[0] for sv in sv_used}, key="GRECJIS".index)
     talker = _talker(used_sys or {sv[0] for sv in sv_in_view})
     speed = course = None
-    if vel_enu_mps is not None and np.all(np.isfinite(np.asarray(vel_enu_mps, dtype=np.float64)[:2])):
+    if vel_enu_mps is not None:
         ve, vn = float(vel_enu_mps[0]), float(vel_enu_mps[1])
-        speed = math.hypot(ve, vn)
-        course = math.degrees(math.atan2(ve, vn)) % 360.0
+        if math.isfinite(ve) and math.isfinite(vn):
+            speed = math.hypot(ve, vn)
+            course = math.degrees(math.atan2(ve, vn)) % 360.0
     out = [gga(t, lat_deg, lon_deg, h_m, fix_quality, len(sv_used), hdop, geoid_sep_m, talker=talker),
            rmc(t, lat_deg, lon_deg, speed, course, fix_quality, talker=talker)]
     fix_type = 1 if fix_quality == 0 else 3
