@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from gnss_sim_ros2.core.ephemeris.states import SatelliteStates
+from gnss_sim_ros2.core.memo import BoundedCache
 from gnss_sim_ros2.core.time import GnssTime
 
 _SOURCES = {"broadcast": 0, "sp3": 1, "synthetic": 2}
@@ -284,8 +285,7 @@ def chain_inputs_from_visibility(vis: dict, svs):
 
     ecef = np.array([float(vis[f"antenna_ecef_m.{a}"][0]) for a in "xyz"])
     s = vis["satellites"][1]
-    index = {sv: j for j, sv in enumerate(s["sv"].tolist())}     # a repeated sv: the last one, as a dict of them
-    js = np.array([index.get(sv, -1) for sv in np.asarray(svs).tolist()], dtype=np.int64)
+    js = _rows_in(s["sv"], svs)
     seen = js >= 0
     jj = np.where(seen, js, 0)
     state = np.where(seen, s["state"][jj] if len(s["sv"]) else 0, int(VisibilityState.BLOCKED)).astype(np.int64)
@@ -305,6 +305,26 @@ def chain_inputs_from_visibility(vis: dict, svs):
     out.gamma_cross[rows, slot] = _complex(refl["gamma_cross_re"][src], refl["gamma_cross_im"][src])
     out.arrival_el_deg[rows, slot] = refl["arrival_elevation_deg"][src]
     return ecef, state, att, out
+
+
+#: _rows_in's rows by the two satellite lists' bytes (the same lists come back epoch after epoch and robot after
+#: robot)
+_ROWS_CACHE = BoundedCache(64)
+
+
+def _rows_in(vis_sv, svs) -> np.ndarray:
+    """The row of each of ``svs`` in ``vis_sv`` (-1: not there; a repeated sv: its last row, as a dict of them
+    gives), read-only; remembered for numpy str arrays."""
+    a, b = np.asarray(vis_sv), np.asarray(svs)
+    key = (a.dtype.str, a.tobytes(), b.dtype.str, b.tobytes()) if a.dtype.kind == b.dtype.kind == "U" else None
+    hit = None if key is None else _ROWS_CACHE.get(key)
+    if hit is None:
+        index = {sv: j for j, sv in enumerate(a.tolist())}
+        hit = np.array([index.get(sv, -1) for sv in b.tolist()], dtype=np.int64)
+        hit.setflags(write=False)
+        if key is not None:
+            _ROWS_CACHE.put(key, hit)
+    return hit
 
 
 def _complex(re, im) -> np.ndarray:
