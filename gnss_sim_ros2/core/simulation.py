@@ -45,8 +45,6 @@ from .receiver.chain import ChainSettings, ReceiverChain
 from .receiver.engine import ATTENUATED, BLOCKED, VISIBLE
 from .receiver.outputs import rinex_name, write_navigation
 from .scene.world_mesh import world_bounds_xy
-from .threats.runtime import ThreatRuntime
-from .threats.scenario import load_scenario
 from .time import GnssTime
 from .trajectory import Trajectory
 from .visibility import VisibilityOptions, load_scene
@@ -419,6 +417,10 @@ def _simulate_into(setup: SimulationSetup) -> SimulationResult:
                           comment=f"gnss_sim simulate, source {source}", rtcm=rtcm,
                           rtcm_ephemeris=setup.rtcm_ephemeris)
     if setup.receiver_params.get("scenario"):      # the scenario's events (core/threats), the node's way
+        # imported here: a run without a scenario does without them (10 ms of the start-up)
+        from .threats.runtime import ThreatRuntime
+        from .threats.scenario import load_scenario
+
         chain.threats = ThreatRuntime(load_scenario(setup.receiver_params["scenario"]), scene, start=setup.start)
     res = SimulationResult(None, nav_written, out / "fix.csv", 0, 0, [], [], [], [], [], 0.0, 0.0,
                            interval_s=interval_s, orbit_source=source)

@@ -8,11 +8,19 @@
 - obs_write.py: the streaming RINEX 3.04 observation writer (crash safe);
 - header.py: header fields the readers need beyond georinex's.
 """
-from .nav import read_nav_file, read_nav_files
-from .nav_write import write_rinex3_nav
-from .obs_read import load_rinex
-from .obs_table import ObsTable
-from .obs_write import RinexObsHeader, RinexObsWriter
+from __future__ import annotations
 
-__all__ = ["ObsTable", "RinexObsHeader", "RinexObsWriter", "load_rinex", "read_nav_file", "read_nav_files",
-           "write_rinex3_nav"]
+import importlib
+
+#: name -> its module: imported when first asked for (PEP 562), so that importing one kind (the simulation's
+#: navigation reader and observation writer) does not import the others (the observation reader)
+_HOMES = {"read_nav_file": "nav", "read_nav_files": "nav", "write_rinex3_nav": "nav_write", "load_rinex": "obs_read",
+          "ObsTable": "obs_table", "RinexObsHeader": "obs_write", "RinexObsWriter": "obs_write"}
+
+__all__ = sorted(_HOMES)
+
+
+def __getattr__(name: str):
+    if name not in _HOMES:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return getattr(importlib.import_module(f".{_HOMES[name]}", __name__), name)

@@ -21,7 +21,6 @@ import re
 from pathlib import Path
 
 import numpy as np
-from lxml import etree
 
 #: namespace given to prefixes used without a declaration
 UNDECLARED_NS = "urn:gnss_sim:undeclared:"
@@ -213,6 +212,8 @@ def parse_xml(path: Path):
         raw = Path(path).read_bytes()
     except OSError as exc:
         raise SdfError(f"{path}: cannot read: {exc}") from exc
+    from lxml import etree  # here: the commands that take --allow-partial import this module for its help text
+
     parser = etree.XMLParser(remove_comments=True, remove_pis=True)
     try:
         return etree.fromstring(raw, parser, base_url=str(path))
