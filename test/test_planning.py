@@ -168,7 +168,7 @@ def test_overlapped_finish_gives_the_same_fields(courtyard, sky, monkeypatch):
 
 @pytest.mark.parametrize("profile", ["ublox_f9p", "ublox_m8t_hk"])     # link budget; fitted C/N0 tables
 def test_predicted_cn0_is_the_receivers_link_budget(profile):
-    """The planner's predicted C/N0 (each system's columns computed as blocks of rows) is receiver/cn0.cn0_dbhz of
+    """The planner's predicted C/N0 (each system's entries computed in blocks) is receiver/cn0.cn0_dbhz of
     each satellite's system and the profile's first code at its range and elevation, less the attenuation; -inf
     where blocked, NaN off ``where``; systems interleaved (no run of columns) as well as sorted."""
     from types import SimpleNamespace

@@ -238,38 +238,74 @@ def dops_from_az_el(az_deg, el_deg, used, clock_index=None):
 
 def dops_from_los_enu(los_enu, used, clock_index=None):
     """:func:`dops_from_az_el` from the unit lines of sight (east, north, up), each (K, N) (several sets of
-    ``used`` satellites of one geometry pay the sines and cosines once).
+    ``used`` satellites of one geometry pay the sines and cosines once): :func:`dops_from_moments` of
+    :func:`dop_moments`."""
+    return dops_from_moments(*dop_moments(los_enu, used, clock_index))
 
-    Each satellite has one clock column, so the clock block D of the normal matrix [[A, B], [B^T, D]] is
-    diagonal (the satellite count n_g of each group): the position block of the inverse is the 3 x 3 inverse of
-    the Schur complement S = A - B D^-1 B^T = sum_g sum_(s in g) (h_s - mean_g h)(h_s - mean_g h)^T, and a
-    clock's variance is 1 / n_g + c_g^T S^-1 c_g with c_g = mean_g h (block inversion), all closed form."""
+
+#: the pairs (i, j) of the second moments of dop_moments, in their order
+_PAIRS = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
+
+
+def dop_moments(los_enu, used, clock_index=None):
+    """What the DOPs of the satellites ``used`` (K, N) need of their unit lines of sight ``los_enu`` (e, n, u),
+    each (K, N): per row, the count (G, K) and the sums of each component (3, G, K) of each clock group
+    (``clock_index`` (N,), all 0 by default), and the sums of the products of two components (6, K) in the order
+    00 01 02 11 12 22.  One (4, K, N) scratch array holds w and w x los; every other pass is a row sum."""
     use = np.asarray(used, bool)
     k, n = use.shape
     ci = np.zeros(n, np.int64) if clock_index is None else np.asarray(clock_index, np.int64)
     g = int(ci.max(initial=0)) + 1
-    w = use.astype(np.float64)
-    h = tuple(-np.asarray(c, np.float64) * w for c in los_enu)             # design rows, unused satellites 0
-    cnt = _clock_group_sums(w, ci, g)                                        # (K, G) satellites per clock
+    wh = np.empty((4, k, n))
+    np.copyto(wh[0], use)                                                  # w: 1 for a used satellite
+    for i in range(3):
+        np.multiply(los_enu[i], wh[0], out=wh[i + 1])                      # w x los (unused satellites 0)
+    sums = _clock_group_sums(wh, ci, g)                                    # (4, G, K): n_g, sums of w x los
+    s2 = np.stack([np.einsum("ks,ks->k", wh[i + 1], los_enu[j]) for i, j in _PAIRS])
+    return sums[0], sums[1:], s2
+
+
+def dop_moments_of_entries(los_enu, rows, cols, n_rows: int, clock_index, n_groups: int):
+    """:func:`dop_moments` of the entries (``rows``, ``cols``) (E,) of ``los_enu`` (each (K, N)), gathered (a few
+    entries: the difference between two sets, whose moments subtract)."""
+    ci = np.asarray(clock_index, np.int64)
+    n_s = np.shape(los_enu[0])[1]
+    flat = np.asarray(rows, np.int64) * n_s + np.asarray(cols, np.int64)
+    c = [np.asarray(x).reshape(-1).take(flat) for x in los_enu]
+    bin_g = ci[cols] * n_rows + rows
+    size = n_groups * n_rows
+    cnt = np.bincount(bin_g, minlength=size).astype(np.float64).reshape(n_groups, n_rows)
+    s1 = np.stack([np.bincount(bin_g, weights=x, minlength=size).reshape(n_groups, n_rows) for x in c])
+    s2 = np.stack([np.bincount(rows, weights=c[i] * c[j], minlength=n_rows) for i, j in _PAIRS])
+    return cnt, s1, s2
+
+
+def dops_from_moments(cnt, s1, s2):
+    """(gdop, pdop, hdop, vdop, tdop) (K,) from :func:`dop_moments`.
+
+    Each satellite has one clock column, so the clock block D of the normal matrix [[A, B], [B^T, D]] is
+    diagonal (the satellite count n_g of each group): the position block of the inverse is the 3 x 3 inverse of
+    the Schur complement S = A - B D^-1 B^T = sum_s h_s h_s^T - sum_g n_g m_g m_g^T (m_g = mean_g h), and a
+    clock's variance is 1 / n_g + m_g^T S^-1 m_g (block inversion), all closed form.  The signs of h = -los
+    cancel in every product, so the sums of the lines of sight enter as they are."""
+    k = cnt.shape[1]
     present = cnt > 0
     inv_n = np.divide(1.0, cnt, out=np.zeros_like(cnt), where=present)
-    mean = [_clock_group_sums(hi, ci, g) * inv_n for hi in h]                # (K, G) each: mean_g h
-    sc = {}
-    for i in range(3):
-        for j in range(i, 3):
-            sc[i, j] = np.einsum("ks,ks->k", h[i], h[j]) - np.einsum("kg,kg,kg->k", mean[i], mean[j], cnt)
-    a00, a01, a02, a11, a12, a22 = sc[0, 0], sc[0, 1], sc[0, 2], sc[1, 1], sc[1, 2], sc[2, 2]
+    mean = s1 * inv_n                                                      # (3, G, K): m_g
+    # sum_g n_g m_gi m_gj = sum_g (sum_g los_i) m_gj
+    a00, a01, a02, a11, a12, a22 = (s2[p] - np.einsum("gk,gk->k", s1[i], mean[j]) for p, (i, j) in enumerate(_PAIRS))
     c00, c01, c02 = a11 * a22 - a12 * a12, a02 * a12 - a01 * a22, a01 * a12 - a02 * a11     # adjugate
     c11, c12, c22 = a00 * a22 - a02 * a02, a01 * a02 - a00 * a12, a00 * a11 - a01 * a01
     det = a00 * c00 + a01 * c01 + a02 * c02
-    ok = (use.sum(axis=1) >= 3 + present.sum(axis=1)) & (det > 0)
+    ok = (np.einsum("gk->k", cnt) >= 3 + np.einsum("gk->k", present.astype(np.float64))) & (det > 0)
     with np.errstate(divide="ignore", invalid="ignore"):
         inv_det = np.where(ok, 1.0 / det, np.nan)
         q00, q11, q22 = c00 * inv_det, c11 * inv_det, c22 * inv_det
         q01, q02, q12 = c01 * inv_det, c02 * inv_det, c12 * inv_det
-        ref = np.argmax(present, axis=1)
-        m = [mi[np.arange(k), ref] for mi in mean]
-        tvar = (inv_n[np.arange(k), ref] + q00 * m[0] ** 2 + q11 * m[1] ** 2 + q22 * m[2] ** 2
+        ref = np.argmax(present, axis=0)                                   # the first group present
+        rows = np.arange(k)
+        m = [mi[ref, rows] for mi in mean]
+        tvar = (inv_n[ref, rows] + q00 * m[0] ** 2 + q11 * m[1] ** 2 + q22 * m[2] ** 2
                 + 2.0 * (q01 * m[0] * m[1] + q02 * m[0] * m[2] + q12 * m[1] * m[2]))
         # a degenerate geometry (satellites on one cone): DOPs beyond any use, reported as NaN
         good = ok & (q00 + q11 + q22 < 1e8) & (q00 + q11 + q22 > 0)
@@ -284,20 +320,22 @@ def dops_from_los_enu(los_enu, used, clock_index=None):
 
 
 def _clock_group_sums(x, ci, g: int) -> np.ndarray:
-    """(K, G) sums of the columns of ``x`` (K, N) per clock group ``ci`` (N,): one pass of np.add.reduceat when the
-    groups are runs of columns (satellites sorted by system, as the planner's are), else a product with the
-    one-hot matrix (a BLAS call, whose threads contend on a loaded machine)."""
-    k, n = x.shape
-    out = np.zeros((k, g))
+    """(L, G, K) sums of the columns of ``x`` (L, K, N) per clock group ``ci`` (N,): a row sum over each run of
+    columns when the groups are runs (satellites sorted by system, as the planner's are: einsum's contiguous sum,
+    no reduceat), else a product with the one-hot matrix (a BLAS call, whose threads contend on a loaded
+    machine)."""
+    n_l, k, n = x.shape
+    out = np.zeros((n_l, g, k))
     if n == 0:
         return out
     starts = np.flatnonzero(np.r_[True, ci[1:] != ci[:-1]])
     if len(np.unique(ci[starts])) == len(starts):              # every group one run of columns
-        out[:, ci[starts]] = np.add.reduceat(x, starts, axis=1)
+        for a, b in zip(starts.tolist(), np.r_[starts[1:], n].tolist()):
+            out[:, ci[a]] = np.einsum("lks->lk", x[:, :, a:b])
         return out
     onehot = np.zeros((n, g))
     onehot[np.arange(n), ci] = 1.0
-    return x @ onehot
+    return np.ascontiguousarray(np.swapaxes(x @ onehot, 1, 2))
 
 
 #: ||N||_F ||N^-1||_F below which a normal matrix passes the geometry check without its eigenvalues

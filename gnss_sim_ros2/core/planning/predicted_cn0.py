@@ -29,8 +29,7 @@ from ..vocabulary import VisibilityState
 
 #: default threshold of a "good" satellite [dB-Hz] (docs/PLANNING.md, the Hong Kong validation)
 DEFAULT_GOOD_CN0_DBHZ = 35.0
-#: entries (rows x a system's columns) computed at a time without reflected paths: 16,384 float64 = 128 kB a
-#: temporary, in the caches (2,000 Hong Kong cells x 24 h: 0.52 s of predicted C/N0 whole, bench_plan.py)
+#: entries computed at a time without reflected paths: 16,384 float64 = 128 kB a temporary, in the caches
 COLUMN_BLOCK_ENTRIES = 1 << 14
 
 
@@ -84,33 +83,31 @@ class Cn0Predictor:
         return out
 
     def _by_columns(self, out, sysv, need, rng, el, att):
-        """``out`` with the C/N0 of the entries ``need`` (M, S), none of them blocked: each system's columns as one
-        contiguous block computed whole (the entries not needed too, then dropped), not gathered and scattered
-        entry by entry; the same element-wise arithmetic on contiguous float64, so the same numbers."""
+        """``out`` with the C/N0 of the entries ``need`` (M, S), none of them blocked: each system's needed entries
+        by flat index (one pass to find them, one take per input, one put of the result; the entries below the
+        mask, absent or blocked are not computed), ``COLUMN_BLOCK_ENTRIES`` at a time; the same element-wise
+        arithmetic on contiguous float64, so the same numbers."""
         table = bool(self.budget.cn0_table_dbhz)
+        n_s = need.shape[1]
+        rng_f, el_f, att_f = (np.asarray(x, float).reshape(-1) for x in (rng, el, att))
+        out_f = np.ascontiguousarray(out).reshape(-1)          # ``out`` itself when contiguous (np.where's)
         for s in np.unique(sysv).tolist():
             if s not in self.signal:
                 continue
             p_edge, el_min, freq, key, _ = self.signal[s]
             cols = np.flatnonzero(sysv == s)
             run = cols[-1] - cols[0] + 1 == len(cols)          # a run of columns (the planner's: sorted by system)
-            pick = slice(cols[0], cols[-1] + 1) if run else cols
-            width = len(cols)
-            step = max(1, COLUMN_BLOCK_ENTRIES // width)        # rows at a time: the temporaries stay in the caches
-            for r0 in range(0, len(need), step):
-                rows = slice(r0, r0 + step)
-                ns = need[rows, pick]
-                if not ns.any():
-                    continue
-                rho = np.maximum(np.ascontiguousarray(rng[rows, pick]), 1.0).reshape(-1)
-                es = np.ascontiguousarray(el[rows, pick]).reshape(-1)
-                with np.errstate(invalid="ignore", divide="ignore"):   # entries not needed (absent: at the centre)
-                    open_sky = cn0_model.cn0_dbhz_from_params(p_edge, el_min, rho, es, 0.0, budget=self.budget,
-                                                              frequency_hz=freq,
-                                                              signal_keys=np.full(len(es), key) if table else None)
-                val = open_sky.reshape(ns.shape) - att[rows, pick]
-                out[rows, pick] = np.where(ns, val, out[rows, pick])
-        return out
+            r, c = np.divmod(np.flatnonzero(need[:, cols[0]:cols[-1] + 1] if run else need[:, cols]), len(cols))
+            flat = r * n_s + (cols[0] + c if run else cols[c])
+            for i0 in range(0, len(flat), COLUMN_BLOCK_ENTRIES):   # the temporaries stay in the caches
+                f = flat[i0:i0 + COLUMN_BLOCK_ENTRIES]
+                rho = np.maximum(rng_f.take(f), 1.0)
+                with np.errstate(invalid="ignore", divide="ignore"):
+                    open_sky = cn0_model.cn0_dbhz_from_params(p_edge, el_min, rho, el_f.take(f), 0.0,
+                                                              budget=self.budget, frequency_hz=freq,
+                                                              signal_keys=np.full(len(f), key) if table else None)
+                out_f[f] = open_sky - att_f.take(f)
+        return out_f.reshape(out.shape)
 
     def _with_paths(self, val, open_sky, paths, r, c, blocked, att, el, chip, freq):
         """Entries with a reflected path: open-sky C/N0 + 20 log10 |composite amplitude| (engine's reflections)."""

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..solver import dops_from_los_enu
+from ..solver import dop_moments, dop_moments_of_entries, dops_from_los_enu, dops_from_moments
 from ..vocabulary import VisibilityState
 from .predicted_cn0 import DEFAULT_GOOD_CN0_DBHZ, Cn0Predictor
 from .ranging import RangingBudget
@@ -94,14 +94,15 @@ def quality_block(scene, vis, antenna_world_m, inp: PlanInputs, stats=None, stat
             states_out[:, tt[0]:tt[-1] + 1, cols] = st
         rng, los_enu = axes.to_satellites(sat, per_time=True)        # cell x time x satellite, broadcast
         cn0 = _predicted_cn0(inp, sysv[cols], state, att, v, above, rng)
-        vals, cand = _rows_quality(state, att, v, above, los_enu, sysv[cols], clock_all[cols], dual[cols], inp, cn0)
+        vals, cand, used = _rows_quality(state, att, v, above, los_enu, sysv[cols], clock_all[cols], dual[cols], inp,
+                                         cn0)
         cand = cand.reshape(c, len(tt), len(cols))
         cont = np.zeros_like(cand)
         for j in range(len(tt)):                       # unbroken arcs (rtk_rule.py)
             cur = np.zeros((c, n_s), bool)
             cur[:, cols] = cand[:, j]
             cont[:, j] = arcs.unbroken(cur, t_all[tt[j]], gap)[:, cols]
-        n_rtk, pdop_rtk = _rtk_geometry(los_enu, cont.reshape(m_rows, len(cols)), clock_all[cols], inp.rule)
+        n_rtk, pdop_rtk = _rtk_geometry(los_enu, cont.reshape(m_rows, len(cols)), clock_all[cols], inp.rule, used)
         n_rtk, pdop_rtk = n_rtk.reshape(c, len(tt)), pdop_rtk.reshape(c, len(tt))
         rtk = np.stack([arcs.fix(n_rtk[:, j], pdop_rtk[:, j]) for j in range(len(tt))], axis=1)
         vals["n_rtk"], vals["rtk"] = n_rtk, rtk
@@ -180,15 +181,17 @@ def _time_windows(up, n_cells: int, max_rays: int) -> list[np.ndarray]:
 
 def _rows_quality(state, att, v, above, los_enu, sysv, clock, dual, inp: PlanInputs, cn0=None):
     """Per antenna row (M rows x S satellites of one cast; ``los_enu`` their unit lines of sight (e, n, u), each
-    (M, S), sight_lines.py): the FIELDS but the RTK ones and the RTK candidates (M, S) (dual-frequency, tracked
-    above the AR mask: rtk_rule.py; ``cn0`` the predicted C/N0 or None)."""
+    (M, S), sight_lines.py): the FIELDS but the RTK ones, the RTK candidates (M, S) (dual-frequency, tracked
+    above the AR mask: rtk_rule.py; ``cn0`` the predicted C/N0 or None) and the used satellites (M, S) with
+    their DOP moments (solver.dop_moments: the RTK set's are those less the few used satellites not in it)."""
     el = np.asarray(v.el_deg)
     los = above & (state == int(VisibilityState.VISIBLE))
     attn = above & (state == int(VisibilityState.ATTENUATED))
     refl = above & (state == int(VisibilityState.REFLECTED_ONLY))
     blocked = above & (state == int(VisibilityState.BLOCKED))
     used = los | attn | refl
-    gdop, pdop, hdop, vdop, _ = dops_from_los_enu(los_enu, used, clock)
+    moments = dop_moments(los_enu, used, clock)
+    gdop, pdop, hdop, vdop, _ = dops_from_moments(*moments)
     # the used satellites only (sigma ignores the others), gathered by flat index (row-major: r, k ascending)
     flat = np.flatnonzero(used)
     r, k = np.divmod(flat, used.shape[1])
@@ -196,28 +199,43 @@ def _rows_quality(state, att, v, above, los_enu, sysv, clock, dual, inp: PlanInp
     def entries(x, dtype=None):
         return np.asarray(x, dtype).reshape(-1).take(flat)
 
-    excess = np.where(entries(refl), np.nan_to_num(entries(v.extra_path_m, float)), 0.0)
-    sig = inp.budget.sigma_of_columns_m(sysv, k, entries(el), np.where(entries(attn), entries(att), 0.0), excess)
-    var_sum = np.bincount(r, weights=sig * sig, minlength=len(used))
-    n_used = used.sum(axis=1)
+    excess = np.where(entries(refl), np.nan_to_num(entries(v.extra_path_m, float)), 0.0) if refl.any() else 0.0
+    var = inp.budget.variance_of_columns_m2(sysv, k, entries(el), np.where(entries(attn), entries(att), 0.0), excess,
+                                            sin_el=entries(los_enu[2]))      # the up component: no sine per entry
+    var_sum = np.bincount(r, weights=var, minlength=len(used))
+    n_used, n_refl = np.einsum("gk->k", moments[0]), _count(refl)       # the used per row: the DOP counts' sum
     with np.errstate(invalid="ignore", divide="ignore"):
         uere = np.sqrt(var_sum / n_used)
-        nlos = refl.sum(axis=1) / n_used
+        nlos = n_refl / n_used
     tracked = los
     if cn0 is not None and inp.rule.count_attenuated:         # through foliage, strong enough to stay in lock
         with np.errstate(invalid="ignore"):
             tracked = los | (attn & (cn0 >= inp.cn0.tracking_cn0_dbhz))
     cand = tracked & (el >= inp.rule.ar_mask_deg) & dual
-    vals = {"n_los": los.sum(axis=1), "n_attenuated": attn.sum(axis=1), "n_reflected": refl.sum(axis=1),
-            "n_blocked": blocked.sum(axis=1), "gdop": gdop, "pdop": pdop, "hdop": hdop, "vdop": vdop,
+    vals = {"n_los": _count(los), "n_attenuated": _count(attn), "n_reflected": n_refl,
+            "n_blocked": _count(blocked), "gdop": gdop, "pdop": pdop, "hdop": hdop, "vdop": vdop,
             "nlos_share": nlos, "h_acc_m": hdop * uere}
-    return vals, cand
+    return vals, cand, (used, moments)
 
 
-def _rtk_geometry(los_enu, cont, clock, rule: RtkRule):
+def _count(mask) -> np.ndarray:
+    """True entries per row of a bool (M, S) array (einsum over its bytes: numpy's row sum of a short bool row is
+    slower)."""
+    return np.einsum("ks->k", np.asarray(mask, bool).view(np.uint8), dtype=np.int64)
+
+
+def _rtk_geometry(los_enu, cont, clock, rule: RtkRule, used=None):
     """(n_rtk, PDOP) per row of the unbroken candidates ``cont`` (M, S) (rtk_rule.py; PDOP inf under the hold
-    count)."""
-    n_rtk = cont.sum(axis=1)
+    count).  ``used``: (the used satellites, their solver.dop_moments) of _rows_quality, of which ``cont`` is a
+    subset: the candidates' moments are theirs less those of the few used satellites not in ``cont``."""
+    n_rtk = _count(cont)
+    if used is not None and not (cont & ~used[0]).any():
+        cnt, s1, s2 = used[1]
+        drop_r, drop_s = np.divmod(np.flatnonzero(used[0] & ~cont), cont.shape[1])
+        d_cnt, d_s1, d_s2 = dop_moments_of_entries(los_enu, drop_r, drop_s, len(cont), clock, cnt.shape[0])
+        pdop = dops_from_moments(cnt - d_cnt, s1 - d_s1, s2 - d_s2)[1]
+        pdop[n_rtk < min(rule.min_sats, rule.min_hold_sats)] = np.inf
+        return n_rtk, np.nan_to_num(pdop, nan=np.inf)
     enough = np.flatnonzero(n_rtk >= min(rule.min_sats, rule.min_hold_sats))     # only those can pass: their PDOP
     if 2 * len(enough) >= len(n_rtk):               # most rows: all of them, no gathered copies (each row's DOPs
         pdop = dops_from_los_enu(los_enu, cont, clock)[1]          # are its own), the others' set back to inf
@@ -263,11 +281,11 @@ def path_quality(scene, vis, antenna_world_m, sat_pos_ecef_m, systems, inp: Plan
     rng, los_enu = AntennaAxes.of(scene, ant).to_satellites(np.where(present[..., None], sat_all, 0.0),
                                                             per_time=False)
     cn0 = _predicted_cn0(inp, sysv, state, att, v, above, rng)
-    vals, cand = _rows_quality(state, att, v, above, los_enu, sysv, clock, dual, inp, cn0)
+    vals, cand, used = _rows_quality(state, att, v, above, los_enu, sysv, clock, dual, inp, cn0)
     arcs = RtkArcs(inp.rule, 1, len(sysv))            # the path is one row stepping pose to pose
     t_all, gap = _step_times(t_s, len(ant), inp.rule)
     cont = np.concatenate([arcs.unbroken(cand[i:i + 1], t_all[i], gap) for i in range(len(ant))]) if len(ant) else cand
-    n_rtk, pdop_rtk = _rtk_geometry(los_enu, cont, clock, inp.rule)
+    n_rtk, pdop_rtk = _rtk_geometry(los_enu, cont, clock, inp.rule, used)
     vals["n_rtk"] = n_rtk
     vals["rtk"] = np.array([arcs.fix(n_rtk[i:i + 1], pdop_rtk[i:i + 1])[0] for i in range(len(ant))], bool)
     vals["n_good"] = _n_good(cn0, inp, len(ant))
@@ -291,7 +309,7 @@ def _n_good(cn0, inp: PlanInputs, n_rows: int) -> np.ndarray:
     if cn0 is None:
         return np.full(n_rows, -1)
     with np.errstate(invalid="ignore"):
-        return (cn0 >= inp.good_cn0_dbhz).sum(axis=1)
+        return _count(cn0 >= inp.good_cn0_dbhz)
 
 
 def _elevation_deg(rx_ecef_m, sat_ecef_m) -> np.ndarray:

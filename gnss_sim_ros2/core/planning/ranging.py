@@ -33,6 +33,7 @@ import numpy as np
 NOMINAL_ZENITH_IONO_L1_M = 3.0
 #: zenith troposphere residual after the model [m] (module doc)
 TROPO_RESIDUAL_ZENITH_M = 0.05
+_SIN_1_DEG = float(np.sin(np.radians(1.0)))
 #: C/N0 of an unobstructed satellite for the thermal noise term [dB-Hz] (Kaplan's table at 45 dB-Hz: 0.82 m
 #: for a 0.5-chip C/A DLL at 1 Hz; physics-anchors.md)
 NOMINAL_LOS_CN0_DBHZ = 45.0
@@ -62,15 +63,28 @@ class RangingBudget:
         letters, column = np.unique(np.asarray(systems), return_inverse=True)
         return self.sigma_of_columns_m(letters, column, el_deg, attenuation_db, nlos_excess_m)
 
-    def sigma_of_columns_m(self, column_systems, column, el_deg, attenuation_db, nlos_excess_m) -> np.ndarray:
+    def sigma_of_columns_m(self, column_systems, column, el_deg, attenuation_db, nlos_excess_m,
+                           sin_el=None) -> np.ndarray:
         """sigma_i [m] of entries (K,) whose system is ``column_systems[column]`` (a satellite column's letter, no
         string per entry); elevation, attenuation and NLOS excess each (K,).  The thermal term of an unattenuated
-        entry is its system's at the nominal C/N0, computed once."""
+        entry is its system's at the nominal C/N0, computed once.  ``sin_el``: the sines of the elevations when
+        known (the up components of the unit lines of sight: no sine per entry), else from ``el_deg``."""
+        return np.sqrt(self.variance_of_columns_m2(column_systems, column, el_deg, attenuation_db, nlos_excess_m,
+                                                   sin_el))
+
+    def variance_of_columns_m2(self, column_systems, column, el_deg, attenuation_db, nlos_excess_m,
+                               sin_el=None) -> np.ndarray:
+        """sigma_i^2 [m^2] of :meth:`sigma_of_columns_m`'s entries (what the UERE sums: no root taken and squared
+        again)."""
         el = np.clip(np.asarray(el_deg, np.float64), 1.0, 90.0)
         x = 0.53 - el / 180.0
         obliq = 1.0 + 16.0 * (x * x * x)                            # IS-GPS-200N 20.3.3.5.2.5 (cube: no pow)
         var = (self.iono_frac * NOMINAL_ZENITH_IONO_L1_M * obliq) ** 2
-        var = var + (TROPO_RESIDUAL_ZENITH_M / np.sin(np.radians(el))) ** 2
+        if sin_el is None:
+            sin_el = np.sin(np.radians(el))
+        else:                                                       # the same clip as the elevation's
+            sin_el = np.clip(np.asarray(sin_el, np.float64), _SIN_1_DEG, 1.0)
+        var = var + (TROPO_RESIDUAL_ZENITH_M / sin_el) ** 2
         var = var + self.multipath.sigma_m(el) ** 2
         col_sys = np.asarray(column_systems).reshape(-1).tolist()
         col = np.asarray(column, np.int64)
@@ -85,7 +99,7 @@ class RangingBudget:
             for s in np.unique(letter).tolist():
                 k = w[letter == s]
                 var[k] += self.thermal[s](NOMINAL_LOS_CN0_DBHZ - att[k]) ** 2
-        return np.sqrt(var + np.asarray(nlos_excess_m, float) ** 2)
+        return var + np.asarray(nlos_excess_m, float) ** 2
 
 
 def budget_from_profile(profile: str, systems: str) -> RangingBudget:

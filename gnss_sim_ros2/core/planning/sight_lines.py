@@ -41,16 +41,23 @@ class AntennaAxes:
             rx, rot, sat = self.ecef_m[:, None, None, :], self.enu_rows[:, None, None], sat[None]
         else:                 # (A, 1) against (A, S)
             rx, rot = self.ecef_m[:, None, :], self.enu_rows[:, None]
-        d = [sat[..., i] - rx[..., i] for i in range(3)]            # contiguous components, no (..., 3) array
-        rng = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
-        inv = 1.0 / rng
-        for x in d:
-            x *= inv
-        enu = []
+        shape = np.broadcast_shapes(rx.shape[:-1], sat.shape[:-1])
+        # every (A, T, S) array written into one of a few buffers (no temporary per operation; the same arithmetic
+        # in the same order, so the same numbers): d, the range, one scratch, the three ENU components
+        d = np.empty((3,) + shape)
+        for i in range(3):                                          # contiguous components, no (..., 3) array
+            np.subtract(sat[..., i], rx[..., i], out=d[i])
+        rng, tmp = np.empty(shape), np.empty(shape)
+        np.multiply(d[0], d[0], out=rng)
+        rng += np.multiply(d[1], d[1], out=tmp)
+        rng += np.multiply(d[2], d[2], out=tmp)
+        np.sqrt(rng, out=rng)
+        np.divide(1.0, rng, out=tmp)
+        d *= tmp
+        enu = np.empty((3,) + shape)
         for i in range(3):
-            acc = d[0] * rot[..., i, 0]
-            acc += d[1] * rot[..., i, 1]
-            acc += d[2] * rot[..., i, 2]
-            enu.append(acc)
+            acc = np.multiply(d[0], rot[..., i, 0], out=enu[i])
+            acc += np.multiply(d[1], rot[..., i, 1], out=tmp)
+            acc += np.multiply(d[2], rot[..., i, 2], out=tmp)
         n_s = sat.shape[-2]
         return rng.reshape(-1, n_s), tuple(x.reshape(-1, n_s) for x in enu)
