@@ -34,6 +34,7 @@ missing (RINEX 3.04 table A13); trailing blanks are dropped.
 from __future__ import annotations
 
 import datetime as _dt
+import functools
 import math
 import os
 import re
@@ -51,8 +52,25 @@ SYSTEMS = "GRECJIS"
 _OBS_CODE_RE = re.compile(r"^[CLDSX][0-9][A-Z]$")
 #: LLI/SSI characters (ASCII codes) indexed by digit + 1 (index 0: blank)
 _DIGIT_BYTES = np.frombuffer(b" 0123456789", dtype=np.uint8)
-#: ASCII of "0000".."9999": row i holds the 4 digits of i
-_DIGITS4 = np.frombuffer("".join(f"{i:04d}" for i in range(10000)).encode("ascii"), dtype=np.uint8).reshape(10000, 4)
+
+
+def _digit_table(n_digits: int, dot_before_last: bool = False) -> np.ndarray:
+    """ASCII of the numbers 0 .. 10**n_digits - 1 with leading zeros, one row each (a "." before the last digit:
+    "12.3" for 123)."""
+    i = np.arange(10 ** n_digits)
+    cols = [48 + (i // 10 ** k) % 10 for k in range(n_digits - 1, -1, -1)]
+    if dot_before_last:
+        cols.insert(n_digits - 1, np.full_like(i, 46))
+    return np.ascontiguousarray(np.stack(cols, axis=1).astype(np.uint8))
+
+
+#: An F14.3 field's 16 bytes (with the LLI and SSI characters) as four native 4-byte words: the integer part's
+#: first 4 digits, its next 4, its last 2 with "." and the first decimal, the last 2 decimals with LLI and SSI.
+#: "0000".."9999" as words; "00.0".."99.9" (index: last two digits * 10 + first decimal); "00".."99" as 2-byte
+#: halves
+_W4 = _digit_table(4).view(np.uint32).ravel()
+_W2DOT = _digit_table(3, dot_before_last=True).view(np.uint32).ravel()
+_H2 = _digit_table(2).view(np.uint16).ravel()
 #: 10, 100, ..., 10**9: the number of digits of an integer i is searchsorted(_POW10, i, "right") + 1
 _POW10 = 10 ** np.arange(1, 10, dtype=np.int64)
 #: [negative, nb, column]: character over the 10 integer columns when there are nb leading
@@ -63,6 +81,50 @@ for _nb in range(11):
     if _nb:
         _LEAD_FILL[1, _nb, _nb - 1] = 45
 _LEAD_FILL = _LEAD_FILL.reshape(22, 10)
+#: the same over the first three words of a field, word by word: what to keep of the digits (all-ones bytes)
+#: and the blanks and sign put over them; a 23rd entry blanks the field
+_LEAD_KEEP = tuple(np.ascontiguousarray(w) for w in np.vstack([
+    np.pad(np.where(_LEAD_FILL == 0, 255, 0).astype(np.uint8), ((0, 0), (0, 2)), constant_values=255),
+    np.zeros((1, 12), np.uint8)]).view(np.uint32).T)
+_LEAD_OVER = tuple(np.ascontiguousarray(w) for w in np.vstack([
+    np.pad(_LEAD_FILL, ((0, 0), (0, 2))), np.full((1, 12), 32, np.uint8)]).view(np.uint32).T)
+_BLANK_FIELD = 22
+#: two blanks as a half word
+_BLANK_HALF = np.frombuffer(b"  ", dtype=np.uint16)[0]
+
+
+def _f14_3_words(v: np.ndarray, blank: np.ndarray | None = None) -> np.ndarray:
+    """Fortran F14.3 of finite values (1-D array): (n, 4) native words whose bytes are the 14 characters, then
+    two bytes for the caller (the LLI and SSI characters) -- see _f14_3_chars; 14 blanks where ``blank`` (bool,
+    the values there finite all the same)."""
+    neg = v < 0
+    a = np.abs(v)
+    whole = np.floor(a)  # split so that the scaling by 1000 rounds only the (exact) fraction
+    ip = whole.astype(np.int64)
+    fr = np.rint((a - whole) * 1000.0).astype(np.int64)
+    carry = fr >= 1000
+    ip += carry
+    fr -= 1000 * carry
+    first4 = ip // 1_000_000  # <= 9999
+    low6 = ip - first4 * 1_000_000
+    next4 = low6 // 100
+    last2 = low6 - next4 * 100
+    dec1 = fr // 100
+    n_blank = 9 - np.searchsorted(_POW10, ip, side="right")  # 10 columns minus the digit count
+    if np.any(neg & (n_blank == 0)):
+        raise ValueError("a negative value below -999999999.999 does not fit F14.3")
+    lead = n_blank + 11 * neg
+    decimals23 = _H2.take(fr - dec1 * 100)
+    if blank is not None:
+        lead[blank] = _BLANK_FIELD
+        decimals23[blank] = _BLANK_HALF
+    out = np.empty((v.size, 4), dtype=np.uint32)
+    for k, w in enumerate((_W4.take(first4), _W4.take(next4), _W2DOT.take(last2 * 10 + dec1))):
+        w &= _LEAD_KEEP[k].take(lead)
+        w |= _LEAD_OVER[k].take(lead)
+        out[:, k] = w
+    out.view(np.uint16)[:, 6] = decimals23
+    return out
 
 
 def _f14_3_chars(v: np.ndarray) -> np.ndarray:
@@ -73,32 +135,7 @@ def _f14_3_chars(v: np.ndarray) -> np.ndarray:
     rounding tie, and -0.0 prints as 0.000.  Much faster than formatting value
     by value in Python (bench/bench_rinex_obs.py).
     """
-    neg = v < 0
-    a = np.abs(v)
-    whole = np.floor(a)  # split so that the scaling by 1000 rounds only the (exact) fraction
-    ip = whole.astype(np.int64)
-    fr = np.rint((a - whole) * 1000.0).astype(np.int64)
-    carry = fr >= 1000
-    ip += carry
-    fr -= 1000 * carry
-    hi = ip // 100_000_000  # <= 99
-    rest = ip - hi * 100_000_000
-    mid = rest // 10_000
-    lo = rest - mid * 10_000
-    digits = np.empty((v.size, 10), dtype=np.uint8)
-    digits[:, 0:2] = _DIGITS4.take(hi, axis=0)[:, 2:]
-    digits[:, 2:6] = _DIGITS4.take(mid, axis=0)
-    digits[:, 6:10] = _DIGITS4.take(lo, axis=0)
-    n_blank = 9 - np.searchsorted(_POW10, ip, side="right")  # 10 columns minus the digit count
-    if np.any(neg & (n_blank == 0)):
-        raise ValueError("a negative value below -999999999.999 does not fit F14.3")
-    fill = _LEAD_FILL.take(n_blank + 11 * neg, axis=0)
-    out = np.empty((v.size, 14), dtype=np.uint8)
-    np.copyto(out[:, :10], digits)
-    np.copyto(out[:, :10], fill, where=fill != 0)
-    out[:, 10] = 46  # "."
-    out[:, 11:] = _DIGITS4.take(fr, axis=0)[:, 1:]
-    return out
+    return _f14_3_words(v).view(np.uint8)[:, :14]
 
 
 #: largest magnitude an F14.3 field holds
@@ -214,8 +251,16 @@ def _time_fields(t: GnssTime) -> tuple[int, int, int, int, int, int, int]:
     q = round(float(t.frac) * 1e7)
     if q >= 10_000_000:
         sec, q = sec + 1, q - 10_000_000
-    dt = GPS_EPOCH + _dt.timedelta(seconds=sec)
-    return dt.year, dt.month, dt.day, dt.hour, dt.minute, dt.second, q
+    day, second_of_day = divmod(sec, 86400)        # GPS_EPOCH is a midnight
+    minutes, s = divmod(second_of_day, 60)
+    return (*_date_of_gps_day(day), minutes // 60, minutes % 60, s, q)
+
+
+@functools.lru_cache(maxsize=64)
+def _date_of_gps_day(day: int) -> tuple[int, int, int]:
+    """(year, month, day) of the GPS day number ``day`` (days from GPS_EPOCH)."""
+    d = GPS_EPOCH + _dt.timedelta(days=day)
+    return d.year, d.month, d.day
 
 
 def _time_of_obs_line(t: GnssTime, label: str) -> str:
@@ -353,10 +398,11 @@ class RinexObsWriter:
         return "".join(lines), offset
 
     # ----- epoch formatting ----------------------------------------------
-    def _format_rows(self, svs: list[str], v, lli, ssi) -> list[bytes]:
+    def _format_rows(self, svs: list[str], v, lli, ssi) -> tuple[bytes, np.ndarray]:
         """Satellite lines from flat arrays of the epoch: satellite after satellite, each with
         the codes of its system in header order (NaN value / negative indicator = blank).
-        All values of the epoch are formatted in one vectorised call."""
+        All values of the epochs are formatted in one vectorised pass: (the lines, each ended by a newline, one
+        after another; the offset of each satellite's line in them and the end, len(svs) + 1)."""
         v = np.asarray(v, dtype=np.float64)
         try:
             lli = _int_or_blank(np.asarray(lli, dtype=np.float64))
@@ -374,18 +420,44 @@ class RinexObsWriter:
                     sv, code = self._locate(svs, i)
                     raise ValueError(f"observations[{sv!r}][{code!r}]: {what} "
                                      f"(value {v[i]!r}, LLI {lli[i]}, SSI {ssi[i]})")
-        fields = np.empty((v.size, 16), dtype=np.uint8)
-        fields[:, :14] = _f14_3_chars(np.where(nan, 0.0, v))
-        fields[nan, :14] = 32
-        fields[:, 14] = _DIGIT_BYTES.take(np.where(nan, -1, np.maximum(lli, -1)) + 1)
-        fields[:, 15] = _DIGIT_BYTES.take(np.where(nan, -1, np.maximum(ssi, -1)) + 1)
-        raw = fields.tobytes()
-        out, pos, nc = [], 0, self._n_codes
-        for sv in svs:
-            end = pos + 16 * nc[sv[0]]
-            out.append((sv.encode("ascii") + raw[pos:end]).rstrip())
-            pos = end
-        return out
+        fields = _f14_3_words(np.where(nan, 0.0, v), nan)
+        chars = fields.view(np.uint8)
+        lli_char = _DIGIT_BYTES.take(np.where(nan, -1, np.maximum(lli, -1)) + 1)
+        ssi_char = _DIGIT_BYTES.take(np.where(nan, -1, np.maximum(ssi, -1)) + 1)
+        chars[:, 14] = lli_char
+        chars[:, 15] = ssi_char
+        # one row per satellite: its id, its fields (blank up to the widest system's), a column for the newline;
+        # trailing blanks dropped: a line ends with its last field with a value (a field without one is blank
+        # throughout), at its SSI, LLI or last decimal; a line without a value at its id, as bytes.rstrip ends it
+        n_sv = len(svs)
+        counts = np.array([self._n_codes[sv[0]] for sv in svs], dtype=np.int64)
+        width = 16 * int(counts.max(initial=0))
+        rows = np.empty((n_sv, 3 + width + 1), dtype=np.uint8)
+        rows[:, :3] = np.frombuffer("".join(svs).encode("ascii"), dtype=np.uint8).reshape(n_sv, 3)
+        field_end = np.where(ssi_char != 32, 15, np.where(lli_char != 32, 14, 13))
+        uniform = bool(n_sv) and bool((counts == counts[0]).all())
+        if uniform:
+            rows[:, 3:3 + width] = chars.reshape(n_sv, width)
+            has = ~nan.reshape(n_sv, -1)
+            j = has.shape[1] - 1 - np.argmax(has[:, ::-1], axis=1)          # each row's last field with a value
+            last = np.where(has.any(axis=1), 3 + 16 * j + field_end.reshape(n_sv, -1)[np.arange(n_sv), j], -1)
+        else:
+            rows[:, 3:] = 32
+            first = np.repeat(np.cumsum(counts) - counts, counts)
+            r = np.repeat(np.arange(n_sv), counts)
+            col = 3 + 16 * (np.arange(len(r)) - first)
+            rows[r[:, None], col[:, None] + np.arange(16)] = chars
+            last = np.full(n_sv, -1, dtype=np.int64)
+            np.maximum.at(last, r[~nan], (col + field_end)[~nan])
+        for i in np.flatnonzero(last < 0).tolist():
+            last[i] = len(svs[i].encode("ascii").rstrip()) - 1
+        rows[np.arange(n_sv), last + 1] = 10
+        raw = rows.tobytes()
+        starts = np.arange(n_sv) * rows.shape[1]
+        text = b"".join([raw[a:b] for a, b in zip(starts.tolist(), (starts + last + 2).tolist())])
+        offsets = np.zeros(n_sv + 1, dtype=np.int64)
+        np.cumsum(last + 2, out=offsets[1:])
+        return text, offsets
 
     def _locate(self, svs: list[str], i: int) -> tuple[str, str]:
         """(sv, code) of flat index i."""
@@ -435,8 +507,9 @@ class RinexObsWriter:
             raise ValueError(f"observations: values must be numbers or None ({exc})") from exc
         return svs, v, flat_l, flat_s
 
-    def _array_flat(self, ep: EpochArrays):
-        """(satellites, flat values, LLI, SSI) of an EpochArrays, checked against the header."""
+    def _array_parts(self, ep: EpochArrays) -> tuple:
+        """(satellites, values (N, M), LLI, SSI, layout, ep) of an EpochArrays, its shapes and satellites checked
+        against the header; its values are checked and flattened by _arrays_flat."""
         value = np.asarray(ep.value, dtype=np.float64)
         per_sys = isinstance(ep.codes, Mapping)
         svs = list(ep.sv)
@@ -456,23 +529,35 @@ class RinexObsWriter:
         if hit is None:
             hit = self._flat_layout(ep, svs, per_sys, n, m)
             self._flat_cache.put(key, hit)
-        known, pos, total = hit
-        unknown = ~known & ~np.isnan(value)
-        if unknown.any():
-            sys_rows = [sv[0] for sv in svs]
-            r, j = np.argwhere(unknown)[0]
-            code = ep.codes[sys_rows[r]][j] if per_sys else ep.codes[j]
-            raise ValueError(f"observations: {svs[r]} has a value for {code!r}, not in the header obs_types for "
-                             f"{sys_rows[r]}: {list(self.header.obs_types[sys_rows[r]])}")
+        return svs, value, lli, ssi, hit, ep
+
+    def _arrays_flat(self, parts: list[tuple]) -> tuple:
+        """(flat values, LLI, SSI) of consecutive epochs' _array_parts, one epoch after the other, in one pass;
+        a value under a code the header lacks raises naming the first such epoch's satellite and code."""
+        value = np.concatenate([p[1].reshape(-1) for p in parts])
+        known = np.concatenate([p[4][0].reshape(-1) for p in parts])
+        if (~known & ~np.isnan(value)).any():
+            for svs, v, _, _, (kn, _, _), ep in parts:
+                unknown = ~kn & ~np.isnan(v)
+                if unknown.any():
+                    sys_rows = [sv[0] for sv in svs]
+                    r, j = np.argwhere(unknown)[0]
+                    code = ep.codes[sys_rows[r]][j] if isinstance(ep.codes, Mapping) else ep.codes[j]
+                    raise ValueError(f"observations: {svs[r]} has a value for {code!r}, not in the header obs_types "
+                                     f"for {sys_rows[r]}: {list(self.header.obs_types[sys_rows[r]])}")
+        totals = np.array([p[4][2] for p in parts], dtype=np.int64)
+        pos = np.concatenate([p[4][1] for p in parts]) + np.repeat(np.cumsum(totals) - totals,
+                                                                   [p[4][1].size for p in parts])
+        total = int(totals.sum())
         fv = np.empty(total)               # np.empty + fill: less overhead than np.full
         fv.fill(np.nan)
         fl = np.empty(total, np.int64)
         fl.fill(-1)
         fs = fl.copy()
         fv[pos] = value[known]
-        fl[pos] = lli[known]
-        fs[pos] = ssi[known]
-        return svs, fv, fl, fs
+        fl[pos] = np.concatenate([p[2].reshape(-1) for p in parts])[known]
+        fs[pos] = np.concatenate([p[3].reshape(-1) for p in parts])[known]
+        return fv, fl, fs
 
     def _flat_layout(self, ep: EpochArrays, svs, per_sys: bool, n: int, m: int):
         """(cells with a header code (n, m), their flat positions, flat length) of an epoch's layout."""
@@ -516,29 +601,48 @@ class RinexObsWriter:
         if flag not in (0, 1):
             raise ValueError(f"write_epoch: flag={flag!r}; only 0 (OK) and 1 (power failure) carry observations")
         t_prev = self.t_last
-        flats = []
-        for t, obs in zip(ts, observations):
-            if np.ndim(t.sec) != 0:
-                raise ValueError("write_epoch: t must be a scalar GnssTime")
-            if t_prev is not None and not (t - t_prev) > 0:
-                raise ValueError(f"write_epoch: t={t!r} is not after the previous epoch {t_prev!r}")
-            t_prev = t
-            if isinstance(obs, EpochArrays):
-                flats.append(self._array_flat(obs))
-            elif isinstance(obs, Mapping):
-                flats.append(self._dict_flat(obs))
-            else:
-                raise ValueError(f"write_epoch: observations must be a dict or EpochArrays, not "
-                                 f"{type(obs).__name__}")
-            if len(flats[-1][0]) > 999:
-                raise ValueError(f"write_epoch: {len(flats[-1][0])} satellites; the epoch record holds at most 999")
-        if not flats:
+        items = []          # per epoch: its _array_parts (an EpochArrays) or its _dict_flat
+        failure = None
+        try:
+            for t, obs in zip(ts, observations):
+                if np.ndim(t.sec) != 0:
+                    raise ValueError("write_epoch: t must be a scalar GnssTime")
+                if t_prev is not None and not (t - t_prev) > 0:
+                    raise ValueError(f"write_epoch: t={t!r} is not after the previous epoch {t_prev!r}")
+                t_prev = t
+                if isinstance(obs, EpochArrays):
+                    items.append(self._array_parts(obs))
+                elif isinstance(obs, Mapping):
+                    items.append(self._dict_flat(obs))
+                else:
+                    raise ValueError(f"write_epoch: observations must be a dict or EpochArrays, not "
+                                     f"{type(obs).__name__}")
+                if len(items[-1][0]) > 999:
+                    raise ValueError(f"write_epoch: {len(items[-1][0])} satellites; the epoch record holds at most "
+                                     f"999")
+        except Exception as exc:        # raised after the values of the epochs before it are checked (below)
+            failure = exc
+        # the values: runs of EpochArrays flattened together, in epoch order
+        chunks, run = [], []
+        for it in items + [None]:
+            if it is not None and len(it) == 6:     # _array_parts (a _dict_flat has 4 items)
+                run.append(it)
+                continue
+            if run:
+                chunks.append(self._arrays_flat(run))
+                run = []
+            if it is not None:
+                chunks.append(it[1:])
+        if failure is not None:
+            raise failure
+        if not items:
             return
-        lines = self._format_rows([sv for f in flats for sv in f[0]], *(np.concatenate([f[k] for f in flats])
-                                                                       for k in (1, 2, 3)))
+        text, offsets = self._format_rows([sv for it in items for sv in it[0]],
+                                          *(np.concatenate([c[k] for c in chunks]) for k in (0, 1, 2)))
+        offsets = offsets.tolist()
         parts, pos = [], 0
-        for k, (t, f) in enumerate(zip(ts, flats)):
-            n = len(f[0])
+        for k, (t, it) in enumerate(zip(ts, items)):
+            n = len(it[0])
             # Epoch record: A1,1X,I4,4(1X,I2.2),F11.7,2X,I1,I3,6X,F15.12 (RINEX 3.04 table A13)
             y, mo, d, h, mi, s, q = _time_fields(t)
             head = f"> {y:04d} {mo:02d} {d:02d} {h:02d} {mi:02d} {s:02d}.{q:07d}  {flag:1d}{n:3d}"
@@ -549,16 +653,16 @@ class RinexObsWriter:
                 head += f"      {c:15.12f}"
             parts.append((head + "\n").encode("ascii"))
             if n:
-                parts.append(b"\n".join(lines[pos:pos + n]) + b"\n")
+                parts.append(text[offsets[pos]:offsets[pos + n]])
             pos += n
         if not self._header_written:
-            text, self._last_obs_offset = self._header_text(ts[0])
-            self._write_all(text.encode("ascii"))
+            header, self._last_obs_offset = self._header_text(ts[0])
+            self._write_all(header.encode("ascii"))
             self._header_written = True
             self.t_first = ts[0]
         self._write_all(b"".join(parts))
-        self.t_last = ts[len(flats) - 1]
-        self.epochs_written += len(flats)
+        self.t_last = ts[len(items) - 1]
+        self.epochs_written += len(items)
 
     def close(self) -> None:
         """Fill in TIME OF LAST OBS (over the reserved COMMENT line) and close the file.
