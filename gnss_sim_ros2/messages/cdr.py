@@ -27,6 +27,8 @@ import struct
 
 import numpy as np
 
+from gnss_sim_ros2.core.memo import BoundedCache
+
 HEADER_LE = b"\x00\x01\x00\x00"
 _SIZES = {"f8": 8, "f4": 4, "u1": 1, "i1": 1, "b1": 1, "u2": 2, "i2": 2, "u4": 4, "i4": 4, "u8": 8, "i8": 8}
 _U32 = struct.Struct("<I")
@@ -228,15 +230,26 @@ class _Prep:
         return got
 
 
+#: _ascii_chars by the array's type and bytes (a receiver's satellites and signals change rarely between epochs)
+_CHARS_CACHE = BoundedCache(64)
+
+
 def _ascii_chars(v: np.ndarray):
     """(n, length + 1) bytes of a numpy str array whose strings are ASCII, of one length and without a trailing
-    NUL character, the NUL appended; None otherwise."""
+    NUL character, the NUL appended (read-only, remembered); None otherwise."""
+    key = (v.dtype.str, v.shape, v.tobytes())
+    hit = _CHARS_CACHE.get(key)
+    if hit is not None:
+        return hit[0]
     size = v.dtype.itemsize // 4                 # numpy str: UCS-4 code points, NULs after a shorter string
     codes = np.ascontiguousarray(v).view(np.uint32).reshape(len(v), size)
     if size and (not codes[:, size - 1].all() or codes.max() > 127):   # not one length, or not ASCII
-        return None
-    chars = np.zeros((len(v), size + 1), dtype=np.uint8)
-    chars[:, :size] = codes
+        chars = None
+    else:
+        chars = np.zeros((len(v), size + 1), dtype=np.uint8)
+        chars[:, :size] = codes
+        chars.setflags(write=False)
+    _CHARS_CACHE.put(key, (chars,))
     return chars
 
 
