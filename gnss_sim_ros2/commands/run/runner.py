@@ -96,10 +96,8 @@ class Runner:
             print(f"gnss-sim run: error: {exc}", file=sys.stderr)
             return 3
         self.clock.spin(0.3)  # let the recorder find the topics and TF static latch
-        self.foreign = self.launcher.foreign_publishers()
+        self.check_foreign_publishers()
         self.states_publishers = self.launcher.states_publishers()
-        for topic, nodes in self.foreign.items():
-            self.warn(f"warning: {topic} has publishers outside this run's graph: {', '.join(nodes)}")
         self.stats = ProcessStats(self.launcher.process_pids())
         self.stats.start()
         done = self.clock.drive(self.cfg, self.args, self.outputs, n_epochs, period, stop, self.log)
@@ -107,9 +105,18 @@ class Runner:
             return done.code
         self.clock.spin(0.3)
         wall = time.perf_counter() - done.start_perf_s
+        self.check_foreign_publishers()   # again: discovery of another process's node may take longer than 0.3 s
         self.process_figures = self.stats.figures(done.epochs)
         self.finish(done.epochs, done.dropped, wall, period)
         return 0
+
+    def check_foreign_publishers(self):
+        """Publishers on the run's topics that are not the graph's: warned once each, kept for the summary."""
+        for topic, nodes in self.launcher.foreign_publishers().items():
+            new = [n for n in nodes if n not in self.foreign.get(topic, [])]
+            if new:
+                self.foreign[topic] = sorted(self.foreign.get(topic, []) + new)
+                self.warn(f"warning: {topic} has publishers outside this run's graph: {', '.join(new)}")
 
     def finish(self, n_epochs: int, dropped: int, wall_s: float, period: float):
         """Close the files (nodes cleaned up), then summary, sky plot and bag counts."""
