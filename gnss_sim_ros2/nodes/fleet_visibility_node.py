@@ -48,6 +48,7 @@ class FleetVisibilityNode(VisibilityNode):
         self.fleet_obstacle_frames: list[str] = []
         self._head = None                     # (head epoch's bytes, antennas (N, 3), found (N,)) while TF is awaited
         self.offers: list[Offer] = []         # robot k's visibility handed in-process (nodes/in_process.py)
+        self._unpublished: list = []          # epochs handed in-process whose messages are not published yet
 
     def configure(self, p):
         n = p["fleet_robots"]
@@ -75,7 +76,12 @@ class FleetVisibilityNode(VisibilityNode):
         self.obstacle_frames = []             # the base class's _obstacles: the models only (fleet_obstacles)
         self._head = None
 
+    def deactivate(self):
+        self._publish_due()                  # the epochs handed over, while the publishers are on
+        super().deactivate()
+
     def cleanup(self):
+        self._unpublished = []
         for offer in self.offers:
             offer.withdraw()
         self.offers = []
@@ -170,18 +176,21 @@ class FleetVisibilityNode(VisibilityNode):
                 deliver(((sec, nanosec), handed_visibility(*fields), data, decoded))
             messages.append((k, deliver is not None, fields))
         if self.executor is not None and any(m[1] for m in messages):
-            self.executor.create_task(self.speaking(self._publish), messages)     # behind the receiver's epoch
+            self._unpublished.append(messages)
+            self.executor.create_task(self.speaking(self._publish_due))     # behind the receiver's epoch
         else:
             self._publish(messages)
         self.processed += 1
         if self.processed % 10 == 1:
             self._diagnose(len(rows))          # the last robot's satellites above the horizon
 
+    def _publish_due(self):
+        while self._unpublished:
+            self._publish(self._unpublished.pop(0))
+
     def _publish(self, messages):
         """The Visibility messages of one epoch (a robot's handed in-process: only if another node subscribes),
         robot 0's sky view."""
-        if not self.pubs:                    # cleaned up since (a task queued before the deactivation)
-            return
         for k, handed, fields in messages:
             if not handed or self.pubs[k].get_subscription_count() > 0:
                 self.pubs[k].publish(encode_visibility(*fields))
