@@ -142,7 +142,10 @@ def test_fleet_equals_separate_robots_with_the_same_seeds(tmp_path):
     # the visibility through the middleware instead of handed in-process (nodes/in_process.py): the same outputs
     from gnss_sim_ros2.nodes.in_process import IN_PROCESS_ENV
 
-    _run(tmp_path / "dds", "fleet", {}, {IN_PROCESS_ENV: "off"})
+    dds = _run(tmp_path / "dds", "fleet", {}, {IN_PROCESS_ENV: "off"})
+    # the run's own figures from the visibility handed to its driver or from the messages: the same
+    assert [dds[f] for f in ("horizontal_error_rms_m", "epochs_without_output")] == \
+        [fleet[f] for f in ("horizontal_error_rms_m", "epochs_without_output")]
     c = _raw_messages(tmp_path / "dds" / "bag", topics)
     for t in topics:
         assert c[t] == a[t], f"{t}: the messages differ between the hand-over in-process and the middleware"
@@ -200,8 +203,13 @@ def test_handed_visibility_is_the_message_decoded():
     _columns_equal(handed_visibility(*none), decode_visibility(encode_visibility(*none)))
 
 
+class _Context:
+    def __init__(self):
+        self.handle = object()
+
+
 class _Node:
-    """What nodes/in_process.py reads of a node: its context, executor and topic names."""
+    """What nodes/in_process.py reads of a node: its context (handle), executor and topic names."""
 
     def __init__(self, context, executor):
         self.context, self.executor = context, executor
@@ -215,37 +223,43 @@ class _Publisher:
 
 
 def test_in_process_link_one_context_and_executor(monkeypatch):
-    """A taker is handed the topic by an offer of its own context and executor and has no middleware subscription
-    while the offer is there; another context is never linked; GNSS_SIM_IN_PROCESS=off links nothing."""
+    """Every taker of a topic is handed it by an offer of its own context and executor and has no middleware
+    subscription while the offer is there; another context (another rclpy.init) is never linked; the last offer
+    withdrawn, the takers subscribe again; GNSS_SIM_IN_PROCESS=off links nothing."""
     from gnss_sim_ros2.nodes import in_process
 
-    ctx, executor = object(), object()
-    middleware = []
+    ctx, executor = _Context(), object()
+    first, second = [], []
 
     def deliver(payload):
         pass
-    taker = in_process.Taker(_Node(ctx, executor), "/robot0/gnss/visibility", deliver, middleware.append)
-    assert middleware == [True]                      # no offer yet: through the middleware
+
+    def deliver_too(payload):
+        pass
+    taker = in_process.Taker(_Node(ctx, executor), "/robot0/gnss/visibility", deliver, first.append)
+    assert first == [True]                           # no offer yet: through the middleware
     offer = in_process.Offer(_Node(ctx, executor), _Publisher())
-    assert middleware == [True, False] and offer.taker() is deliver
-    other = in_process.Offer(_Node(object(), executor), _Publisher())       # another context
-    assert other.taker() is None
+    assert first == [True, False] and offer.takers() == [deliver]
+    too = in_process.Taker(_Node(ctx, executor), "/robot0/gnss/visibility", deliver_too, second.append)
+    assert second == [False] and offer.takers() == [deliver, deliver_too]
+    other = in_process.Offer(_Node(_Context(), executor), _Publisher())     # another context
+    assert other.takers() == []
     elsewhere = in_process.Offer(_Node(ctx, object()), _Publisher())        # another executor: not handed
-    assert elsewhere.taker() is None
-    second = in_process.Taker(_Node(ctx, executor), "/robot0/gnss/visibility", print, middleware.append)
-    assert middleware[-1] is True and offer.taker() is deliver           # one taker per topic
-    second.close()
-    for o in (offer, elsewhere):
-        o.withdraw()
-    assert middleware[-1] is True                    # the last offer of the context gone: the middleware again
+    assert elsewhere.takers() == []
+    too.close()
+    assert offer.takers() == [deliver]
+    offer.withdraw()
+    assert first == [True, False]                    # an offer of the context is still there
+    elsewhere.withdraw()
+    assert first == [True, False, True]              # the last one gone: the middleware again
     other.withdraw()
     taker.close()
     assert not in_process._LINKS
     monkeypatch.setenv(in_process.IN_PROCESS_ENV, "off")
-    middleware.clear()
-    taker = in_process.Taker(_Node(ctx, executor), "/robot0/gnss/visibility", deliver, middleware.append)
+    first.clear()
+    taker = in_process.Taker(_Node(ctx, executor), "/robot0/gnss/visibility", deliver, first.append)
     offer = in_process.Offer(_Node(ctx, executor), _Publisher())
-    assert middleware == [True] and offer.taker() is None
+    assert first == [True] and offer.takers() == []
     monkeypatch.setenv(in_process.IN_PROCESS_ENV, "maybe")
     with pytest.raises(ValueError, match="GNSS_SIM_IN_PROCESS is 'maybe': one of on, off"):
         in_process.enabled()

@@ -14,12 +14,13 @@ Moving obstacles as the per-robot node takes them: a box on each ``obstacle_fram
 antenna TF lacks at a stamp (TfSource.frame_missing) is left out of that epoch's cast (counted as dropped), the
 others are cast; an epoch waits while a robot's TF is only late.  The sky view image is robot 0's.
 
-A fleet receiver node of the same process (the fleet layout of ``gnss-sim run``) is handed each robot's epoch
-in-process (nodes/in_process.py): the columns its decode of the message would give (:func:`handed_visibility`,
-float32 fields rounded alike) with the SatelliteStates cast (bytes and decode), without the middleware and without
-encoding or decoding on the way; the Visibility messages are then published after the receiver's observations
-(an executor task queued behind them), and only on topics some other node subscribes to (recorder, users).  In
-separate processes the receiver takes the messages from the middleware as before.
+A fleet receiver node of the same process (the fleet layout of ``gnss-sim run``; its driver, which reads each
+robot's antenna, too) is handed each robot's epoch in-process (nodes/in_process.py): the columns its decode of
+the message would give (:func:`handed_visibility`, float32 fields rounded alike) with the SatelliteStates cast
+(bytes and decode), without the middleware and without encoding or decoding on the way; the Visibility messages
+are then published after the receiver's observations (an executor task queued behind them), and only on topics
+some other node subscribes to (recorder, users).  In separate processes the receiver takes the messages from the
+middleware as before.
 """
 from __future__ import annotations
 
@@ -171,10 +172,12 @@ class FleetVisibilityNode(VisibilityNode):
                 path_i = paths.take(i) if paths is not None else None
             fields = ((sec, nanosec), frame, antennas_world_m[i], ecef[i], sv, az, el, state, att, extra, frac,
                       path_i, rows)
-            deliver = self.offers[k].taker() if self.offers else None
-            if deliver is not None:
-                deliver(((sec, nanosec), handed_visibility(*fields), data, decoded))
-            messages.append((k, deliver is not None, fields))
+            takers = self.offers[k].takers() if self.offers else []
+            if takers:
+                handed = ((sec, nanosec), handed_visibility(*fields), data, decoded)
+                for deliver in takers:
+                    deliver(handed)
+            messages.append((k, bool(takers), fields))
         if self.executor is not None and any(m[1] for m in messages):
             self._unpublished.append(messages)
             self.executor.create_task(self.speaking(self._publish_due))     # behind the receiver's epoch

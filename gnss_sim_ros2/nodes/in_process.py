@@ -1,19 +1,21 @@
-"""In-process hand-over of a topic between two nodes of one process, ROS context and executor.
+"""In-process hand-over of a topic between nodes of one process, ROS context and executor.
 
 rclcpp hands a message from a publisher to a subscription of its own process without the middleware
 (intra-process communication); rclpy has no such transport, so a message between two nodes of one process is
 serialised, goes through DDS and comes back as another callback (the fleet layout's Visibility messages: about
 0.9 ms each, docs/BENCHMARKS.md "Where the latency goes").  Here a node that *offers* a topic (:class:`Offer`,
-made with its publisher) hands what it publishes, as the subscriber would decode it, to the node that *takes* the
-topic in the same process, context and executor (:class:`Taker`), and the taker has no middleware subscription to
-the topic while such a publisher is there (no message taken twice; a topic with a publisher in this process is
-taken from it alone).  The publisher still publishes on the topic for every other subscriber (recorder, users).
-Nodes in different processes or contexts are never linked: their messages go through the middleware as before.
-Used by the fleet layout: nodes/fleet_visibility_node.py offers each robot's visibility, nodes/fleet_receiver_node.py
-takes them.  ``GNSS_SIM_IN_PROCESS=off`` turns the hand-over off (every message through the middleware).
+made with its publisher) hands what it publishes, as a subscriber would decode it, to every node that *takes*
+the topic in the same process, context and executor (:class:`Taker`), and a taker has no middleware subscription
+to the topic while such a publisher is there (no message taken twice; a topic with a publisher in this process
+is taken from it alone).  The publisher still publishes on the topic for every other subscriber (recorder,
+users).  Nodes in different processes or contexts are never linked: their messages go through the middleware as
+before.  Used by the fleet layout: nodes/fleet_visibility_node.py offers each robot's visibility,
+nodes/fleet_receiver_node.py and gnss-sim run's driver (commands/run/outputs.py) take them.
+``GNSS_SIM_IN_PROCESS=off`` turns the hand-over off (every message through the middleware).
 
-The registry is keyed by (context, resolved topic name); one taker per key (a second one takes the middleware's
-copies).  Lifecycle: an offer from configure to cleanup, a taker from activate to deactivate.
+The registry is keyed by (context, resolved topic name); the context by its rcl handle, new at every rclpy.init
+(a process that runs the graph twice, e.g. tests, never links a node of the first run).  Lifecycle: an offer
+from configure to cleanup, a taker from activate to deactivate (the driver's: the run).
 """
 from __future__ import annotations
 
@@ -29,11 +31,11 @@ _LINKS: dict = {}          # (context, topic) -> _Link
 
 
 class _Link:
-    __slots__ = ("offers", "taker")
+    __slots__ = ("offers", "takers")
 
     def __init__(self):
         self.offers = 0
-        self.taker: Taker | None = None
+        self.takers: list[Taker] = []
 
 
 def enabled() -> bool:
@@ -44,47 +46,50 @@ def enabled() -> bool:
     return value == "on"
 
 
-def _changed(link: _Link, key):
-    """The taker of ``link`` follows its offers: linked while one is there (no middleware subscription)."""
-    if not link.offers and link.taker is None:
+def _changed(link: _Link, key) -> tuple[list, bool]:
+    """(the takers of ``link``, linked: an offer is there); an empty link leaves the registry."""
+    if not link.offers and not link.takers:
         _LINKS.pop(key, None)
-    return link.taker, link.offers > 0
+    return list(link.takers), link.offers > 0
+
+
+def _follow(takers, linked: bool):
+    for taker in takers:
+        taker.set_linked(linked)
 
 
 class Offer:
-    """``node``'s publisher ``publisher`` handing its messages to a taker of the same process (:meth:`taker`)."""
+    """``node``'s publisher ``publisher`` handing its messages to the takers of the same process (:meth:`takers`)."""
 
     def __init__(self, node, publisher):
         self.node = node
-        self.key = (node.context, publisher.topic_name)
+        self.key = (node.context.handle, publisher.topic_name)
         self._link = None
         if not enabled():
             return
         with _LOCK:
             link = self._link = _LINKS.setdefault(self.key, _Link())
             link.offers += 1
-            taker, linked = _changed(link, self.key)
-        if taker is not None:
-            taker.set_linked(linked)
+            takers, linked = _changed(link, self.key)
+        _follow(takers, linked)
 
-    def taker(self) -> Callable | None:
-        """The ``deliver`` of the topic's taker in this process, context and executor, or None (publish only)."""
+    def takers(self) -> list[Callable]:
+        """The ``deliver`` of each taker of the topic in this process, context and executor (none: publish only)."""
         link = self._link
-        taker = link.taker if link is not None else None
-        if taker is None or taker.node.executor is None or taker.node.executor is not self.node.executor:
-            return None
-        return taker.deliver
+        if link is None:
+            return []
+        executor = self.node.executor
+        return [t.deliver for t in link.takers if executor is not None and t.node.executor is executor]
 
     def withdraw(self):
-        """No more hand-overs (idempotent); a taker left without an offer subscribes through the middleware."""
+        """No more hand-overs (idempotent); takers left without an offer subscribe through the middleware."""
         link, self._link = self._link, None
         if link is None:
             return
         with _LOCK:
             link.offers -= 1
-            taker, linked = _changed(link, self.key)
-        if taker is not None:
-            taker.set_linked(linked)
+            takers, linked = _changed(link, self.key)
+        _follow(takers, linked)
 
 
 class Taker:
@@ -94,20 +99,17 @@ class Taker:
 
     def __init__(self, node, topic: str, deliver: Callable, over_middleware: Callable[[bool], None]):
         self.node = node
-        self.key = (node.context, node.resolve_topic_name(topic))
+        self.key = (node.context.handle, node.resolve_topic_name(topic))
         self.deliver = deliver
         self._over_middleware = over_middleware
-        self.linked = False
         self._registered = False
         linked = False
         if enabled():
             with _LOCK:
                 link = _LINKS.setdefault(self.key, _Link())
-                if link.taker is None:
-                    link.taker, self._registered = self, True
-                    _, linked = _changed(link, self.key)
-                else:
-                    _changed(link, self.key)
+                link.takers.append(self)
+                self._registered = True
+                _, linked = _changed(link, self.key)
         self.linked = not linked      # set_linked acts on a change
         self.set_linked(linked)
 
@@ -123,6 +125,6 @@ class Taker:
         self._registered = False
         with _LOCK:
             link = _LINKS.get(self.key)
-            if link is not None and link.taker is self:
-                link.taker = None
+            if link is not None and self in link.takers:
+                link.takers.remove(self)
                 _changed(link, self.key)

@@ -12,6 +12,7 @@ from gnss_sim_ros2 import graph
 from gnss_sim_ros2.core.frames import ecef_to_enu, ecef_to_geodetic, geodetic_to_ecef
 from gnss_sim_ros2.graph_params import robot_namespace
 from gnss_sim_ros2.messages.conversions import stamp_of, visibility_antenna
+from gnss_sim_ros2.nodes.in_process import Taker
 
 
 class RunOutputs:
@@ -100,6 +101,8 @@ class RunOutputs:
                        d.create_subscription(Visibility, "/gnss/antenna2/visibility", on_vis, 1000)]
 
     def close(self):
+        for r in self.robots:
+            r.vis_taker.close()
         self.probe.close()
 
 
@@ -133,17 +136,35 @@ class RobotOutputs:
             self.truth[sec + nanosec * 1e-9] = visibility_antenna(data)[1]
             self.last_vis = data
 
+        def on_handed(handed):
+            # handed by the fleet visibility node of this process (nodes/in_process.py): the message's columns
+            (sec, nanosec), cols = handed[0], handed[1]
+            self.truth[sec + nanosec * 1e-9] = np.array([cols[f"antenna_ecef_m.{a}"][0] for a in "xyz"])
+            self.last_vis = cols
+
         topic = self.topic
         self.subs = [driver.create_subscription(ReceiverStatus, topic("status"), on_status, 100),
-                     driver.create_subscription(NavSatFix, topic("fix"), on_fix, 100),
-                     driver.create_subscription(Visibility, topic("visibility"), on_vis, 100, raw=True)]
+                     driver.create_subscription(NavSatFix, topic("fix"), on_fix, 100)]
+        vis_sub: list = []
+
+        def over_middleware(on: bool):
+            if on and not vis_sub:
+                vis_sub.append(driver.create_subscription(Visibility, topic("visibility"), on_vis, 100, raw=True))
+            elif not on and vis_sub:
+                driver.destroy_subscription(vis_sub.pop())
+        self.vis_taker = Taker(driver, topic("visibility"), on_handed, over_middleware)
 
     def topic(self, name: str) -> str:
         """This robot's topic ``name`` (/robot<k>/gnss/<name>, or /gnss/<name> for the one robot of a run)."""
         return graph.robot_topic(self.k, f"{graph.TOPIC_NAMESPACE}/{name}")
 
     def last_vis_msg(self):
-        """The last gnss_sim_msgs/Visibility (kept serialised during the run); None before the first."""
+        """The last gnss_sim_msgs/Visibility (kept serialised, or as its columns, during the run); None before the
+        first."""
+        if isinstance(self.last_vis, dict):      # handed in-process: the message's columns, written as the message
+            from gnss_sim_ros2.messages.cdr import VISIBILITY_CODEC
+
+            self.last_vis = VISIBILITY_CODEC.encode(self.last_vis)
         if isinstance(self.last_vis, bytes):
             from gnss_sim_msgs.msg import Visibility
             from rclpy.serialization import deserialize_message
