@@ -97,7 +97,9 @@ class Cn0Predictor:
             p_edge, el_min, freq, key, _ = self.signal[s]
             cols = np.flatnonzero(sysv == s)
             run = cols[-1] - cols[0] + 1 == len(cols)          # a run of columns (the planner's: sorted by system)
-            r, c = np.divmod(np.flatnonzero(need[:, cols[0]:cols[-1] + 1] if run else need[:, cols]), len(cols))
+            sub = need[:, cols[0]:cols[-1] + 1] if run else need[:, cols]
+            r = np.repeat(np.arange(len(sub)), np.count_nonzero(sub, axis=1))   # each entry's row: no division
+            c = np.flatnonzero(sub) - r * len(cols)
             flat = r * n_s + (cols[0] + c if run else cols[c])
             for i0 in range(0, len(flat), COLUMN_BLOCK_ENTRIES):   # the temporaries stay in the caches
                 f = flat[i0:i0 + COLUMN_BLOCK_ENTRIES]

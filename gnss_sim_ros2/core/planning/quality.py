@@ -194,7 +194,9 @@ def _rows_quality(state, att, v, above, los_enu, sysv, clock, dual, inp: PlanInp
     gdop, pdop, hdop, vdop, _ = dops_from_moments(*moments)
     # the used satellites only (sigma ignores the others), gathered by flat index (row-major: r, k ascending)
     flat = np.flatnonzero(used)
-    r, k = np.divmod(flat, used.shape[1])
+    n_used = _count(used)
+    r = np.repeat(np.arange(len(used)), n_used)                 # each entry's row, its column: no integer division
+    k = flat - r * used.shape[1]
 
     def entries(x, dtype=None):
         return np.asarray(x, dtype).reshape(-1).take(flat)
@@ -202,8 +204,8 @@ def _rows_quality(state, att, v, above, los_enu, sysv, clock, dual, inp: PlanInp
     excess = np.where(entries(refl), np.nan_to_num(entries(v.extra_path_m, float)), 0.0) if refl.any() else 0.0
     var = inp.budget.variance_of_columns_m2(sysv, k, entries(el), np.where(entries(attn), entries(att), 0.0), excess,
                                             sin_el=entries(los_enu[2]))      # the up component: no sine per entry
-    var_sum = np.bincount(r, weights=var, minlength=len(used))
-    n_used, n_refl = np.einsum("gk->k", moments[0]), _count(refl)       # the used per row: the DOP counts' sum
+    var_sum = _row_sums(var, n_used)
+    n_refl = _count(refl)
     with np.errstate(invalid="ignore", divide="ignore"):
         uere = np.sqrt(var_sum / n_used)
         nlos = n_refl / n_used
@@ -216,6 +218,14 @@ def _rows_quality(state, att, v, above, los_enu, sysv, clock, dual, inp: PlanInp
             "n_blocked": _count(blocked), "gdop": gdop, "pdop": pdop, "hdop": hdop, "vdop": vdop,
             "nlos_share": nlos, "h_acc_m": hdop * uere}
     return vals, cand, (used, moments)
+
+
+def _row_sums(x, n_per_row) -> np.ndarray:
+    """Sums of ``x`` (E,), entries in row order, ``n_per_row`` (M,) of them per row (0 for a row without any)."""
+    if not len(x):
+        return np.zeros(len(n_per_row))
+    starts = np.cumsum(n_per_row) - n_per_row
+    return np.where(n_per_row > 0, np.add.reduceat(x, np.minimum(starts, len(x) - 1)), 0.0)
 
 
 def _count(mask) -> np.ndarray:
