@@ -115,6 +115,14 @@ class TransformTree:
         A point p in ``source`` maps to ``R.apply(p) + translation`` in ``target``
         (tf2's lookupTransform(target, source, time)).  ``t_s`` None: the latest.
         """
+        return self._lookup(target, source, t_s, True)
+
+    def position(self, target: str, source: str, t_s: float | None = None) -> np.ndarray:
+        """``lookup(...)[0]``, the same bits, without composing the rotation when ``target`` is an ancestor of
+        ``source`` (an antenna in the world: three scipy Rotation products less)."""
+        return self._lookup(target, source, t_s, False)[0]
+
+    def _lookup(self, target: str, source: str, t_s: float | None, rotation: bool):
         target, source = target.lstrip("/"), source.lstrip("/")
         known = self.frames()
         for f in (target, source):
@@ -126,12 +134,14 @@ class TransformTree:
         if common is None:
             raise TransformError(f"frames '{source}' and '{target}' are not connected")
         # source -> common
+        rotation = rotation or common != target       # the way back needs the source's rotation
         tr_s, rot_s = np.zeros(3), Rotation.identity()
         for f in up_s[: up_s.index(common)]:
             tr, rot = self._edges[f].at(t_s, self.tolerance_s)
-            tr_s, rot_s = rot.apply(tr_s) + tr, rot * rot_s
+            tr_s, rot_s = rot.apply(tr_s) + tr, rot * rot_s if rotation else None
         if common == target:      # the target is the source's ancestor (world -> a robot's antenna): no way back
-            return tr_s, _IDENTITY * rot_s       # what the product with the way back's inverse (identity) gives
+            # what the product with the way back's inverse (identity) gives
+            return tr_s, _IDENTITY * rot_s if rotation else None
         tr_t, rot_t = np.zeros(3), Rotation.identity()
         for f in up_t[: up_t.index(common)]:
             tr, rot = self._edges[f].at(t_s, self.tolerance_s)

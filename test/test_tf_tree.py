@@ -53,3 +53,22 @@ def test_out_of_buffer_and_unknown_frames_fail_clearly():
         tree.lookup("odom", "base_link", 1.5)
     with pytest.raises(ValueError, match="invalid quaternion"):
         tree.set_transform("world", "x", 0.0, [0, 0, 0], [0, 0, 0, 0])
+
+
+def test_position_is_the_lookups_translation_bit_for_bit():
+    """TransformTree.position (the visibility nodes' antenna) gives lookup's translation exactly, at samples, between
+    them (interpolated) and beyond; across trees (the way back) too; the same errors."""
+    rng = np.random.default_rng(3)
+    tree = TransformTree(cache_time_s=100.0)
+    for k in range(3):
+        for t in np.arange(0.0, 2.01, 0.05):
+            tree.set_transform("map", f"robot{k}/base_link", float(t), rng.normal(size=3) * 50,
+                               Rotation.random(random_state=int(rng.integers(1e9))).as_quat())
+        tree.set_transform(f"robot{k}/base_link", f"robot{k}/gnss_antenna", 0.0, rng.normal(size=3),
+                           Rotation.random(random_state=k).as_quat(), static=True)
+    for t in (0.0, 0.05, 0.123, 1.0, 1.999, None):
+        for target, source in (("map", "robot1/gnss_antenna"), ("map", "robot2/base_link"),
+                               ("robot0/gnss_antenna", "robot2/gnss_antenna")):
+            assert tree.position(target, source, t).tobytes() == tree.lookup(target, source, t)[0].tobytes()
+    with pytest.raises(TransformError, match="outside the buffer"):
+        tree.position("map", "robot0/gnss_antenna", 3.0)

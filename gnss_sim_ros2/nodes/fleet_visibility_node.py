@@ -106,7 +106,7 @@ class FleetVisibilityNode(VisibilityNode):
             for k in np.flatnonzero(~found):
                 frame = self.antenna_frames[k]
                 try:
-                    antennas[k] = np.asarray(self.tf.lookup(p["world_frame"], frame, stamp)[0])
+                    antennas[k] = self.tf.position(p["world_frame"], frame, stamp)
                     found[k] = True
                 except LookupError:
                     if not self.tf.frame_missing(frame, stamp, arrived):

@@ -81,6 +81,12 @@ class TfSource:
             return np.array([tr.x, tr.y, tr.z]), Rotation.from_quat([q.x, q.y, q.z, q.w])
         return self.tree.lookup(target, source, stamp.sec + stamp.nanosec * 1e-9)
 
+    def position(self, target: str, source: str, stamp) -> np.ndarray:
+        """``lookup(...)[0]`` (the compact tree: the same bits, the rotation not composed)."""
+        if self.backend == "tf2_ros":
+            return self.lookup(target, source, stamp)[0]
+        return self.tree.position(target, source, stamp.sec + stamp.nanosec * 1e-9)
+
     def frame_missing(self, frame: str, stamp, waiting_since_s: float) -> bool:
         """Whether an epoch at ``stamp`` that waits since ``waiting_since_s`` (time.monotonic()) for the transform
         of ``frame`` misses it: tf_tree.FrameWait's rule, with the /tf publishers alive in the graph."""

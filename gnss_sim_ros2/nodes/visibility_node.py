@@ -167,7 +167,7 @@ class VisibilityNode(GnssSimNode):
                 self.process(data, self.fixed_world_m)
                 continue
             try:
-                tr, _ = self.tf.lookup(p["world_frame"], p["antenna_frame"], stamp)
+                tr = self.tf.position(p["world_frame"], p["antenna_frame"], stamp)
             except LookupError:
                 if self.tf.frame_missing(p["antenna_frame"], stamp, arrived):
                     self.queue.popleft()

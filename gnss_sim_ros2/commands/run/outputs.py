@@ -178,8 +178,10 @@ class RobotOutputs:
 
     def answered(self, t_s: float, every: bool = False) -> bool:
         """The receiver's status of the epoch at t_s came (``every``: searched among all, else the last 3)."""
-        stamps = self.status if every else islice(reversed(self.status), 3)   # not a copy of all: asked per pass
-        return any(abs(s - t_s) < 1e-6 for s in stamps)
+        if any(abs(s - t_s) < 1e-6 for s in islice(reversed(self.status), 3)):  # not a copy of all: asked per pass
+            return True
+        # all only when the last 3 lack it: the driver asks every robot after each epoch (N x epochs a pass else)
+        return every and any(abs(s - t_s) < 1e-6 for s in self.status)
 
     def cast(self, t_s: float) -> bool:
         """The visibility of the epoch at t_s came (the antenna's TF was there)."""
