@@ -23,6 +23,7 @@ import pytest
 
 from gnss_sim_ros2.core.rinex.obs_write import (
     EpochArrays,
+    EpochFormatter,
     RinexObsHeader,
     RinexObsWriter,
     ssi_from_cn0,
@@ -173,6 +174,50 @@ def test_array_input_equals_dict_input(tmp_path):
         w.write_epoch(T0, EpochArrays(svs, codes, val, lli, ssi))
     body = lambda p: [ln for ln in _obs_lines(p) if "PGM / RUN BY" not in ln]  # noqa: E731
     assert body(p1) == body(p2)
+
+
+def _epoch_arrays(k: int, drop: int = 0) -> EpochArrays:
+    """synthetic_epoch(k) as EpochArrays in header column order, its first ``drop`` satellites left out."""
+    obs, _ = synthetic_epoch(k)
+    svs = list(obs)[drop:]
+    codes = {s: SYN_TYPES[s] for s in SYN_TYPES}
+    val, lli, ssi = np.full((len(svs), 4), np.nan), np.full((len(svs), 4), -1), np.full((len(svs), 4), -1)
+    for r, sv in enumerate(svs):
+        for j, c in enumerate(codes[sv[0]]):
+            if c in obs[sv]:
+                v, li, si = obs[sv][c]
+                val[r, j], lli[r, j], ssi[r, j] = v, -1 if li is None else li, -1 if si is None else si
+    return EpochArrays(svs, codes, val, lli, ssi)
+
+
+def test_epochs_of_several_files_formatted_together(tmp_path):
+    """Three files' epochs formatted in one pass (EpochFormatter.format_arrays, as the fleet's receivers are) and
+    written as FormattedEpoch give each file the bytes of its EpochArrays written alone; a FormattedEpoch of other
+    obs_types and an epoch that does not fit are refused."""
+    hdr = RinexObsHeader(obs_types=SYN_TYPES, interval_s=1.0)
+    fmt = EpochFormatter(SYN_TYPES)
+    alone = [RinexObsWriter(tmp_path / f"alone{i}.rnx", hdr) for i in range(3)]
+    together = [RinexObsWriter(tmp_path / f"together{i}.rnx", hdr) for i in range(3)]
+    for k in range(4):
+        arrays = [_epoch_arrays(k + 10 * i, drop=i * (k + 1)) for i in range(3)]   # satellite sets differ
+        for w, a in zip(alone, arrays):
+            w.write_epoch(T0 + k, a, clock_offset_s=1e-6 * k)
+        for w, f in zip(together, fmt.format_arrays(arrays)):
+            w.write_epoch(T0 + k, f, clock_offset_s=1e-6 * k)
+    for w in alone + together:
+        w.close()
+    body = lambda p: [ln for ln in _obs_lines(p) if "PGM / RUN BY" not in ln]  # noqa: E731
+    for i in range(3):
+        assert body(tmp_path / f"alone{i}.rnx") == body(tmp_path / f"together{i}.rnx")
+    other = EpochFormatter({"G": SYN_TYPES["G"]})
+    gps = _epoch_arrays(0)
+    gps = EpochArrays(gps.sv[:12], {"G": SYN_TYPES["G"]}, gps.value[:12], gps.lli[:12], gps.ssi[:12])
+    with RinexObsWriter(tmp_path / "other.rnx", hdr) as w, pytest.raises(ValueError, match="obs_types"):
+        w.write_epoch(T0, other.format_arrays([gps])[0])
+    bad = _epoch_arrays(0)
+    bad.value[0, 0] = 1e12
+    with pytest.raises(ValueError, match="does not fit F14.3"):
+        fmt.format_arrays([_epoch_arrays(1), bad])
 
 
 def test_epoch_time_rounding_carry(tmp_path):

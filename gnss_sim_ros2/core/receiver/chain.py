@@ -155,6 +155,8 @@ class ReceiverChain:
         #: written at once (a killed node loses no epoch it published: 0.2 ms/epoch at 10 Hz against
         #: writing a second of epochs together, docs/profile-offline-chain.md)
         self._rinex_pending: list = []
+        #: (observables, their EpochArrays, their RINEX lines or None) made ahead for the next finish (prepare)
+        self._prepared = None
         self._nmea_file = None
         #: a scenario's events (core/threats/runtime.ThreatRuntime) or None; set before the first epoch
         self.threats = None
@@ -173,6 +175,7 @@ class ReceiverChain:
         self._pos_prev = None
         self.epochs = 0
         self.fixes = 0
+        self._prepared = None
 
     def set_iono_coefficients(self, iono: dict | None):
         """The navigation header's ionosphere coefficients (a node gets them with the states)."""
@@ -288,12 +291,15 @@ class ReceiverChain:
 
             text = join_sentences(sentences_from_solution(t, sol, cn0_dbhz=obs.cn0_dbhz[
                 spp_rows(obs, self.settings.receiver.profile)]))
-        wanted = self.settings.output_dir is not None or self.rtcm_target is not None
-        arrays = epoch_arrays(obs, self.obs_types) if len(obs.sv) and wanted else None
+        prepared, self._prepared = self._prepared, None
+        if prepared is not None and prepared[0] is obs:
+            arrays, lines = prepared[1], prepared[2]
+        else:
+            arrays, lines = (epoch_arrays(obs, self.obs_types) if len(obs.sv) and self.wants_arrays() else None), None
         if self._header is None:
             self._header = self._make_header(ecef, states)
         if self.settings.output_dir is not None:
-            self._write(t, ecef, obs, sol, text, arrays)
+            self._write(t, ecef, obs, sol, text, arrays if lines is None else lines)
         rtcm = b""
         if self.rtcm_target is not None and arrays is not None:
             if self._rtcm is None:
@@ -303,6 +309,17 @@ class ReceiverChain:
                 self._rtcm.add_glonass_channels(dict(zip(states.sv[glo], states.glo_channel[glo])))
             rtcm = self._rtcm.write_epoch(t, arrays)
         return EpochProducts(t, ecef, obs, sol, text, rtcm)
+
+    def wants_arrays(self) -> bool:
+        """Whether an epoch's observables become EpochArrays (outputs.epoch_arrays): for a RINEX file or RTCM."""
+        return self.settings.output_dir is not None or self.rtcm_target is not None
+
+    def prepare(self, obs, arrays, lines=None):
+        """What :meth:`finish` of ``obs`` (this chain's next) would make itself, made ahead with other receivers'
+        (batch_fix.prepare_rinex_epochs): its EpochArrays (or None) and the RINEX satellite lines of them
+        (rinex/obs_write.FormattedEpoch, or None: formatted at the finish).  Used by that finish only, and only if
+        it is of the same ``obs`` object."""
+        self._prepared = (obs, arrays, lines)
 
     def _smoothed(self, obs: EpochObservations) -> EpochObservations:
         """The observables with carrier-smoothed code for the position fix, as receivers compute their fix
@@ -412,6 +429,8 @@ class ReceiverChain:
             self._nmea_file = open(out / "gnss_sim.nmea", "a", buffering=1)  # noqa: SIM115 - closed in close()
 
     def _write(self, t, ecef, obs, sol, nmea_text, arrays):
+        """The epoch's fix.csv row, RINEX epoch (``arrays``: EpochArrays, their FormattedEpoch, or None) pending
+        until _flush_files, NMEA text."""
         if self._writer is None:
             self._open(t)
         stamp = t.isoformat(digits=3 if self.settings.interval_s < 1 else 0)

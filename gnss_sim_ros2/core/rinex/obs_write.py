@@ -286,7 +286,235 @@ class EpochArrays:
     ssi: np.ndarray | None = None
 
 
-class RinexObsWriter:
+@dataclass(frozen=True)
+class FormattedEpoch:
+    """An epoch's satellite lines formatted ahead of writing (EpochFormatter.format_arrays): RinexObsWriter.write_epochs
+    takes it in place of the EpochArrays it was made of, for a header with the same obs_types (``key``)."""
+
+    key: tuple
+    n_sv: int
+    lines: bytes
+
+
+class EpochFormatter:
+    """The satellite lines of observation epochs for a header's ``obs_types`` ({system: [codes]}), checked and
+    formatted as RinexObsWriter writes them, without a file: the epochs of several files with the same obs_types
+    (a fleet's receivers) formatted in one vectorised pass (:meth:`format_arrays`)."""
+
+    def __init__(self, obs_types: Mapping[str, Sequence[str]]):
+        self.obs_types = obs_types
+        self.key = tuple((s, tuple(c)) for s, c in obs_types.items())
+        self._code_index = {s: {c: i for i, c in enumerate(codes)} for s, codes in obs_types.items()}
+        self._n_codes = {s: len(codes) for s, codes in obs_types.items()}
+        self._array_maps: dict[tuple, list] = {}
+        self._flat_cache = BoundedCache(256)
+
+    def format_arrays(self, epochs) -> list[FormattedEpoch]:
+        """Each EpochArrays of ``epochs`` as a FormattedEpoch, all of them checked and formatted in one pass (the
+        bytes RinexObsWriter.write_epochs writes for each); raises ValueError as write_epochs does."""
+        parts = [self._array_parts(ep) for ep in epochs]
+        for p in parts:
+            if len(p[0]) > 999:
+                raise ValueError(f"write_epoch: {len(p[0])} satellites; the epoch record holds at most 999")
+        if not parts:
+            return []
+        text, offsets = self._format_rows([sv for p in parts for sv in p[0]], *self._arrays_flat(parts))
+        offsets = offsets.tolist()
+        out, pos = [], 0
+        for p in parts:
+            n = len(p[0])
+            out.append(FormattedEpoch(self.key, n, text[offsets[pos]:offsets[pos + n]]))
+            pos += n
+        return out
+
+    # ----- epoch formatting ----------------------------------------------
+    def _format_rows(self, svs: list[str], v, lli, ssi) -> tuple[bytes, np.ndarray]:
+        """Satellite lines from flat arrays of the epoch: satellite after satellite, each with
+        the codes of its system in header order (NaN value / negative indicator = blank).
+        All values of the epochs are formatted in one vectorised pass: (the lines, each ended by a newline, one
+        after another; the offset of each satellite's line in them and the end, len(svs) + 1)."""
+        v = np.asarray(v, dtype=np.float64)
+        try:
+            lli = _int_or_blank(np.asarray(lli, dtype=np.float64))
+            ssi = _int_or_blank(np.asarray(ssi, dtype=np.float64))
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"observations: LLI/SSI must be integers or None ({exc})") from exc
+        nan = np.isnan(v)
+        bad = ~nan & ~((v <= _F14_MAX) & (v >= -_F14_NEG_MAX))
+        bad_l, bad_s = lli > 7, ssi > 9
+        if bad.any() or bad_l.any() or bad_s.any():
+            for mask, what in ((bad, "value does not fit F14.3 (-1e9 < v < 1e10)"), (bad_l, "LLI out of range 0-7"),
+                               (bad_s, "SSI out of range 0-9")):
+                if mask.any():
+                    i = int(np.flatnonzero(mask)[0])
+                    sv, code = self._locate(svs, i)
+                    raise ValueError(f"observations[{sv!r}][{code!r}]: {what} "
+                                     f"(value {v[i]!r}, LLI {lli[i]}, SSI {ssi[i]})")
+        fields = _f14_3_words(np.where(nan, 0.0, v), nan)
+        chars = fields.view(np.uint8)
+        lli_char = _DIGIT_BYTES.take(np.where(nan, -1, np.maximum(lli, -1)) + 1)
+        ssi_char = _DIGIT_BYTES.take(np.where(nan, -1, np.maximum(ssi, -1)) + 1)
+        chars[:, 14] = lli_char
+        chars[:, 15] = ssi_char
+        # one row per satellite: its id, its fields (blank up to the widest system's), a column for the newline;
+        # trailing blanks dropped: a line ends with its last field with a value (a field without one is blank
+        # throughout), at its SSI, LLI or last decimal; a line without a value at its id, as bytes.rstrip ends it
+        n_sv = len(svs)
+        counts = np.array([self._n_codes[sv[0]] for sv in svs], dtype=np.int64)
+        width = 16 * int(counts.max(initial=0))
+        rows = np.empty((n_sv, 3 + width + 1), dtype=np.uint8)
+        rows[:, :3] = np.frombuffer("".join(svs).encode("ascii"), dtype=np.uint8).reshape(n_sv, 3)
+        field_end = np.where(ssi_char != 32, 15, np.where(lli_char != 32, 14, 13))
+        uniform = bool(n_sv) and bool((counts == counts[0]).all())
+        if uniform:
+            rows[:, 3:3 + width] = chars.reshape(n_sv, width)
+            has = ~nan.reshape(n_sv, -1)
+            j = has.shape[1] - 1 - np.argmax(has[:, ::-1], axis=1)          # each row's last field with a value
+            last = np.where(has.any(axis=1), 3 + 16 * j + field_end.reshape(n_sv, -1)[np.arange(n_sv), j], -1)
+        else:
+            rows[:, 3:] = 32
+            first = np.repeat(np.cumsum(counts) - counts, counts)
+            r = np.repeat(np.arange(n_sv), counts)
+            col = 3 + 16 * (np.arange(len(r)) - first)
+            rows[r[:, None], col[:, None] + np.arange(16)] = chars
+            last = np.full(n_sv, -1, dtype=np.int64)
+            np.maximum.at(last, r[~nan], (col + field_end)[~nan])
+        for i in np.flatnonzero(last < 0).tolist():
+            last[i] = len(svs[i].encode("ascii").rstrip()) - 1
+        rows[np.arange(n_sv), last + 1] = 10
+        raw = rows.tobytes()
+        starts = np.arange(n_sv) * rows.shape[1]
+        text = b"".join([raw[a:b] for a, b in zip(starts.tolist(), (starts + last + 2).tolist())])
+        offsets = np.zeros(n_sv + 1, dtype=np.int64)
+        np.cumsum(last + 2, out=offsets[1:])
+        return text, offsets
+
+    def _locate(self, svs: list[str], i: int) -> tuple[str, str]:
+        """(sv, code) of flat index i."""
+        for sv in svs:
+            n = self._n_codes[sv[0]]
+            if i < n:
+                return sv, self.obs_types[sv[0]][i]
+            i -= n
+        return "?", "?"
+
+    def _check_sv(self, sv, where: str) -> None:
+        if not isinstance(sv, str) or len(sv) != 3 or sv[0] not in self._code_index:
+            raise ValueError(f"{where}: satellite {sv!r} is not an id like 'G05' of a system in the header "
+                             f"obs_types ({list(self.obs_types)})")
+
+    def _dict_flat(self, observations: Mapping):
+        flat_v, flat_l, flat_s = [], [], []
+        svs = list(observations)
+        nan = math.nan
+        for sv in svs:
+            self._check_sv(sv, "observations")
+            idx = self._code_index[sv[0]]
+            n = self._n_codes[sv[0]]
+            base = len(flat_v)
+            flat_v.extend([nan] * n)
+            flat_l.extend([-1] * n)
+            flat_s.extend([-1] * n)
+            for code, item in observations[sv].items():
+                i = idx.get(code)
+                if i is None:
+                    raise ValueError(f"observations[{sv!r}]: code {code!r} is not in the header obs_types for "
+                                     f"{sv[0]}: {list(idx)}")
+                i += base
+                if type(item) is tuple:
+                    x, a, b = item if len(item) == 3 else (item + (None, None))[:3]
+                    if x is not None:
+                        flat_v[i] = x
+                    if a is not None:
+                        flat_l[i] = a
+                    if b is not None:
+                        flat_s[i] = b
+                elif item is not None:
+                    flat_v[i] = item
+        try:
+            v = np.array(flat_v, dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"observations: values must be numbers or None ({exc})") from exc
+        return svs, v, flat_l, flat_s
+
+    def _array_parts(self, ep: EpochArrays) -> tuple:
+        """(satellites, values (N, M), LLI, SSI, layout, ep) of an EpochArrays, its shapes and satellites checked
+        against the header; its values are checked and flattened by _arrays_flat."""
+        value = np.asarray(ep.value, dtype=np.float64)
+        per_sys = isinstance(ep.codes, Mapping)
+        svs = list(ep.sv)
+        n = len(svs)
+        m = len(next(iter(ep.codes.values()))) if per_sys else len(ep.codes)
+        if per_sys and any(len(c) != m for c in ep.codes.values()):
+            raise ValueError(f"observations.codes: every system needs {m} codes, got {ep.codes!r}")
+        if value.shape != (n, m):
+            raise ValueError(f"observations.value: shape {value.shape}, expected ({n}, {m}) = (sv, codes)")
+        lli = np.full((n, m), -1, np.int64) if ep.lli is None else _int_or_blank(ep.lli)
+        ssi = np.full((n, m), -1, np.int64) if ep.ssi is None else _int_or_blank(ep.ssi)
+        for name, arr in (("lli", lli), ("ssi", ssi)):
+            if arr.shape != (n, m):
+                raise ValueError(f"observations.{name}: shape {arr.shape}, expected ({n}, {m})")
+        key = (tuple(svs), tuple((s, tuple(c)) for s, c in ep.codes.items()) if per_sys else tuple(ep.codes))
+        hit = self._flat_cache.get(key)
+        if hit is None:
+            hit = self._flat_layout(ep, svs, per_sys, n, m)
+            self._flat_cache.put(key, hit)
+        return svs, value, lli, ssi, hit, ep
+
+    def _arrays_flat(self, parts: list[tuple]) -> tuple:
+        """(flat values, LLI, SSI) of consecutive epochs' _array_parts, one epoch after the other, in one pass;
+        a value under a code the header lacks raises naming the first such epoch's satellite and code."""
+        value = np.concatenate([p[1].reshape(-1) for p in parts])
+        known = np.concatenate([p[4][0].reshape(-1) for p in parts])
+        if (~known & ~np.isnan(value)).any():
+            for svs, v, _, _, (kn, _, _), ep in parts:
+                unknown = ~kn & ~np.isnan(v)
+                if unknown.any():
+                    sys_rows = [sv[0] for sv in svs]
+                    r, j = np.argwhere(unknown)[0]
+                    code = ep.codes[sys_rows[r]][j] if isinstance(ep.codes, Mapping) else ep.codes[j]
+                    raise ValueError(f"observations: {svs[r]} has a value for {code!r}, not in the header obs_types "
+                                     f"for {sys_rows[r]}: {list(self.obs_types[sys_rows[r]])}")
+        totals = np.array([p[4][2] for p in parts], dtype=np.int64)
+        pos = np.concatenate([p[4][1] for p in parts]) + np.repeat(np.cumsum(totals) - totals,
+                                                                   [p[4][1].size for p in parts])
+        total = int(totals.sum())
+        fv = np.empty(total)               # np.empty + fill: less overhead than np.full
+        fv.fill(np.nan)
+        fl = np.empty(total, np.int64)
+        fl.fill(-1)
+        fs = fl.copy()
+        fv[pos] = value[known]
+        fl[pos] = np.concatenate([p[2].reshape(-1) for p in parts])[known]
+        fs[pos] = np.concatenate([p[3].reshape(-1) for p in parts])[known]
+        return fv, fl, fs
+
+    def _flat_layout(self, ep: EpochArrays, svs, per_sys: bool, n: int, m: int):
+        """(cells with a header code (n, m), their flat positions, flat length) of an epoch's layout."""
+        for r, sv in enumerate(svs):
+            self._check_sv(sv, f"observations.sv[{r}]")
+        sys_rows = [sv[0] for sv in svs]
+        counts = np.array([self._n_codes[s] for s in sys_rows], dtype=np.int64)
+        offsets = np.cumsum(counts) - counts
+        cm = np.empty((n, m), dtype=np.int64)
+        sys_arr = np.array(sys_rows)
+        for s in dict.fromkeys(sys_rows):
+            codes = tuple(ep.codes[s]) if per_sys and s in ep.codes else (None if per_sys else tuple(ep.codes))
+            if codes is None:
+                raise ValueError(f"observations.codes has no entry for system {s!r}")
+            key = (s, codes)
+            cmap = self._array_maps.get(key)
+            if cmap is None:
+                idx = self._code_index[s]
+                cmap = np.array([idx.get(c, -1) for c in codes], dtype=np.int64)
+                self._array_maps[key] = cmap
+            cm[sys_arr == s] = cmap
+        known = cm >= 0
+        return known, (offsets[:, None] + cm)[known], int(counts.sum())
+
+
+
+class RinexObsWriter(EpochFormatter):
     """Write a RINEX 3.04 observation file epoch by epoch (see the module docstring).
 
     ``path``: output file (overwritten); ``header_info``: a
@@ -299,10 +527,7 @@ class RinexObsWriter:
         self.header.validate()
         self.path = os.fspath(path)
         self.fsync = bool(fsync)
-        self._code_index = {s: {c: i for i, c in enumerate(codes)} for s, codes in self.header.obs_types.items()}
-        self._n_codes = {s: len(codes) for s, codes in self.header.obs_types.items()}
-        self._array_maps: dict[tuple, list] = {}
-        self._flat_cache = BoundedCache(256)
+        super().__init__(self.header.obs_types)
         self._fd: int | None = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
         self._header_written = False
         self._last_obs_offset: int | None = None
@@ -397,197 +622,13 @@ class RinexObsWriter:
             offset = sum(len(ln) for ln in lines[:last_obs_index])  # ASCII: chars == bytes
         return "".join(lines), offset
 
-    # ----- epoch formatting ----------------------------------------------
-    def _format_rows(self, svs: list[str], v, lli, ssi) -> tuple[bytes, np.ndarray]:
-        """Satellite lines from flat arrays of the epoch: satellite after satellite, each with
-        the codes of its system in header order (NaN value / negative indicator = blank).
-        All values of the epochs are formatted in one vectorised pass: (the lines, each ended by a newline, one
-        after another; the offset of each satellite's line in them and the end, len(svs) + 1)."""
-        v = np.asarray(v, dtype=np.float64)
-        try:
-            lli = _int_or_blank(np.asarray(lli, dtype=np.float64))
-            ssi = _int_or_blank(np.asarray(ssi, dtype=np.float64))
-        except (TypeError, ValueError) as exc:
-            raise ValueError(f"observations: LLI/SSI must be integers or None ({exc})") from exc
-        nan = np.isnan(v)
-        bad = ~nan & ~((v <= _F14_MAX) & (v >= -_F14_NEG_MAX))
-        bad_l, bad_s = lli > 7, ssi > 9
-        if bad.any() or bad_l.any() or bad_s.any():
-            for mask, what in ((bad, "value does not fit F14.3 (-1e9 < v < 1e10)"), (bad_l, "LLI out of range 0-7"),
-                               (bad_s, "SSI out of range 0-9")):
-                if mask.any():
-                    i = int(np.flatnonzero(mask)[0])
-                    sv, code = self._locate(svs, i)
-                    raise ValueError(f"observations[{sv!r}][{code!r}]: {what} "
-                                     f"(value {v[i]!r}, LLI {lli[i]}, SSI {ssi[i]})")
-        fields = _f14_3_words(np.where(nan, 0.0, v), nan)
-        chars = fields.view(np.uint8)
-        lli_char = _DIGIT_BYTES.take(np.where(nan, -1, np.maximum(lli, -1)) + 1)
-        ssi_char = _DIGIT_BYTES.take(np.where(nan, -1, np.maximum(ssi, -1)) + 1)
-        chars[:, 14] = lli_char
-        chars[:, 15] = ssi_char
-        # one row per satellite: its id, its fields (blank up to the widest system's), a column for the newline;
-        # trailing blanks dropped: a line ends with its last field with a value (a field without one is blank
-        # throughout), at its SSI, LLI or last decimal; a line without a value at its id, as bytes.rstrip ends it
-        n_sv = len(svs)
-        counts = np.array([self._n_codes[sv[0]] for sv in svs], dtype=np.int64)
-        width = 16 * int(counts.max(initial=0))
-        rows = np.empty((n_sv, 3 + width + 1), dtype=np.uint8)
-        rows[:, :3] = np.frombuffer("".join(svs).encode("ascii"), dtype=np.uint8).reshape(n_sv, 3)
-        field_end = np.where(ssi_char != 32, 15, np.where(lli_char != 32, 14, 13))
-        uniform = bool(n_sv) and bool((counts == counts[0]).all())
-        if uniform:
-            rows[:, 3:3 + width] = chars.reshape(n_sv, width)
-            has = ~nan.reshape(n_sv, -1)
-            j = has.shape[1] - 1 - np.argmax(has[:, ::-1], axis=1)          # each row's last field with a value
-            last = np.where(has.any(axis=1), 3 + 16 * j + field_end.reshape(n_sv, -1)[np.arange(n_sv), j], -1)
-        else:
-            rows[:, 3:] = 32
-            first = np.repeat(np.cumsum(counts) - counts, counts)
-            r = np.repeat(np.arange(n_sv), counts)
-            col = 3 + 16 * (np.arange(len(r)) - first)
-            rows[r[:, None], col[:, None] + np.arange(16)] = chars
-            last = np.full(n_sv, -1, dtype=np.int64)
-            np.maximum.at(last, r[~nan], (col + field_end)[~nan])
-        for i in np.flatnonzero(last < 0).tolist():
-            last[i] = len(svs[i].encode("ascii").rstrip()) - 1
-        rows[np.arange(n_sv), last + 1] = 10
-        raw = rows.tobytes()
-        starts = np.arange(n_sv) * rows.shape[1]
-        text = b"".join([raw[a:b] for a, b in zip(starts.tolist(), (starts + last + 2).tolist())])
-        offsets = np.zeros(n_sv + 1, dtype=np.int64)
-        np.cumsum(last + 2, out=offsets[1:])
-        return text, offsets
-
-    def _locate(self, svs: list[str], i: int) -> tuple[str, str]:
-        """(sv, code) of flat index i."""
-        for sv in svs:
-            n = self._n_codes[sv[0]]
-            if i < n:
-                return sv, self.header.obs_types[sv[0]][i]
-            i -= n
-        return "?", "?"
-
-    def _check_sv(self, sv, where: str) -> None:
-        if not isinstance(sv, str) or len(sv) != 3 or sv[0] not in self._code_index:
-            raise ValueError(f"{where}: satellite {sv!r} is not an id like 'G05' of a system in the header "
-                             f"obs_types ({list(self.header.obs_types)})")
-
-    def _dict_flat(self, observations: Mapping):
-        flat_v, flat_l, flat_s = [], [], []
-        svs = list(observations)
-        nan = math.nan
-        for sv in svs:
-            self._check_sv(sv, "observations")
-            idx = self._code_index[sv[0]]
-            n = self._n_codes[sv[0]]
-            base = len(flat_v)
-            flat_v.extend([nan] * n)
-            flat_l.extend([-1] * n)
-            flat_s.extend([-1] * n)
-            for code, item in observations[sv].items():
-                i = idx.get(code)
-                if i is None:
-                    raise ValueError(f"observations[{sv!r}]: code {code!r} is not in the header obs_types for "
-                                     f"{sv[0]}: {list(idx)}")
-                i += base
-                if type(item) is tuple:
-                    x, a, b = item if len(item) == 3 else (item + (None, None))[:3]
-                    if x is not None:
-                        flat_v[i] = x
-                    if a is not None:
-                        flat_l[i] = a
-                    if b is not None:
-                        flat_s[i] = b
-                elif item is not None:
-                    flat_v[i] = item
-        try:
-            v = np.array(flat_v, dtype=np.float64)
-        except (TypeError, ValueError) as exc:
-            raise ValueError(f"observations: values must be numbers or None ({exc})") from exc
-        return svs, v, flat_l, flat_s
-
-    def _array_parts(self, ep: EpochArrays) -> tuple:
-        """(satellites, values (N, M), LLI, SSI, layout, ep) of an EpochArrays, its shapes and satellites checked
-        against the header; its values are checked and flattened by _arrays_flat."""
-        value = np.asarray(ep.value, dtype=np.float64)
-        per_sys = isinstance(ep.codes, Mapping)
-        svs = list(ep.sv)
-        n = len(svs)
-        m = len(next(iter(ep.codes.values()))) if per_sys else len(ep.codes)
-        if per_sys and any(len(c) != m for c in ep.codes.values()):
-            raise ValueError(f"observations.codes: every system needs {m} codes, got {ep.codes!r}")
-        if value.shape != (n, m):
-            raise ValueError(f"observations.value: shape {value.shape}, expected ({n}, {m}) = (sv, codes)")
-        lli = np.full((n, m), -1, np.int64) if ep.lli is None else _int_or_blank(ep.lli)
-        ssi = np.full((n, m), -1, np.int64) if ep.ssi is None else _int_or_blank(ep.ssi)
-        for name, arr in (("lli", lli), ("ssi", ssi)):
-            if arr.shape != (n, m):
-                raise ValueError(f"observations.{name}: shape {arr.shape}, expected ({n}, {m})")
-        key = (tuple(svs), tuple((s, tuple(c)) for s, c in ep.codes.items()) if per_sys else tuple(ep.codes))
-        hit = self._flat_cache.get(key)
-        if hit is None:
-            hit = self._flat_layout(ep, svs, per_sys, n, m)
-            self._flat_cache.put(key, hit)
-        return svs, value, lli, ssi, hit, ep
-
-    def _arrays_flat(self, parts: list[tuple]) -> tuple:
-        """(flat values, LLI, SSI) of consecutive epochs' _array_parts, one epoch after the other, in one pass;
-        a value under a code the header lacks raises naming the first such epoch's satellite and code."""
-        value = np.concatenate([p[1].reshape(-1) for p in parts])
-        known = np.concatenate([p[4][0].reshape(-1) for p in parts])
-        if (~known & ~np.isnan(value)).any():
-            for svs, v, _, _, (kn, _, _), ep in parts:
-                unknown = ~kn & ~np.isnan(v)
-                if unknown.any():
-                    sys_rows = [sv[0] for sv in svs]
-                    r, j = np.argwhere(unknown)[0]
-                    code = ep.codes[sys_rows[r]][j] if isinstance(ep.codes, Mapping) else ep.codes[j]
-                    raise ValueError(f"observations: {svs[r]} has a value for {code!r}, not in the header obs_types "
-                                     f"for {sys_rows[r]}: {list(self.header.obs_types[sys_rows[r]])}")
-        totals = np.array([p[4][2] for p in parts], dtype=np.int64)
-        pos = np.concatenate([p[4][1] for p in parts]) + np.repeat(np.cumsum(totals) - totals,
-                                                                   [p[4][1].size for p in parts])
-        total = int(totals.sum())
-        fv = np.empty(total)               # np.empty + fill: less overhead than np.full
-        fv.fill(np.nan)
-        fl = np.empty(total, np.int64)
-        fl.fill(-1)
-        fs = fl.copy()
-        fv[pos] = value[known]
-        fl[pos] = np.concatenate([p[2].reshape(-1) for p in parts])[known]
-        fs[pos] = np.concatenate([p[3].reshape(-1) for p in parts])[known]
-        return fv, fl, fs
-
-    def _flat_layout(self, ep: EpochArrays, svs, per_sys: bool, n: int, m: int):
-        """(cells with a header code (n, m), their flat positions, flat length) of an epoch's layout."""
-        for r, sv in enumerate(svs):
-            self._check_sv(sv, f"observations.sv[{r}]")
-        sys_rows = [sv[0] for sv in svs]
-        counts = np.array([self._n_codes[s] for s in sys_rows], dtype=np.int64)
-        offsets = np.cumsum(counts) - counts
-        cm = np.empty((n, m), dtype=np.int64)
-        sys_arr = np.array(sys_rows)
-        for s in dict.fromkeys(sys_rows):
-            codes = tuple(ep.codes[s]) if per_sys and s in ep.codes else (None if per_sys else tuple(ep.codes))
-            if codes is None:
-                raise ValueError(f"observations.codes has no entry for system {s!r}")
-            key = (s, codes)
-            cmap = self._array_maps.get(key)
-            if cmap is None:
-                idx = self._code_index[s]
-                cmap = np.array([idx.get(c, -1) for c in codes], dtype=np.int64)
-                self._array_maps[key] = cmap
-            cm[sys_arr == s] = cmap
-        known = cm >= 0
-        return known, (offsets[:, None] + cm)[known], int(counts.sum())
-
     def write_epoch(self, t: GnssTime, observations, clock_offset_s: float | None = None, flag: int = 0) -> None:
         """Append one epoch (time ``t`` in GPS time) and hand it to the OS at once.
 
         ``observations``: ``{sv: {code: value | (value, lli, ssi)}}`` (lli, ssi
-        ints 0-9 or None for blank; value None/NaN for blank), or an
-        :class:`EpochArrays`.  Satellites are written in the given order.
+        ints 0-9 or None for blank; value None/NaN for blank), an
+        :class:`EpochArrays`, or the :class:`FormattedEpoch` of one (its lines as they are).
+        Satellites are written in the given order.
         ``clock_offset_s``: receiver clock offset (F15.12) or None; ``flag``:
         epoch flag 0 (OK) or 1 (power failure since the previous epoch).
         """
@@ -612,19 +653,25 @@ class RinexObsWriter:
                 t_prev = t
                 if isinstance(obs, EpochArrays):
                     items.append(self._array_parts(obs))
+                elif isinstance(obs, FormattedEpoch):
+                    if obs.key != self.key:
+                        raise ValueError(f"write_epoch: a FormattedEpoch of obs_types {obs.key!r}, not the header's")
+                    items.append((obs.n_sv, obs))
                 elif isinstance(obs, Mapping):
                     items.append(self._dict_flat(obs))
                 else:
                     raise ValueError(f"write_epoch: observations must be a dict or EpochArrays, not "
                                      f"{type(obs).__name__}")
-                if len(items[-1][0]) > 999:
+                if len(items[-1]) != 2 and len(items[-1][0]) > 999:
                     raise ValueError(f"write_epoch: {len(items[-1][0])} satellites; the epoch record holds at most "
                                      f"999")
         except Exception as exc:        # raised after the values of the epochs before it are checked (below)
             failure = exc
         # the values: runs of EpochArrays flattened together, in epoch order
+        # (a FormattedEpoch's item: (satellites, it), its lines formatted already)
+        to_format = [it for it in items if len(it) != 2]
         chunks, run = [], []
-        for it in items + [None]:
+        for it in to_format + [None]:
             if it is not None and len(it) == 6:     # _array_parts (a _dict_flat has 4 items)
                 run.append(it)
                 continue
@@ -637,12 +684,14 @@ class RinexObsWriter:
             raise failure
         if not items:
             return
-        text, offsets = self._format_rows([sv for it in items for sv in it[0]],
-                                          *(np.concatenate([c[k] for c in chunks]) for k in (0, 1, 2)))
-        offsets = offsets.tolist()
+        if to_format:
+            text, offsets = self._format_rows([sv for it in to_format for sv in it[0]],
+                                              *(np.concatenate([c[k] for c in chunks]) for k in (0, 1, 2)))
+            offsets = offsets.tolist()
         parts, pos = [], 0
         for k, (t, it) in enumerate(zip(ts, items)):
-            n = len(it[0])
+            formatted = len(it) == 2
+            n = it[0] if formatted else len(it[0])
             # Epoch record: A1,1X,I4,4(1X,I2.2),F11.7,2X,I1,I3,6X,F15.12 (RINEX 3.04 table A13)
             y, mo, d, h, mi, s, q = _time_fields(t)
             head = f"> {y:04d} {mo:02d} {d:02d} {h:02d} {mi:02d} {s:02d}.{q:07d}  {flag:1d}{n:3d}"
@@ -652,6 +701,9 @@ class RinexObsWriter:
                     raise ValueError(f"write_epoch: clock_offset_s={clock_offsets_s[k]!r} does not fit F15.12")
                 head += f"      {c:15.12f}"
             parts.append((head + "\n").encode("ascii"))
+            if formatted:
+                parts.append(it[1].lines)
+                continue
             if n:
                 parts.append(text[offsets[pos]:offsets[pos + n]])
             pos += n
