@@ -214,3 +214,27 @@ def test_epoch_arrays_layout_matches_plain_loop():
             if kind == "L":
                 assert ea.lli[i, c] == int(obs.lli[j])
     assert np.count_nonzero(np.isfinite(ea.value)) == n_set
+
+
+def test_rinex_lines_are_the_lines_of_the_epoch_arrays():
+    """outputs.rinex_lines (the observables placed straight into the writer's flat layout, several epochs in one
+    pass) gives each epoch the satellite lines its epoch_arrays get from the RINEX formatter; a satellite of a
+    system without observation types is refused."""
+    from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris
+    from gnss_sim_ros2.core.receiver.outputs import formatter_for, rinex_lines
+
+    t0 = GnssTime.from_iso("2022-01-01T00:00:00")
+    with tempfile.TemporaryDirectory() as tmp:
+        prov, _ = open_ephemeris("synthetic", t0, 3600.0, "GRECJI", workdir=tmp)
+    rcv = Receiver(ReceiverConfig(), prov, prov.iono)
+    obs_list = [rcv.epoch(t0 + k, RX, prov.states(t0 + k)) for k in (0.0, 1.0, 1800.0)]   # other satellites later
+    assert obs_list[0].sv.tolist() != obs_list[2].sv.tolist()
+    obs_types = obs_types_for(rcv.cfg.profile, "GRECJI")
+    obs_types["G"] = obs_types["G"][:-2]     # a header without S of the last GPS code: those stay blank
+    got = rinex_lines(obs_list, obs_types)
+    want = formatter_for(obs_types).format_arrays([epoch_arrays(o, obs_types) for o in obs_list])
+    assert [(g.n_sv, g.lines) for g in got] == [(w.n_sv, w.lines) for w in want]
+    assert all(g.lines for g in got)
+    del obs_types["E"]
+    with pytest.raises(ValueError, match="'E"):
+        rinex_lines(obs_list[:1], obs_types)

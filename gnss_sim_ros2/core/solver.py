@@ -579,7 +579,11 @@ def _geodetic_at(x: np.ndarray):
     if len(x) == 1:
         lat, lon, h = ecef_to_geodetic(x[0, 0], x[0, 1], x[0, 2])
         return np.atleast_1d(lat), np.atleast_1d(lon), np.atleast_1d(h), enu_rotation(lat, lon)[None]
-    lat, lon, h = ecef_to_geodetic_pointwise(x[:, 0], x[:, 1], x[:, 2])
+    bits = np.ascontiguousarray(x).view(np.uint64)
+    if (bits == bits[0]).all():      # one point (a block's epochs started at the same prior): converted once
+        lat, lon, h = (np.repeat(v, len(x)) for v in ecef_to_geodetic_pointwise(x[:1, 0], x[:1, 1], x[:1, 2]))
+    else:
+        lat, lon, h = ecef_to_geodetic_pointwise(x[:, 0], x[:, 1], x[:, 2])
     # C order, as one point's: einsum's summation order follows the operands' memory layout
     return lat, lon, h, np.ascontiguousarray(enu_rotation(lat, lon))
 

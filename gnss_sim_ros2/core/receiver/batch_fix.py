@@ -8,10 +8,8 @@ The receivers' RINEX epochs are formatted together too (prepare_rinex_epochs), e
 """
 from __future__ import annotations
 
-from ..memo import BoundedCache
-from ..rinex.obs_write import EpochFormatter
 from ..solver import PvtSolution, solve_pvt_many
-from .outputs import epoch_arrays
+from .outputs import rinex_lines
 
 
 def solve_receivers_fixes(chains, obs_list) -> list[PvtSolution]:
@@ -38,34 +36,21 @@ def solve_receivers_fixes(chains, obs_list) -> list[PvtSolution]:
     return sols
 
 
-#: EpochFormatter per obs_types (its layouts cached across epochs)
-_FORMATTERS = BoundedCache(16)
-
-
 def prepare_rinex_epochs(chains, obs_list) -> None:
-    """The EpochArrays and RINEX satellite lines of ``obs_list[k]`` for every chain k that writes a RINEX file, the
-    lines of all chains with the same observation types formatted in one vectorised pass (rinex/obs_write
-    EpochFormatter: the bytes each chain's writer would format), handed to each chain (ReceiverChain.prepare) for
-    its next finish to write.  Epochs that do not format (a value that does not fit) are left to their finish,
-    which raises for them as it does alone."""
-    groups: dict = {}                    # obs_types key -> [(chain, obs, arrays)]
-    for chain, obs in zip(chains, obs_list):
-        if not (len(obs.sv) and chain.wants_arrays()):
-            continue
-        arrays = epoch_arrays(obs, chain.obs_types)
-        if chain.settings.output_dir is None:          # RTCM only: no RINEX lines
-            chain.prepare(obs, arrays)
-            continue
-        key = tuple((s, tuple(c)) for s, c in chain.obs_types.items())
-        groups.setdefault(key, []).append((chain, obs, arrays))
-    for key, members in groups.items():
-        fmt = _FORMATTERS.get(key)
-        if fmt is None:
-            fmt = EpochFormatter({s: list(c) for s, c in key})
-            _FORMATTERS.put(key, fmt)
+    """The outputs of ``obs_list[k]`` that need no fix (ReceiverChain.rinex_outputs: EpochArrays for RTCM, RINEX
+    satellite lines) made for every chain k, the lines of all chains with the same observation types formatted
+    in one vectorised pass (outputs.rinex_lines), handed to each chain (ReceiverChain.prepare) for its next finish
+    to write.  A group whose epochs do not format (a value that does not fit) is left to the finishes, which raise
+    for it as alone.  ``chains`` may hold one chain several times (its consecutive epochs, in order)."""
+    groups: dict = {}                    # obs_types key -> [k]
+    for k, chain in enumerate(chains):
+        groups.setdefault(tuple((s, tuple(c)) for s, c in chain.obs_types.items()), []).append(k)
+    for idx in groups.values():
+        first = chains[idx[0]]
+        with_lines = [k for k in idx if chains[k].settings.output_dir is not None and len(obs_list[k].sv)]
         try:
-            lines = fmt.format_arrays([arrays for _, _, arrays in members])
+            lines = dict(zip(with_lines, rinex_lines([obs_list[k] for k in with_lines], first.obs_types)))
         except ValueError:
-            lines = [None] * len(members)
-        for (chain, obs, arrays), ep_lines in zip(members, lines):
-            chain.prepare(obs, arrays, ep_lines)
+            continue
+        for k in idx:
+            chains[k].prepare(obs_list[k], chains[k].rtcm_arrays(obs_list[k]), lines.get(k))

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import csv
 import io
+from collections import deque
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -34,7 +35,7 @@ from ..time import GnssTime
 from .config import ReceiverConfig
 from .engine import Receiver
 from .observations import EpochObservations
-from .outputs import epoch_arrays, fix_inputs, header, obs_types_for, position_fixes, rinex_name, spp_rows
+from .outputs import epoch_arrays, fix_inputs, header, obs_types_for, position_fixes, rinex_lines, rinex_name, spp_rows
 from .profiles import load_profile
 from .tracking import TrackingConfig
 
@@ -155,8 +156,9 @@ class ReceiverChain:
         #: written at once (a killed node loses no epoch it published: 0.2 ms/epoch at 10 Hz against
         #: writing a second of epochs together, docs/profile-offline-chain.md)
         self._rinex_pending: list = []
-        #: (observables, their EpochArrays, their RINEX lines or None) made ahead for the next finish (prepare)
-        self._prepared = None
+        #: (observables, their EpochArrays or None, their RINEX lines or None) made ahead for the next finishes, in
+        #: order (prepare)
+        self._prepared: deque = deque()
         self._nmea_file = None
         #: a scenario's events (core/threats/runtime.ThreatRuntime) or None; set before the first epoch
         self.threats = None
@@ -175,7 +177,7 @@ class ReceiverChain:
         self._pos_prev = None
         self.epochs = 0
         self.fixes = 0
-        self._prepared = None
+        self._prepared = deque()
 
     def set_iono_coefficients(self, iono: dict | None):
         """The navigation header's ionosphere coefficients (a node gets them with the states)."""
@@ -268,6 +270,9 @@ class ReceiverChain:
         # solutions as starting at the previous epoch's, to the solver's convergence of 0.1 mm)
         fix_obs = self._smoothed_many(obs) if self.settings.smoothing_s > 0 else obs
         sols = position_fixes(fix_obs, self.settings.receiver.profile, self.prior_ecef_m, self.settings.solver)
+        from .batch_fix import prepare_rinex_epochs
+
+        prepare_rinex_epochs([self] * len(obs), obs)      # the block's RINEX lines formatted in one pass
         try:
             return [self._products(t, p, states, o, sol) for t, p, o, sol in zip(ts, ecef, obs, sols)]
         finally:
@@ -291,15 +296,16 @@ class ReceiverChain:
 
             text = join_sentences(sentences_from_solution(t, sol, cn0_dbhz=obs.cn0_dbhz[
                 spp_rows(obs, self.settings.receiver.profile)]))
-        prepared, self._prepared = self._prepared, None
+        prepared = self._prepared.popleft() if self._prepared else None
         if prepared is not None and prepared[0] is obs:
             arrays, lines = prepared[1], prepared[2]
         else:
-            arrays, lines = (epoch_arrays(obs, self.obs_types) if len(obs.sv) and self.wants_arrays() else None), None
+            self._prepared.clear()
+            arrays, lines = self.rinex_outputs([obs])[0]
         if self._header is None:
             self._header = self._make_header(ecef, states)
         if self.settings.output_dir is not None:
-            self._write(t, ecef, obs, sol, text, arrays if lines is None else lines)
+            self._write(t, ecef, obs, sol, text, lines)
         rtcm = b""
         if self.rtcm_target is not None and arrays is not None:
             if self._rtcm is None:
@@ -310,16 +316,25 @@ class ReceiverChain:
             rtcm = self._rtcm.write_epoch(t, arrays)
         return EpochProducts(t, ecef, obs, sol, text, rtcm)
 
-    def wants_arrays(self) -> bool:
-        """Whether an epoch's observables become EpochArrays (outputs.epoch_arrays): for a RINEX file or RTCM."""
-        return self.settings.output_dir is not None or self.rtcm_target is not None
+    def rinex_outputs(self, obs_list) -> list[tuple]:
+        """(EpochArrays for RTCM or None, RINEX satellite lines (rinex/obs_write.FormattedEpoch) or None) of each
+        epoch's observables, the lines of all of them formatted in one pass (outputs.rinex_lines); None where the
+        chain has no such output or the epoch no tracked signal."""
+        has = [len(o.sv) > 0 for o in obs_list]
+        lines = iter(rinex_lines([o for o, h in zip(obs_list, has) if h], self.obs_types)
+                     if self.settings.output_dir is not None else ())
+        return [(self.rtcm_arrays(o), next(lines) if h and self.settings.output_dir is not None else None)
+                for o, h in zip(obs_list, has)]
 
-    def prepare(self, obs, arrays, lines=None):
-        """What :meth:`finish` of ``obs`` (this chain's next) would make itself, made ahead with other receivers'
-        (batch_fix.prepare_rinex_epochs): its EpochArrays (or None) and the RINEX satellite lines of them
-        (rinex/obs_write.FormattedEpoch, or None: formatted at the finish).  Used by that finish only, and only if
-        it is of the same ``obs`` object."""
-        self._prepared = (obs, arrays, lines)
+    def rtcm_arrays(self, obs):
+        """The EpochArrays of an epoch's observables for RTCM output (None without RTCM or tracked signals)."""
+        return epoch_arrays(obs, self.obs_types) if self.rtcm_target is not None and len(obs.sv) else None
+
+    def prepare(self, obs, arrays, lines):
+        """What :meth:`finish` of ``obs`` would make itself (:meth:`rinex_outputs`), made ahead with other epochs'
+        or receivers' (batch_fix.prepare_rinex_epochs); the finishes take them in order, each only if of the
+        same ``obs`` object."""
+        self._prepared.append((obs, arrays, lines))
 
     def _smoothed(self, obs: EpochObservations) -> EpochObservations:
         """The observables with carrier-smoothed code for the position fix, as receivers compute their fix
@@ -429,8 +444,8 @@ class ReceiverChain:
             self._nmea_file = open(out / "gnss_sim.nmea", "a", buffering=1)  # noqa: SIM115 - closed in close()
 
     def _write(self, t, ecef, obs, sol, nmea_text, arrays):
-        """The epoch's fix.csv row, RINEX epoch (``arrays``: EpochArrays, their FormattedEpoch, or None) pending
-        until _flush_files, NMEA text."""
+        """The epoch's fix.csv row, RINEX epoch (``arrays``: its FormattedEpoch, or None) pending until
+        _flush_files, NMEA text."""
         if self._writer is None:
             self._open(t)
         stamp = t.isoformat(digits=3 if self.settings.interval_s < 1 else 0)

@@ -12,7 +12,7 @@ import numpy as np
 from .. import constants as k
 from ..memo import BoundedCache
 from ..multipath.antenna import RINEX_ANTENNA_TYPE
-from ..rinex.obs_write import EpochArrays, RinexObsHeader, ssi_from_cn0
+from ..rinex.obs_write import EpochArrays, EpochFormatter, FormattedEpoch, RinexObsHeader, ssi_from_cn0
 from ..solver import PvtSolution, SolverConfig, solve_pvt_many
 from ..time import GnssTime
 from .observations import EpochObservations
@@ -78,6 +78,94 @@ def _layout(sv, code, obs_types):
         codes = {s: list(v) + [f"X{i}Z" for i in range(width - len(v))] for s, v in obs_types.items()}
         hit = (svs, width, codes, places)
         _LAYOUT_CACHE.put(key, hit)
+    return hit
+
+
+def formatter_for(obs_types: dict[str, list[str]]) -> EpochFormatter:
+    """The RINEX EpochFormatter of these observation types (one per obs_types: its layouts cached across epochs)."""
+    key = tuple((s, tuple(c)) for s, c in obs_types.items())
+    hit = _FORMATTERS.get(key)
+    if hit is None:
+        hit = EpochFormatter({s: list(c) for s, c in key})
+        _FORMATTERS.put(key, hit)
+    return hit
+
+
+_FORMATTERS = BoundedCache(16)
+
+
+def rinex_lines(obs_list, obs_types: dict[str, list[str]]) -> list[FormattedEpoch]:
+    """The RINEX satellite lines of epochs' observables (each with a tracked signal), all formatted in one pass:
+    the bytes a RinexObsWriter with these obs_types writes for their epoch_arrays, the C/L/D/S values, strengths
+    and loss-of-lock flags placed straight into the flat layout it formats (no EpochArrays made)."""
+    fmt = formatter_for(obs_types)
+    if not obs_list:
+        return []
+    layouts = [_flat_layout(o.sv, o.code, fmt) for o in obs_list]
+    cat = np.concatenate
+    # each epoch's places shifted by the cells / signals of the epochs before it
+    cells = np.array([lay[1] for lay in layouts], dtype=np.int64)
+    signals = np.array([len(o.sv) for o in obs_list], dtype=np.int64)
+    cell0, signal0 = np.cumsum(cells) - cells, np.cumsum(signals) - signals
+    sizes = np.array([lay[3] for lay in layouts], dtype=np.int64).reshape(len(layouts), 3)
+
+    def shifted(k, start, size):
+        return cat([lay[2][k] for lay in layouts]) + np.repeat(start, size)
+
+    n_vals, n_ssi, n_lli = sizes[:, 0], sizes[:, 1], sizes[:, 2]
+    value = np.empty(int(cells.sum()))
+    value.fill(np.nan)
+    lli = np.empty(len(value), dtype=np.int64)
+    lli.fill(-1)
+    ssi = lli.copy()
+    kinds = cat([x for o in obs_list for x in (o.pseudorange_m, o.carrier_phase_cyc, o.doppler_hz, o.cn0_dbhz)])
+    np.put(value, shifted(0, cell0, n_vals), kinds[shifted(1, 4 * signal0, n_vals)])
+    cn0 = cat([o.cn0_dbhz for o in obs_list])
+    np.put(ssi, shifted(2, cell0, n_ssi), ssi_from_cn0(cn0)[shifted(3, signal0, n_ssi)])   # strength on C and L
+    flags = cat([np.asarray(o.lli) for o in obs_list])
+    np.put(lli, shifted(4, cell0, n_lli), flags[shifted(5, signal0, n_lli)])           # loss of lock on phase
+    return fmt.format_flat([len(lay[0]) for lay in layouts], [sv for lay in layouts for sv in lay[0]], value, lli,
+                           ssi)
+
+
+_FLAT_CACHE = BoundedCache(256)
+
+
+def _flat_layout(sv, code, fmt: EpochFormatter):
+    """(satellites in order of appearance, their cells, flat places, the numbers of value, strength and loss of lock
+    places) of one epoch's signals in the flat layout
+    EpochFormatter formats (satellite after satellite, each with its system's codes in header order), the places
+    as _layout's (the cells of the C/L/D/S values, their positions in the four kinds' values one after another,
+    the cells of the C and L strengths, their signals, the cells of the L loss-of-lock flags, their signals);
+    cached (the tracked set changes rarely)."""
+    sv, code = np.asarray(sv), np.asarray(code)
+    key = (sv.dtype.str, sv.tobytes(), code.dtype.str, code.tobytes(), fmt.key)
+    hit = _FLAT_CACHE.get(key)
+    if hit is None:
+        obs_types = fmt.obs_types
+        sv_list = sv.tolist()
+        sats = tuple(dict.fromkeys(sv_list))
+        bad = [s for s in sats if not isinstance(s, str) or len(s) != 3 or s[0] not in obs_types]
+        if bad:
+            raise ValueError(f"observations: satellite {bad[0]!r} is not an id like 'G05' of a system in the "
+                             f"header obs_types ({list(obs_types)})")
+        counts = np.array([len(obs_types[s[0]]) for s in sats], dtype=np.int64)
+        start = dict(zip(sats, (np.cumsum(counts) - counts).tolist()))
+        cols_of = _columns_of(obs_types)
+        no_cols = (-1,) * len(OBS_KINDS)
+        m = len(sv_list)
+        cols = np.array([cols_of.get((s[0], c), no_cols) for s, c in zip(sv_list, code.tolist())],
+                        dtype=np.int64).reshape(m, len(OBS_KINDS))
+        base = np.array([start[s] for s in sv_list], dtype=np.int64)
+        dest, src = {}, {}
+        for k, kind in enumerate(OBS_KINDS):     # per kind: the signals with a column
+            ok = np.flatnonzero(cols[:, k] >= 0)
+            dest[kind], src[kind] = base[ok] + cols[ok, k], ok
+        places = (np.concatenate([dest[x] for x in OBS_KINDS]),
+                  np.concatenate([k * m + src[x] for k, x in enumerate(OBS_KINDS)]),
+                  np.concatenate([dest["C"], dest["L"]]), np.concatenate([src["C"], src["L"]]), dest["L"], src["L"])
+        hit = (list(sats), int(counts.sum()), places, (len(places[0]), len(places[2]), len(places[4])))
+        _FLAT_CACHE.put(key, hit)
     return hit
 
 

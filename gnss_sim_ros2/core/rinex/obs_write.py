@@ -313,16 +313,22 @@ class EpochFormatter:
         """Each EpochArrays of ``epochs`` as a FormattedEpoch, all of them checked and formatted in one pass (the
         bytes RinexObsWriter.write_epochs writes for each); raises ValueError as write_epochs does."""
         parts = [self._array_parts(ep) for ep in epochs]
-        for p in parts:
-            if len(p[0]) > 999:
-                raise ValueError(f"write_epoch: {len(p[0])} satellites; the epoch record holds at most 999")
         if not parts:
             return []
-        text, offsets = self._format_rows([sv for p in parts for sv in p[0]], *self._arrays_flat(parts))
+        return self.format_flat([len(p[0]) for p in parts], [sv for p in parts for sv in p[0]],
+                                *self._arrays_flat(parts))
+
+    def format_flat(self, n_sv, svs, value, lli, ssi) -> list[FormattedEpoch]:
+        """FormattedEpoch of epochs given flat: ``n_sv`` satellites per epoch, ``svs`` all of them epoch after
+        epoch, ``value``/``lli``/``ssi`` their cells (satellite after satellite, each with its system's codes in
+        header order; NaN value / negative indicator = blank), as RinexObsWriter formats them."""
+        for n in n_sv:
+            if n > 999:
+                raise ValueError(f"write_epoch: {n} satellites; the epoch record holds at most 999")
+        text, offsets = self._format_rows(svs, value, lli, ssi)
         offsets = offsets.tolist()
         out, pos = [], 0
-        for p in parts:
-            n = len(p[0])
+        for n in n_sv:
             out.append(FormattedEpoch(self.key, n, text[offsets[pos]:offsets[pos + n]]))
             pos += n
         return out
