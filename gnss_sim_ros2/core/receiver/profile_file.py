@@ -122,19 +122,23 @@ def read(source: str | Path | Mapping, owner: type) -> ReceiverProfile:
 @functools.lru_cache(maxsize=32)
 def _read_file(path: str, _mtime_ns: int, _size: int, owner: type) -> ReceiverProfile:
     where = f"receiver profile {path}"
-    doc, node = read_yaml(path, where, _loader(), ProfileError)
+    doc, node = read_yaml(path, where, _loader(), ProfileError, lazy_nodes=True)
     return _validate(doc, node, where, Path(path).stem, path, owner)
 
 
-def read_yaml(path, where: str, loader, error: type[ValueError]):
+def read_yaml(path, where: str, loader, error: type[ValueError], lazy_nodes: bool = False):
     """(document, node tree with line marks) of a YAML file read with ``loader``; ``error`` (a ValueError
-    subclass) naming ``where`` when the file cannot be read or is not YAML (profiles, scenario files)."""
+    subclass) naming ``where`` when the file cannot be read or is not YAML (profiles, scenario files).
+    ``lazy_nodes``: instead of the node tree, a function composing it (the text parsed a second time only when
+    an error names a line)."""
     from gnss_sim_ros2.core.yaml_file import parse
 
     try:
         text = Path(path).read_text()
     except (OSError, UnicodeDecodeError) as exc:
         raise error(f"{where}: cannot be read: {exc}") from None
+    if lazy_nodes:
+        return parse(text, loader, where, error), lambda: parse(text, loader, where, error, with_nodes=True)[1]
     return parse(text, loader, where, error, with_nodes=True)
 
 
@@ -184,8 +188,9 @@ def _path_text(keys: tuple) -> str:
 
 
 def _validate(doc, node, where: str, stem: str, path: str, owner: type) -> ReceiverProfile:
+    # node: the document's node tree (the lines of the keys an error names), a function composing it, or None
     def fail(keys: tuple, msg: str):
-        line = _line(node, keys) if node is not None and keys else None
+        line = _line(node() if callable(node) else node, keys) if node is not None and keys else None
         at = f", line {line}" if line else ""
         key = f": key '{_path_text(keys)}'" if keys else ""
         raise ProfileError(f"{where}{at}{key}: {msg}")
