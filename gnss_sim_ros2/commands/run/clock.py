@@ -12,10 +12,21 @@ import numpy as np
 
 from gnss_sim_ros2 import graph
 
-#: with --realtime, /clock between two epochs is published at most this often [s of wall time] (and at every
-#: epoch exactly): every message wakes every node of every process (each node's clock subscription, the
-#: trajectory player's timer), so a finer clock costs CPU where the epochs need it (bench/profile_realtime.py)
+#: with --realtime, /clock between two epochs steps onto the trajectory player's ticks (multiples of
+#: 1 / publish_rate_hz: what a node needs between epochs is the player's TF samples) and at every epoch exactly,
+#: never more often than this [s]: every message wakes every node of every process (each node's clock
+#: subscription and clock-jump callbacks), 0.5 ms of CPU a message in a one-process run (bench/profile_realtime.py)
 REALTIME_CLOCK_PERIOD_S = 0.01
+
+
+def realtime_clock_steps_s(t_from_s: float, t_to_s: float, tick_s: float) -> list[float]:
+    """The /clock values published between the epochs at ``t_from_s`` and ``t_to_s`` [s] with --realtime: the
+    multiples of ``tick_s`` strictly between them (the trajectory player's ticks: each sample published when the
+    clock reaches its stamp), thinned to at most one per REALTIME_CLOCK_PERIOD_S, then the epoch itself."""
+    step_s = tick_s * max(1, int(np.ceil(REALTIME_CLOCK_PERIOD_S / tick_s - 1e-9)))
+    first = int(np.floor(t_from_s / step_s + 1e-9)) + 1
+    last = int(np.ceil(t_to_s / step_s - 1e-9)) - 1
+    return [k * step_s for k in range(first, last + 1)] + [t_to_s]
 #: wall seconds an epoch waits for rtkrcv's solution (gnss-sim run --rtk) before the next one starts: at least,
 #: at most (the first epochs: at most), and the multiple of the median latency so far in between
 RTK_WAIT_S = (0.05, 0.5)
@@ -78,6 +89,7 @@ class ClockDriver:
         """The epochs 0 .. n_epochs - 1 at ``period`` [s] (or until ``stop["flag"]``); progress on stderr unless
         args.quiet; ``epochs_done`` follows the loop."""
         tf_timeout_s = cfg.node("visibility")["tf_timeout_s"]
+        tick_s = 1.0 / cfg.node("trajectory")["publish_rate_hz"]
         wall0 = time.perf_counter()
         dropped = 0
         k_done = 0
@@ -90,9 +102,13 @@ class ClockDriver:
                 break
             t_s = k * period
             if args.realtime:
-                while (now_s := time.perf_counter() - wall0) < t_s:
-                    self.set_clock(now_s)
-                    self.spin_until(wall0 + min(t_s, now_s + REALTIME_CLOCK_PERIOD_S))
+                # the ticks between the epochs as wall time reaches them (one already passed: only the latest)
+                steps = realtime_clock_steps_s((k - 1) * period, t_s, tick_s) if k else [t_s]
+                for i, step_s in enumerate(steps[:-1]):
+                    if time.perf_counter() - wall0 < steps[i + 1]:
+                        self.spin_until(wall0 + step_s)
+                        self.set_clock(step_s)
+                self.spin_until(wall0 + t_s)
             self.set_clock(t_s)
             t_wait = time.monotonic()
             deadline = t_wait + max(10.0, tf_timeout_s + 2.0)
