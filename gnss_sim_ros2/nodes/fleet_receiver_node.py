@@ -77,11 +77,13 @@ class FleetReceiverNode(GnssSimNode):
 
     def observe_due(self):
         """A robot's epoch is paired: observe it with the other robots' paired by then, in a task queued behind the
-        callbacks already waiting (their visibility messages), or at once without an executor."""
-        if self._observe_queued:
-            return
-        if self.executor is None:
+        callbacks already waiting (their visibility messages), or at once without an executor or once every
+        robot's epoch is paired (the visibility handed in-process: the last robot's hand-over completes the round;
+        a task would only add the executor's dispatch to the latency)."""
+        if self.executor is None or all(r.paired for r in self.robots if r.chain is not None):
             self.observe_robots()
+            return
+        if self._observe_queued:
             return
         self._observe_queued = True
         self.executor.create_task(self.observe_robots)
