@@ -180,6 +180,39 @@ def test_reflected_paths_share_the_pass_with_each_robots_bits(canyon_epochs, mon
     assert passes == [3] * len(epochs)
 
 
+def test_fix_inputs_smoothed_together_are_each_receivers_own(canyon_epochs):
+    """chain.receivers_fix_inputs (the fleet's robots' carrier smoothing in one pass) against each robot's own
+    ReceiverChain.fix_inputs, epoch after epoch: robots with other smoothing windows and one without smoothing;
+    every input bit-equal."""
+    from gnss_sim_ros2.core.receiver.chain import ChainSettings, ReceiverChain, receivers_fix_inputs
+    from gnss_sim_ros2.core.receiver.outputs import fix_inputs
+
+    rcv, epochs = canyon_epochs
+
+    def chains():
+        return [ReceiverChain(ChainSettings.from_params({**rcv, "seed": rcv["seed"] + k, "output_dir": "",
+                                                         "smoothing_s": s}), None)
+                for k, s in enumerate((100.0, 0.35, 0.0, 100.0))]
+
+    alone, together = chains(), chains()
+    for row in epochs:
+        row = row + row[:1]
+        obs = observe_receivers(together, row)
+        got = receivers_fix_inputs(together, obs)
+        for k, (chain, o) in enumerate(zip(alone, obs)):
+            want = chain.fix_inputs(o)
+            assert set(want) == set(got[k])
+            for name, v in want.items():
+                if isinstance(v, np.ndarray):
+                    assert v.dtype == got[k][name].dtype and v.tobytes() == got[k][name].tobytes(), (k, name)
+                else:
+                    assert v is None and got[k][name] is None, (k, name)
+        for a, b in zip(alone, together):
+            a.prior_ecef_m = b.prior_ecef_m = row[0].antenna_ecef_m + 5.0
+    raw = fix_inputs(obs[0], together[0].settings.receiver.profile, together[0].prior_ecef_m)
+    assert not np.array_equal(raw["pseudorange_m"], got[0]["pseudorange_m"])      # the code was smoothed
+
+
 @pytest.mark.parametrize("aided", [None, 15.4])
 def test_trackers_stepped_together_keep_each_ones_state_and_stream(aided, monkeypatch):
     """tracking.update_trackers (every robot's rows in one call) against each robot's own Tracker.update: robots

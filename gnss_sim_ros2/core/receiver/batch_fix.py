@@ -9,6 +9,7 @@ The receivers' RINEX epochs are formatted together too (prepare_rinex_epochs), e
 from __future__ import annotations
 
 from ..solver import PvtSolution, solve_pvt_many
+from .chain import receivers_fix_inputs
 from .outputs import rinex_lines
 
 
@@ -18,7 +19,7 @@ def solve_receivers_fixes(chains, obs_list) -> list[PvtSolution]:
     configured alike), in the order given.  Advances each chain's smoothing filter (fix_inputs): call once per
     epoch of a chain, then chains[k].finish(..., sol=) with its solution (its RINEX lines formatted here with the
     other chains': prepare_rinex_epochs)."""
-    inputs = [chain.fix_inputs(obs) for chain, obs in zip(chains, obs_list)]
+    inputs = receivers_fix_inputs(chains, obs_list)
     prepare_rinex_epochs(chains, obs_list)
     by_config: list = []                 # [(SolverConfig, [indices])]; SolverConfig compares by value
     for i, chain in enumerate(chains):

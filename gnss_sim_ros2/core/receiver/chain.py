@@ -250,8 +250,7 @@ class ReceiverChain:
         """The position fix's inputs from this epoch's observables (one epoch of solver.solve_pvt_many, with
         this receiver's SolverConfig ``settings.solver``): the carrier-smoothed code, started at the last fix.
         The smoothing filter advances: once per epoch, followed by :meth:`finish` with the fix of them."""
-        fix_obs = self._smoothed(obs) if self.settings.smoothing_s > 0 else obs
-        return fix_inputs(fix_obs, self.settings.receiver.profile, self.prior_ecef_m)
+        return receivers_fix_inputs([self], [obs])[0]
 
     def step_block(self, ts, antenna_ecef_m, states, epoch_of_row, vis_state=None, attenuation_db=None,
                    multipath=None) -> list[EpochProducts]:
@@ -344,43 +343,8 @@ class ReceiverChain:
         return self._smoothed_many([obs])[0]
 
     def _smoothed_many(self, obs_list) -> list[EpochObservations]:
-        """:meth:`_smoothed` of consecutive epochs: what needs no state (the carrier in metres, the loss of lock
-        flags) for all their signals at once, then the filter epoch by epoch."""
-        from ..constants import C_MPS
-
-        if not obs_list:
-            return []
-        n_max = max(1, int(round(self.settings.smoothing_s / self.settings.interval_s)))
-        def cat(name, dtype):
-            parts = [np.asarray(getattr(o, name), dtype=dtype) for o in obs_list]
-            return parts[0] if len(parts) == 1 else np.concatenate(parts)
-
-        lam = C_MPS / cat("frequency_hz", float)
-        # the carrier advances where the code is delayed: twice the receiver's own (broadcast) ionosphere
-        # model is added to the phase, so the window does not drift with the ionosphere (code-carrier
-        # divergence, DO-229 2.1.4.1.1 note); what the model misses still diverges, as in a real receiver
-        phase_all = cat("carrier_phase_cyc", float) * lam + 2.0 * cat("iono_model_m", float)
-        pr_all = cat("pseudorange_m", float)
-        intact_all = ((cat("lli", np.int64) & 1) == 0) & np.isfinite(phase_all)
-        st = self._smooth
-        out_list, j0 = [], 0
-        for obs in obs_list:
-            j1 = j0 + len(obs.pseudorange_m)
-            phase_m, pr = phase_all[j0:j1], pr_all[j0:j1]
-            idx = st.slots(obs.sv, obs.code)
-            # the window goes on for a signal also tracked at the previous call, without a loss of lock;
-            # a signal not tracked at the previous epoch starts again
-            go_on = (st.last[idx] == st.calls - 1) & intact_all[j0:j1]
-            m = np.where(go_on, np.minimum(st.count[idx] + 1, n_max), 1)
-            out = np.where(go_on, pr / m + (m - 1) / m * (st.code[idx] + phase_m - st.phase[idx]), pr)
-            st.code[idx], st.phase[idx], st.count[idx], st.last[idx] = out, phase_m, m, st.calls
-            st.calls += 1
-            smoothed = object.__new__(EpochObservations)    # a shallow copy (copy.copy without __reduce_ex__)
-            smoothed.__dict__.update(obs.__dict__)
-            smoothed.pseudorange_m = out
-            out_list.append(smoothed)
-            j0 = j1
-        return out_list
+        """:meth:`_smoothed` of consecutive epochs (smoothed_code)."""
+        return smoothed_code([self] * len(obs_list), obs_list)
 
     # ------------------------------------------------------------------ files
     def _make_header(self, ecef, states):
@@ -488,6 +452,86 @@ class ReceiverChain:
             if f is not None:
                 f.close()
         self._fix_file = self._fix_csv = self._nmea_file = None
+
+
+def receivers_fix_inputs(chains, obs_list) -> list[dict]:
+    """ReceiverChain.fix_inputs of ``obs_list[k]`` for ``chains[k]`` (one epoch of each of several receivers, or a
+    receiver's consecutive epochs), the smoothing of all of them in one pass (smoothed_code)."""
+    fix_obs = list(obs_list)
+    smooth = [k for k, chain in enumerate(chains) if chain.settings.smoothing_s > 0]
+    for k, o in zip(smooth, smoothed_code([chains[k] for k in smooth], [obs_list[k] for k in smooth])):
+        fix_obs[k] = o
+    return [fix_inputs(o, chain.settings.receiver.profile, chain.prior_ecef_m) for chain, o in zip(chains, fix_obs)]
+
+
+def smoothed_code(chains, obs_list) -> list[EpochObservations]:
+    """ReceiverChain._smoothed of ``obs_list[k]`` by ``chains[k]``'s filter (a chain given several epochs: its
+    consecutive ones, in order).  What needs no state (the carrier in metres, the loss of lock flags) for all
+    their signals at once; then the filter in rounds, each round the next epoch of every chain, the arithmetic
+    of a round's chains together (each chain's state its own)."""
+    from ..constants import C_MPS
+
+    if not obs_list:
+        return []
+    sizes = [len(o.pseudorange_m) for o in obs_list]
+    ends = np.cumsum(sizes).tolist()
+    starts = [e - n for e, n in zip(ends, sizes)]
+
+    def cat(name, dtype):
+        parts = [np.asarray(getattr(o, name), dtype=dtype) for o in obs_list]
+        return parts[0] if len(parts) == 1 else np.concatenate(parts)
+
+    lam = C_MPS / cat("frequency_hz", float)
+    # the carrier advances where the code is delayed: twice the receiver's own (broadcast) ionosphere
+    # model is added to the phase, so the window does not drift with the ionosphere (code-carrier
+    # divergence, DO-229 2.1.4.1.1 note); what the model misses still diverges, as in a real receiver
+    phase_all = cat("carrier_phase_cyc", float) * lam + 2.0 * cat("iono_model_m", float)
+    pr_all = cat("pseudorange_m", float)
+    intact_all = ((cat("lli", np.int64) & 1) == 0) & np.isfinite(phase_all)
+    rounds: list = []
+    seen: dict = {}
+    for k, chain in enumerate(chains):
+        r = seen[id(chain)] = seen.get(id(chain), -1) + 1
+        if r == len(rounds):
+            rounds.append([])
+        rounds[r].append(k)
+    out_list: list = [None] * len(obs_list)
+    for ks in rounds:
+        sts = [chains[k]._smooth for k in ks]
+        idx = [st.slots(obs_list[k].sv, obs_list[k].code) for st, k in zip(sts, ks)]
+        if len(ks) == 1:
+            st, i, k = sts[0], idx[0], ks[0]
+            rows = slice(starts[k], ends[k])
+            last, count, code, phase = st.last[i] == st.calls - 1, st.count[i], st.code[i], st.phase[i]
+            n_max = _window_epochs(chains[k])
+        else:
+            rows = np.concatenate([np.arange(starts[k], ends[k]) for k in ks])
+            last = np.concatenate([st.last[i] == st.calls - 1 for st, i in zip(sts, idx)])
+            count, code, phase = (np.concatenate([getattr(st, f)[i] for st, i in zip(sts, idx)])
+                                  for f in ("count", "code", "phase"))
+            n_max = np.repeat([_window_epochs(chains[k]) for k in ks], [sizes[k] for k in ks])
+        phase_m, pr = phase_all[rows], pr_all[rows]
+        # the window goes on for a signal also tracked at the previous call, without a loss of lock;
+        # a signal not tracked at the previous epoch starts again
+        go_on = last & intact_all[rows]
+        m = np.where(go_on, np.minimum(count + 1, n_max), 1)
+        out = np.where(go_on, pr / m + (m - 1) / m * (code + phase_m - phase), pr)
+        j = 0
+        for st, i, k in zip(sts, idx, ks):
+            n = sizes[k]
+            st.code[i], st.phase[i], st.count[i], st.last[i] = out[j:j + n], phase_m[j:j + n], m[j:j + n], st.calls
+            st.calls += 1
+            smoothed = object.__new__(EpochObservations)    # a shallow copy (copy.copy without __reduce_ex__)
+            smoothed.__dict__.update(obs_list[k].__dict__)
+            smoothed.pseudorange_m = out[j:j + n]
+            out_list[k] = smoothed
+            j += n
+    return out_list
+
+
+def _window_epochs(chain) -> int:
+    """The Hatch filter's longest window of a chain [epochs]: smoothing_s over the epoch interval."""
+    return max(1, int(round(chain.settings.smoothing_s / chain.settings.interval_s)))
 
 
 class _SmoothingState:
