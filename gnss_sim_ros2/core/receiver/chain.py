@@ -495,38 +495,56 @@ def smoothed_code(chains, obs_list) -> list[EpochObservations]:
         if r == len(rounds):
             rounds.append([])
         rounds[r].append(k)
+    window = {id(chain): _window_epochs(chain) for chain in chains}
     out_list: list = [None] * len(obs_list)
     for ks in rounds:
+        if len(ks) == 1:          # one chain's epoch (a block's, epoch by epoch): its slices as they are
+            k = ks[0]
+            st, rows = chains[k]._smooth, slice(starts[k], ends[k])
+            i = st.slots(obs_list[k].sv, obs_list[k].code)
+            phase_m = phase_all[rows]
+            m, out = _hatch(st.last[i] == st.calls - 1, st.count[i], st.code[i], st.phase[i], intact_all[rows],
+                            pr_all[rows], phase_m, window[id(chains[k])])
+            st.code[i], st.phase[i], st.count[i], st.last[i] = out, phase_m, m, st.calls
+            st.calls += 1
+            out_list[k] = _with_code(obs_list[k], out)
+            continue
         sts = [chains[k]._smooth for k in ks]
         idx = [st.slots(obs_list[k].sv, obs_list[k].code) for st, k in zip(sts, ks)]
-        if len(ks) == 1:
-            st, i, k = sts[0], idx[0], ks[0]
-            rows = slice(starts[k], ends[k])
-            last, count, code, phase = st.last[i] == st.calls - 1, st.count[i], st.code[i], st.phase[i]
-            n_max = _window_epochs(chains[k])
-        else:
-            rows = np.concatenate([np.arange(starts[k], ends[k]) for k in ks])
-            last = np.concatenate([st.last[i] == st.calls - 1 for st, i in zip(sts, idx)])
-            count, code, phase = (np.concatenate([getattr(st, f)[i] for st, i in zip(sts, idx)])
-                                  for f in ("count", "code", "phase"))
-            n_max = np.repeat([_window_epochs(chains[k]) for k in ks], [sizes[k] for k in ks])
-        phase_m, pr = phase_all[rows], pr_all[rows]
-        # the window goes on for a signal also tracked at the previous call, without a loss of lock;
-        # a signal not tracked at the previous epoch starts again
-        go_on = last & intact_all[rows]
-        m = np.where(go_on, np.minimum(count + 1, n_max), 1)
-        out = np.where(go_on, pr / m + (m - 1) / m * (code + phase_m - phase), pr)
+        rows = np.concatenate([np.arange(starts[k], ends[k]) for k in ks])
+        phase_m = phase_all[rows]
+        m, out = _hatch(np.concatenate([st.last[i] == st.calls - 1 for st, i in zip(sts, idx)]),
+                        *(np.concatenate([getattr(st, f)[i] for st, i in zip(sts, idx)])
+                          for f in ("count", "code", "phase")),
+                        intact_all[rows], pr_all[rows], phase_m,
+                        np.repeat([window[id(chains[k])] for k in ks], [sizes[k] for k in ks]))
         j = 0
         for st, i, k in zip(sts, idx, ks):
             n = sizes[k]
             st.code[i], st.phase[i], st.count[i], st.last[i] = out[j:j + n], phase_m[j:j + n], m[j:j + n], st.calls
             st.calls += 1
-            smoothed = object.__new__(EpochObservations)    # a shallow copy (copy.copy without __reduce_ex__)
-            smoothed.__dict__.update(obs_list[k].__dict__)
-            smoothed.pseudorange_m = out[j:j + n]
-            out_list[k] = smoothed
+            out_list[k] = _with_code(obs_list[k], out[j:j + n])
             j += n
     return out_list
+
+
+def _hatch(tracked_before, count, code, phase, intact, pr, phase_m, n_max):
+    """One Hatch filter step of signals: (window length M, smoothed code) from the state (tracked at the previous
+    call, its M, smoothed code and phase [m]), this epoch's loss-of-lock check, code and phase [m], and the
+    longest window n_max (DO-229 2.1.4.1.1, see ReceiverChain._smoothed)."""
+    # the window goes on for a signal also tracked at the previous call, without a loss of lock;
+    # a signal not tracked at the previous epoch starts again
+    go_on = tracked_before & intact
+    m = np.where(go_on, np.minimum(count + 1, n_max), 1)
+    return m, np.where(go_on, pr / m + (m - 1) / m * (code + phase_m - phase), pr)
+
+
+def _with_code(obs: EpochObservations, pseudorange_m) -> EpochObservations:
+    """A shallow copy of the observables with another code (copy.copy without __reduce_ex__)."""
+    out = object.__new__(EpochObservations)
+    out.__dict__.update(obs.__dict__)
+    out.pseudorange_m = pseudorange_m
+    return out
 
 
 def _window_epochs(chain) -> int:
