@@ -186,12 +186,13 @@ def test_meacon_delays_every_range_by_the_same_amount_and_the_clock_takes_it(tmp
 
 
 def test_the_counterfeits_arrive_from_the_spoofer_for_every_satellite(tmp_path, monkeypatch):
-    from gnss_sim_ros2.core import simulation
     from gnss_sim_ros2.core.frames import az_el_from_ecef
+    from gnss_sim_ros2.core.threats import runtime
     from gnss_sim_ros2.core.threats.runtime import ThreatRuntime
 
     made, truth, tracked = [], [], []
-    monkeypatch.setattr(simulation, "ThreatRuntime",
+    # the simulation imports the runtime when a scenario asks for it (594b571): the class is caught where it lives
+    monkeypatch.setattr(runtime, "ThreatRuntime",
                         lambda *a, **kw: made.append(ThreatRuntime(*a, **kw)) or made[-1])
     def observer(t, ecef, obs, sol):
         truth.append(made[0].spoofed(t))
