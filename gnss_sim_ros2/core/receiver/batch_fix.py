@@ -4,13 +4,14 @@ Each receiver (core/receiver/chain.ReceiverChain) keeps its own state: its smoot
 (ReceiverChain.fix_inputs), its SolverConfig, its RAIM exclusions (solver.solve_pvt_many excludes per epoch).
 solve_pvt_many gives every epoch the bits it gets alone, whatever the epochs solved with it, so a robot's fix
 here is the one its own receiver node computes (test_fleet_layout.py compares the two layouts byte for byte).
-The receivers' RINEX epochs are formatted together too (prepare_rinex_epochs), each written by its own finish.
+The receivers' RINEX epochs are formatted together too (rinex_epochs.prepare_rinex_epochs), each written by its own
+finish.
 """
 from __future__ import annotations
 
 from ..solver import PvtSolution, solve_pvt_many
 from .chain import receivers_fix_inputs
-from .outputs import rinex_lines
+from .rinex_epochs import prepare_rinex_epochs
 
 
 def solve_receivers_fixes(chains, obs_list) -> list[PvtSolution]:
@@ -35,23 +36,3 @@ def solve_receivers_fixes(chains, obs_list) -> list[PvtSolution]:
         for i, sol in zip(idx, solve_pvt_many([inputs[i] for i in idx], cfg)):
             sols[i] = sol
     return sols
-
-
-def prepare_rinex_epochs(chains, obs_list) -> None:
-    """The outputs of ``obs_list[k]`` that need no fix (ReceiverChain.rinex_outputs: EpochArrays for RTCM, RINEX
-    satellite lines) made for every chain k, the lines of all chains with the same observation types formatted
-    in one vectorised pass (outputs.rinex_lines), handed to each chain (ReceiverChain.prepare) for its next finish
-    to write.  A group whose epochs do not format (a value that does not fit) is left to the finishes, which raise
-    for it as alone.  ``chains`` may hold one chain several times (its consecutive epochs, in order)."""
-    groups: dict = {}                    # obs_types key -> [k]
-    for k, chain in enumerate(chains):
-        groups.setdefault(tuple((s, tuple(c)) for s, c in chain.obs_types.items()), []).append(k)
-    for idx in groups.values():
-        first = chains[idx[0]]
-        with_lines = [k for k in idx if chains[k].settings.output_dir is not None and len(obs_list[k].sv)]
-        try:
-            lines = dict(zip(with_lines, rinex_lines([obs_list[k] for k in with_lines], first.obs_types)))
-        except ValueError:
-            continue
-        for k in idx:
-            chains[k].prepare(obs_list[k], chains[k].rtcm_arrays(obs_list[k]), lines.get(k))

@@ -37,6 +37,7 @@ from .engine import Receiver
 from .observations import EpochObservations
 from .outputs import epoch_arrays, fix_inputs, header, obs_types_for, position_fixes, rinex_lines, rinex_name, spp_rows
 from .profiles import load_profile
+from .rinex_epochs import prepare_rinex_epochs
 from .tracking import TrackingConfig
 
 
@@ -269,8 +270,6 @@ class ReceiverChain:
         # solutions as starting at the previous epoch's, to the solver's convergence of 0.1 mm)
         fix_obs = self._smoothed_many(obs) if self.settings.smoothing_s > 0 else obs
         sols = position_fixes(fix_obs, self.settings.receiver.profile, self.prior_ecef_m, self.settings.solver)
-        from .batch_fix import prepare_rinex_epochs
-
         prepare_rinex_epochs([self] * len(obs), obs)      # the block's RINEX lines formatted in one pass
         try:
             return [self._products(t, p, states, o, sol) for t, p, o, sol in zip(ts, ecef, obs, sols)]
@@ -331,7 +330,7 @@ class ReceiverChain:
 
     def prepare(self, obs, arrays, lines):
         """What :meth:`finish` of ``obs`` would make itself (:meth:`rinex_outputs`), made ahead with other epochs'
-        or receivers' (batch_fix.prepare_rinex_epochs); the finishes take them in order, each only if of the
+        or receivers' (rinex_epochs.prepare_rinex_epochs); the finishes take them in order, each only if of the
         same ``obs`` object."""
         self._prepared.append((obs, arrays, lines))
 
