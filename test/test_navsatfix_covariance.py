@@ -50,8 +50,8 @@ def test_published_covariance_is_the_solvers(ros, tmp_path):  # noqa: F811
     solutions = {}                         # stamp sec -> the core's PvtSolution of that epoch
     finish = node.chain.finish
 
-    def spy(t, ecef, states, obs, sol=None):
-        ep = finish(t, ecef, states, obs, sol)
+    def spy(t, ecef, states, obs, sol=None, **kwargs):
+        ep = finish(t, ecef, states, obs, sol, **kwargs)
         solutions[len(solutions)] = ep.sol
         return ep
 
