@@ -61,19 +61,8 @@ def _layout(sv, code, obs_types):
         svs = tuple(dict.fromkeys(sv_list))
         row = {s: i for i, s in enumerate(svs)}
         width = max((len(v) for v in obs_types.values()), default=0)
-        cols_of = _columns_of(obs_types)
-        no_cols = (-1,) * len(OBS_KINDS)
-        m = len(sv_list)
-        cols = np.array([cols_of.get((s[0], c), no_cols) for s, c in zip(sv_list, code.tolist())],
-                        dtype=np.int64).reshape(m, len(OBS_KINDS))
         rows = np.array([row[s] for s in sv_list], dtype=np.int64)
-        dest, src = {}, {}
-        for k, kind in enumerate(OBS_KINDS):     # per kind: the signals with a column
-            ok = np.flatnonzero(cols[:, k] >= 0)
-            dest[kind], src[kind] = rows[ok] * width + cols[ok, k], ok
-        places = (np.concatenate([dest[x] for x in OBS_KINDS]),
-                  np.concatenate([k * m + src[x] for k, x in enumerate(OBS_KINDS)]),
-                  np.concatenate([dest["C"], dest["L"]]), np.concatenate([src["C"], src["L"]]), dest["L"], src["L"])
+        places = _signal_places(sv_list, code, obs_types, rows * width)
         # shorter systems' code lists padded to the common width with names not in the header (never filled)
         codes = {s: list(v) + [f"X{i}Z" for i in range(width - len(v))] for s, v in obs_types.items()}
         hit = (svs, width, codes, places)
@@ -151,22 +140,28 @@ def _flat_layout(sv, code, fmt: EpochFormatter):
                              f"header obs_types ({list(obs_types)})")
         counts = np.array([len(obs_types[s[0]]) for s in sats], dtype=np.int64)
         start = dict(zip(sats, (np.cumsum(counts) - counts).tolist()))
-        cols_of = _columns_of(obs_types)
-        no_cols = (-1,) * len(OBS_KINDS)
-        m = len(sv_list)
-        cols = np.array([cols_of.get((s[0], c), no_cols) for s, c in zip(sv_list, code.tolist())],
-                        dtype=np.int64).reshape(m, len(OBS_KINDS))
         base = np.array([start[s] for s in sv_list], dtype=np.int64)
-        dest, src = {}, {}
-        for k, kind in enumerate(OBS_KINDS):     # per kind: the signals with a column
-            ok = np.flatnonzero(cols[:, k] >= 0)
-            dest[kind], src[kind] = base[ok] + cols[ok, k], ok
-        places = (np.concatenate([dest[x] for x in OBS_KINDS]),
-                  np.concatenate([k * m + src[x] for k, x in enumerate(OBS_KINDS)]),
-                  np.concatenate([dest["C"], dest["L"]]), np.concatenate([src["C"], src["L"]]), dest["L"], src["L"])
+        places = _signal_places(sv_list, code, obs_types, base)
         hit = (list(sats), int(counts.sum()), places, (len(places[0]), len(places[2]), len(places[4])))
         _FLAT_CACHE.put(key, hit)
     return hit
+
+
+def _signal_places(sv_list: list, code, obs_types: dict[str, list[str]], base) -> tuple:
+    """Where each signal's C, L, D, S values go in a flat block of the header's columns: ``base[i]`` is signal i's
+    satellite's first cell; (dest, src) of every kind (src indexes the (kinds x signals) values), of C and L, of L."""
+    cols_of = _columns_of(obs_types)
+    no_cols = (-1,) * len(OBS_KINDS)
+    m = len(sv_list)
+    cols = np.array([cols_of.get((s[0], c), no_cols) for s, c in zip(sv_list, code.tolist())],
+                    dtype=np.int64).reshape(m, len(OBS_KINDS))
+    dest, src = {}, {}
+    for j, kind in enumerate(OBS_KINDS):     # per kind: the signals with a column
+        ok = np.flatnonzero(cols[:, j] >= 0)
+        dest[kind], src[kind] = base[ok] + cols[ok, j], ok
+    return (np.concatenate([dest[x] for x in OBS_KINDS]),
+            np.concatenate([j * m + src[x] for j, x in enumerate(OBS_KINDS)]),
+            np.concatenate([dest["C"], dest["L"]]), np.concatenate([src["C"], src["L"]]), dest["L"], src["L"])
 
 
 def _columns_of(obs_types: dict[str, list[str]]) -> dict:
