@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from receiver_helpers import synthetic_sky
 
 from gnss_sim_ros2.core.receiver import batch_observe
 from gnss_sim_ros2.core.receiver.batch_observe import ReceiverEpoch, observe_receivers
@@ -49,14 +50,7 @@ def _chains(rcv, out_dir, odd_one_out: bool):
 @pytest.fixture(scope="module")
 def inputs():
     """The receiver's parameters and per epoch: (t, states, iono) at 10 Hz from the synthetic ephemeris."""
-    from gnss_sim_ros2.config_file import load_config
-    from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris
-    from gnss_sim_ros2.core.time import GnssTime
-
-    rcv = load_config(overrides={"/**": {"rate_hz": 10.0}}).node("receiver")
-    start = GnssTime.from_iso(rcv["start_time"])
-    with tempfile.TemporaryDirectory() as tmp:
-        provider, _ = open_ephemeris("synthetic", start, 60.0, rcv["systems"], workdir=tmp)
+    rcv, start, provider = synthetic_sky(10.0, 60.0)
     return rcv, getattr(provider, "iono", None), [
         (start + i * 0.1, provider.states(start + i * 0.1, systems=rcv["systems"])) for i in range(EPOCHS)]
 

@@ -3,9 +3,8 @@ makes no NMEA text, and everything else of the epoch is what it is with the text
 file and fix.csv byte for byte; an NMEA file asked for (write_nmea_file) still gets every epoch's sentences."""
 from __future__ import annotations
 
-import tempfile
-
 import pytest
+from receiver_helpers import synthetic_sky
 
 EPOCHS = 30
 
@@ -13,15 +12,9 @@ EPOCHS = 30
 @pytest.fixture(scope="module")
 def epochs():
     """(receiver parameters, [(t, antenna ECEF, states)]) at 10 Hz from the synthetic ephemeris, antenna fixed."""
-    from gnss_sim_ros2.config_file import load_config
-    from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris
     from gnss_sim_ros2.core.frames import geodetic_to_ecef
-    from gnss_sim_ros2.core.time import GnssTime
 
-    rcv = load_config(overrides={"/**": {"rate_hz": 10.0}}).node("receiver")
-    start = GnssTime.from_iso(rcv["start_time"])
-    with tempfile.TemporaryDirectory() as tmp:
-        provider, _ = open_ephemeris("synthetic", start, 10.0, rcv["systems"], workdir=tmp)
+    rcv, start, provider = synthetic_sky(10.0, 10.0)
     ecef = geodetic_to_ecef(47.37, 8.54, 450.0)
     return rcv, [(start + 0.1 * i, ecef, provider.states(start + 0.1 * i, systems=rcv["systems"]))
                  for i in range(EPOCHS)]
