@@ -40,7 +40,7 @@ from gnss_sim_ros2.graph import FLEET_NODE_NAMES, fleet_topic
 from gnss_sim_ros2.graph_params import fleet_robot_params, robot_namespace
 from gnss_sim_ros2.messages.conversions import states_from_cdr
 from gnss_sim_ros2.nodes.common import GnssSimNode, run_node
-from gnss_sim_ros2.nodes.in_process import Taker
+from gnss_sim_ros2.nodes.in_process import Taker, subscription_switch
 from gnss_sim_ros2.nodes.receiver_session import ReceiverSession
 
 #: SatelliteStates messages kept decoded: epochs whose robots' visibility is still awaited (a late robot's TF)
@@ -169,13 +169,8 @@ class FleetReceiverNode(GnssSimNode):
         """Robot k's visibility: handed by a fleet visibility node of this process (nodes/in_process.py), else
         from the middleware (a raw subscription)."""
         r = self.robots[k]
-        sub = []
-
-        def over_middleware(on: bool):
-            if on and not sub:
-                sub.append(self.active_subscription(msg_type, topic, r.on_visibility, 100, raw=True))
-            elif not on and sub:
-                self.drop_active(sub.pop())
+        over_middleware = subscription_switch(
+            lambda: self.active_subscription(msg_type, topic, r.on_visibility, 100, raw=True), self.drop_active)
         return Taker(self, topic, self.speaking(lambda handed: self._handed(r, *handed)), over_middleware)
 
     def _handed(self, r: ReceiverSession, stamp, columns: dict, states_data: bytes, states_decoded):

@@ -92,6 +92,18 @@ class Offer:
         _follow(takers, linked)
 
 
+def subscription_switch(make: Callable[[], object], drop: Callable[[object], None]) -> Callable[[bool], None]:
+    """A taker's ``over_middleware``: the subscription ``make()`` returns while on, ``drop(subscription)`` when off."""
+    held: list = []
+
+    def switch(on: bool):
+        if on and not held:
+            held.append(make())
+        elif not on and held:
+            drop(held.pop())
+    return switch
+
+
 class Taker:
     """``node`` taking ``topic`` in-process: ``deliver(payload)`` gets what an :class:`Offer` hands;
     ``over_middleware(on)`` makes (True) or drops (False) the node's middleware subscription to the topic: on

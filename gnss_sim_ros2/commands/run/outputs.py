@@ -12,7 +12,7 @@ from gnss_sim_ros2 import graph
 from gnss_sim_ros2.core.frames import ecef_to_enu, ecef_to_geodetic, geodetic_to_ecef
 from gnss_sim_ros2.graph_params import robot_namespace
 from gnss_sim_ros2.messages.conversions import stamp_of, visibility_antenna
-from gnss_sim_ros2.nodes.in_process import Taker
+from gnss_sim_ros2.nodes.in_process import Taker, subscription_switch
 
 
 class RunOutputs:
@@ -145,13 +145,9 @@ class RobotOutputs:
         topic = self.topic
         self.subs = [driver.create_subscription(ReceiverStatus, topic("status"), on_status, 100),
                      driver.create_subscription(NavSatFix, topic("fix"), on_fix, 100)]
-        vis_sub: list = []
-
-        def over_middleware(on: bool):
-            if on and not vis_sub:
-                vis_sub.append(driver.create_subscription(Visibility, topic("visibility"), on_vis, 100, raw=True))
-            elif not on and vis_sub:
-                driver.destroy_subscription(vis_sub.pop())
+        over_middleware = subscription_switch(
+            lambda: driver.create_subscription(Visibility, topic("visibility"), on_vis, 100, raw=True),
+            driver.destroy_subscription)
         self.vis_taker = Taker(driver, topic("visibility"), on_handed, over_middleware)
 
     def topic(self, name: str) -> str:
