@@ -334,15 +334,11 @@ class ReceiverChain:
         same ``obs`` object."""
         self._prepared.append((obs, arrays, lines))
 
-    def _smoothed(self, obs: EpochObservations) -> EpochObservations:
-        """The observables with carrier-smoothed code for the position fix, as receivers compute their fix
-        (Hatch filter, RTCA DO-229 2.1.4.1.1: P_s = P / M + (M - 1) / M (P_s' + L - L'), window M up to
-        smoothing_s; restarted at a loss of lock).  The raw code stays in the observations and RINEX.
-        One epoch of :meth:`_smoothed_many`."""
-        return self._smoothed_many([obs])[0]
-
     def _smoothed_many(self, obs_list) -> list[EpochObservations]:
-        """:meth:`_smoothed` of consecutive epochs (smoothed_code)."""
+        """The observables of consecutive epochs with carrier-smoothed code for the position fix, as receivers
+        compute their fix (Hatch filter, RTCA DO-229 2.1.4.1.1: P_s = P / M + (M - 1) / M (P_s' + L - L'), window M
+        up to smoothing_s; restarted at a loss of lock).  The raw code stays in the observations and RINEX.
+        This chain's epochs of smoothed_code."""
         return smoothed_code([self] * len(obs_list), obs_list)
 
     # ------------------------------------------------------------------ files
@@ -464,7 +460,7 @@ def receivers_fix_inputs(chains, obs_list) -> list[dict]:
 
 
 def smoothed_code(chains, obs_list) -> list[EpochObservations]:
-    """ReceiverChain._smoothed of ``obs_list[k]`` by ``chains[k]``'s filter (a chain given several epochs: its
+    """ReceiverChain._smoothed_many of ``obs_list[k]`` by ``chains[k]``'s filter (a chain given several epochs: its
     consecutive ones, in order).  What needs no state (the carrier in metres, the loss of lock flags) for all
     their signals at once; then the filter in rounds, each round the next epoch of every chain, the arithmetic
     of a round's chains together (each chain's state its own)."""
@@ -530,7 +526,7 @@ def smoothed_code(chains, obs_list) -> list[EpochObservations]:
 def _hatch(tracked_before, count, code, phase, intact, pr, phase_m, n_max):
     """One Hatch filter step of signals: (window length M, smoothed code) from the state (tracked at the previous
     call, its M, smoothed code and phase [m]), this epoch's loss-of-lock check, code and phase [m], and the
-    longest window n_max (DO-229 2.1.4.1.1, see ReceiverChain._smoothed)."""
+    longest window n_max (DO-229 2.1.4.1.1, see ReceiverChain._smoothed_many)."""
     # the window goes on for a signal also tracked at the previous call, without a loss of lock;
     # a signal not tracked at the previous epoch starts again
     go_on = tracked_before & intact
@@ -553,7 +549,7 @@ def _window_epochs(chain) -> int:
 
 class _SmoothingState:
     """Hatch filter state per signal (sv, code): smoothed code [m], phase [m], epochs in the window, and
-    the call that last saw it (ReceiverChain._smoothed)."""
+    the call that last saw it (ReceiverChain._smoothed_many)."""
 
     def __init__(self):
         self.index: dict = {}
