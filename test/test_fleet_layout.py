@@ -263,3 +263,42 @@ def test_in_process_link_one_context_and_executor(monkeypatch):
     monkeypatch.setenv(in_process.IN_PROCESS_ENV, "maybe")
     with pytest.raises(ValueError, match="GNSS_SIM_IN_PROCESS is 'maybe': one of on, off"):
         in_process.enabled()
+
+
+def test_tf_handed_in_process_is_fed_once():
+    """A /tf message a trajectory player of the process hands (nodes/in_process.py) is fed to the TF tree at once;
+    the middleware's copy of it is then dropped, while a message of another publisher (not handed) is fed."""
+    import copy
+
+    import rclpy
+
+    from gnss_sim_ros2.messages.tf import tf_message, transform_to_msg
+    from gnss_sim_ros2.nodes.tf_source import TfSource
+
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    try:
+        node = rclpy.create_node("tf_handed_test", context=context)
+        tf = TfSource(node, prefer_tf2_ros=False)
+        fed = []
+        tf._feed = lambda msg, static: fed.append(msg)
+
+        def message(sec, child):
+            stamp = rclpy.time.Time(seconds=sec).to_msg()
+            return tf_message([transform_to_msg("world", child, stamp, [1.0, 2.0, 3.0], 0.5)])
+
+        handed = message(10, "robot0/base_link")
+        tf._handed(handed)
+        assert fed == [handed]
+        tf._from_middleware(copy.deepcopy(handed))          # the middleware's copy of the message handed
+        assert fed == [handed]
+        other = message(10, "robot1/base_link")               # another publisher's, at the same stamp
+        tf._from_middleware(other)
+        assert fed == [handed, other]
+        again = copy.deepcopy(handed)                         # the same message published again: fed
+        tf._from_middleware(again)
+        assert fed == [handed, other, again]
+        tf.close()
+        node.destroy_node()
+    finally:
+        rclpy.shutdown(context=context)

@@ -20,6 +20,7 @@ from gnss_sim_ros2.core.time import GnssTime
 from gnss_sim_ros2.messages.conversions import encode_states
 from gnss_sim_ros2.messages.diagnostics import diagnostic_array, diagnostic_status
 from gnss_sim_ros2.nodes.common import GnssSimNode, TimeMapping, run_node, run_origin_ns
+from gnss_sim_ros2.nodes.in_process import Offer
 
 
 class EphemerisNode(GnssSimNode):
@@ -29,6 +30,7 @@ class EphemerisNode(GnssSimNode):
         super().__init__(**kwargs)
         self.provider = None
         self.pub = None
+        self.offer = None
         self.diag_pub = None
         self.mapping = None
         self.next_k = 0
@@ -49,6 +51,8 @@ class EphemerisNode(GnssSimNode):
             p["source"], self.mapping.start, p["duration_s"], p["systems"], p["nav_files"], p["sp3_files"],
             p["clk_files"], workdir=self._tmp.name, cache_dir=p["download_cache_dir"] or None)
         self.pub = self.lifecycle_publisher(_msg_type(), "satellite_states", 100)
+        #: the states handed to the visibility nodes of this process too (nodes/in_process.py), after publishing
+        self.offer = Offer(self, self.pub)
         self.diag_pub = self.lifecycle_publisher(DiagnosticArray, "/diagnostics", 10)
         self.period_s = 1.0 / p["rate_hz"]
         self.nav_path = None
@@ -69,6 +73,9 @@ class EphemerisNode(GnssSimNode):
         self._tick()  # the epoch the clock stands at now (a simulated clock may wait for it)
 
     def cleanup(self):
+        if self.offer is not None:
+            self.offer.withdraw()
+            self.offer = None
         self.pub = self.diag_pub = None
         self.provider = self.mapping = self.nav_path = None
         self.nav_paths = []
@@ -99,7 +106,10 @@ class EphemerisNode(GnssSimNode):
         states = self.provider.states(t, systems=self.params["systems"])
         # the serialised message straight from the arrays (cdr.py; what states_to_msg + rclpy would send)
         iono = getattr(self.provider, "iono", None)
-        self.pub.publish(encode_states(states, t, self.mapping.to_ros(t), "earth", iono))
+        data = encode_states(states, t, self.mapping.to_ros(t), "earth", iono)
+        self.pub.publish(data)             # first: the latency of what follows starts at this publication
+        for deliver in self.offer.takers():
+            deliver(data)
         self.published += 1
         if self.published % max(1, int(round(10.0 / self.period_s))) == 1:
             self._diagnose(t, len(states))

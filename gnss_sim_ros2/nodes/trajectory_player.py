@@ -27,6 +27,7 @@ from gnss_sim_ros2.core.trajectory import Trajectory, robot_path
 from gnss_sim_ros2.graph_params import fleet_robot_params
 from gnss_sim_ros2.messages.tf import tf_message, transform_to_msg
 from gnss_sim_ros2.nodes.common import GnssSimNode, run_node, run_origin_ns
+from gnss_sim_ros2.nodes.in_process import Offer
 
 STATIC_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
 
@@ -46,6 +47,7 @@ class TrajectoryPlayer(GnssSimNode):
         #: (parameters, path) of each robot moved: the node's own, or the fleet's robots (fleet_robots)
         self.robots: list[tuple[dict, Trajectory]] = []
         self.tf_pub = self.static_pub = None
+        self.tf_offer = None
         self.next_tick = None
 
     def configure(self, p):
@@ -61,6 +63,8 @@ class TrajectoryPlayer(GnssSimNode):
         self.path = self.robots[0][1]
         self.period_ns = int(round(1e9 / p["publish_rate_hz"]))
         self.tf_pub = self.lifecycle_publisher(_tf_type(), "/tf", 100)
+        #: each /tf message handed to the TF listeners of this process too (nodes/in_process.py), after publishing
+        self.tf_offer = Offer(self, self.tf_pub)
         self.static_pub = self.lifecycle_publisher(_tf_type(), "/tf_static", STATIC_QOS)
 
     def activate(self):
@@ -72,6 +76,9 @@ class TrajectoryPlayer(GnssSimNode):
         self._tick()  # a simulated clock may stand still until the first epoch is answered
 
     def cleanup(self):
+        if self.tf_offer is not None:
+            self.tf_offer.withdraw()
+            self.tf_offer = None
         self.tf_pub = self.static_pub = None
         self.path = None
         self.robots = []
@@ -105,7 +112,10 @@ class TrajectoryPlayer(GnssSimNode):
             yaw = path.yaw((ts - self.origin_ns) * 1e-9)
             msgs += [transform_to_msg(p["world_frame"], p["base_frame"], stamp, pos[i], float(yaw[i]))
                      for i, stamp in enumerate(stamps)]
-        self.tf_pub.publish(tf_message(msgs))
+        msg = tf_message(msgs)
+        self.tf_pub.publish(msg)
+        for deliver in self.tf_offer.takers():
+            deliver(msg)
 
 
 def main(args=None):

@@ -34,6 +34,7 @@ from gnss_sim_ros2.messages.conversions import encode_visibility, stamp_of, stat
 from gnss_sim_ros2.messages.diagnostics import diagnostic_array, diagnostic_status
 from gnss_sim_ros2.messages.images import rgb8_image
 from gnss_sim_ros2.nodes.common import GnssSimNode, run_node
+from gnss_sim_ros2.nodes.in_process import Taker, subscription_switch
 from gnss_sim_ros2.nodes.tf_source import TfSource
 from gnss_sim_ros2.tf_tree import TransformTree
 
@@ -52,6 +53,7 @@ class VisibilityNode(GnssSimNode):
         self.fixed_world_m = None     # antenna_position in the world frame, or None: the antenna from TF
         self.pub = self.image_pub = self.diag_pub = None
         self.queue: collections.deque = collections.deque()
+        self._states_taker = None     # the satellite_states taken in-process or over the middleware (activate)
         self.processed = 0
         self.dropped = 0
         self._last_image_s = -1e9
@@ -81,6 +83,9 @@ class VisibilityNode(GnssSimNode):
         if not is_zero(p["world_offset_enu_m"]):
             self.get_logger().warning(offset_note(p["world_offset_enu_m"]))
         self.fixed_world_m = self._fixed_antenna(p) if p["antenna_position"] else None
+        # the geodesy every epoch uses (pymap3d, imported where first used: about 10 ms) paid now, not in the
+        # first epoch's latency
+        self.scene.antenna_ecef(np.zeros(3))
         self.processed = self.dropped = 0
         self._last_image_s = -1e9
         self.sky_view = SkyView(self.scene)
@@ -129,7 +134,11 @@ class VisibilityNode(GnssSimNode):
     def activate(self):
         from gnss_sim_msgs.msg import SatelliteStates
 
-        self.active_subscription(SatelliteStates, "satellite_states", self._on_states, 100, raw=True)
+        # the states handed by an ephemeris node of this process (nodes/in_process.py), else from the middleware
+        over_middleware = subscription_switch(
+            lambda: self.active_subscription(SatelliteStates, "satellite_states", self._on_states, 100, raw=True),
+            self.drop_active)
+        self._states_taker = Taker(self, "satellite_states", self.speaking(self._on_states), over_middleware)
         if self.model_poses is not None:
             from tf2_msgs.msg import TFMessage
 
@@ -138,6 +147,9 @@ class VisibilityNode(GnssSimNode):
         self.active_timer(0.005, self._drain, clock=Clock(clock_type=ClockType.STEADY_TIME))
 
     def deactivate(self):
+        if self._states_taker is not None:
+            self._states_taker.close()
+            self._states_taker = None
         self.queue.clear()
 
     def cleanup(self):

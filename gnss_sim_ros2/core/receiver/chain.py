@@ -30,6 +30,7 @@ import numpy as np
 
 from ..memo import BoundedCache
 from ..presets import preset as preset_switches
+from ..signal_plans.plan import default_plans
 from ..solver import PvtSolution, SolverConfig, solve_pvt_many
 from ..time import GnssTime
 from .config import ReceiverConfig
@@ -160,6 +161,9 @@ class ReceiverChain:
         #: (observables, their EpochArrays or None, their RINEX lines or None) made ahead for the next finishes, in
         #: order (prepare)
         self._prepared: deque = deque()
+        # the signal plans every Receiver reads (plans.yaml, cached per process) parsed with the chain, so a
+        # node pays them when it is configured, not in its first epoch's latency (about 15 ms)
+        default_plans()
         self._nmea_file = None
         #: a scenario's events (core/threats/runtime.ThreatRuntime) or None; set before the first epoch
         self.threats = None
