@@ -19,6 +19,10 @@ and the ratio planner / raw (the issue's goal: >= 50 %); the CPU seconds of both
 the other processes on the machine take).
 
     .venv/bin/python bench/bench_plan.py [--cells 2000] [--repeat 3] [--synthetic-city] [--full] [--overlap]
+                                         [--share-tile-m M]
+
+``--share-tile-m``: the tiles whose cells share the per-(time, satellite) terms (planning/shared.py; 0: per cell,
+the planner before them; default: quality.DEFAULT_SHARE_TILE_M).
 
 ``--full`` plans every cell of the area instead (runner.run_blocks in this process, as ``gnss-sim plan`` without
 ``--workers``; no map or file written) and prints its time: the 1 km2 x 24 h plan timed, not extrapolated.
@@ -91,6 +95,8 @@ def main() -> int:
     ap.add_argument("--full", action="store_true", help="plan every cell of the 1 km2 area (minutes) and time it")
     ap.add_argument("--overlap", action="store_true",
                     help="quality.OVERLAP_FINISH on: a window's finish on a second thread during the next casts")
+    ap.add_argument("--share-tile-m", type=float, default=None,
+                    help="PlanInputs.share_tile_m (0: per-cell terms; default: the planner's)")
     args = ap.parse_args()
     import open3d as o3d
 
@@ -110,10 +116,11 @@ def main() -> int:
     provider, _ = open_ephemeris("synthetic", start, 86400.0, "GREC")
     sky = plan_sky(provider, times, "GREC")
     inp = PlanInputs(sky.pos_ecef_m, sky.system, budget_from_profile("ublox_f9p", "GREC"),
-                     cn0=predictor_from_profile("ublox_f9p", "GREC"), t_s=sky.t_s)     # as gnss-sim plan
+                     cn0=predictor_from_profile("ublox_f9p", "GREC"), t_s=sky.t_s,     # as gnss-sim plan
+                     **({} if args.share_tile_m is None else {"share_tile_m": args.share_tile_m}))
     vis = VisibilityOptions(mask_deg=10.0)
     print(f"{name}: {area.n_cells:,} cells of 2 m over 1 km x 1 km; planning {len(pick):,} of them x "
-          f"{len(sky.t_s)} steps x {len(sky.sv)} satellites")
+          f"{len(sky.t_s)} steps x {len(sky.sv)} satellites; tiles sharing terms {inp.share_tile_m:g} m")
     if args.full:
         return _full_plan(scene, vis, ant, inp)
     rays = raw_rays(scene, ant, sky.pos_ecef_m, vis.mask_deg)

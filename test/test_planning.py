@@ -166,6 +166,128 @@ def test_overlapped_finish_gives_the_same_fields(courtyard, sky, monkeypatch):
     np.testing.assert_array_equal(runs[1][1], runs[0][1])
 
 
+#: the bound test_shared_terms_stay_within_their_bound holds (docs/PLANNING.md): relative difference of a DOP (of the
+#: expected accuracy, with its HDOP) <= SHARE_BOUND_FACTOR x (DOP + 1) x tile radius / 19,000 km (the nearest GNSS
+#: satellites' range: every line of sight turns by at most radius / range) + SHARE_FLOAT32_REL (a few float32 ulps);
+#: measured up to 0.4 (DOPs) and 2.2 / (DOP + 1) (expected accuracy, its UERE at the centre's elevation) of the
+#: factor over the courtyard and 1.3 km, up to 3.6 over Hong Kong
+SHARE_BOUND_FACTOR = 4.0
+SHARE_FLOAT32_REL = 1e-6
+
+
+@pytest.fixture(scope="module")
+def sky6h():
+    from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris
+    from gnss_sim_ros2.core.planning.sky import plan_sky, time_steps
+
+    start = GnssTime.from_iso(DEMO_START, scale="GPS")
+    provider, _ = open_ephemeris("synthetic", start, 6 * 3600.0, "GREC")
+    return plan_sky(provider, time_steps(start, 6.0, 20.0), "GREC")
+
+
+@pytest.mark.parametrize("profile", ["ublox_f9p", "ublox_m8t_hk"])     # link budget; fitted C/N0 tables
+@pytest.mark.parametrize("half_m, tile, multipath", [(40.0, "default", "off"), (40.0, 20.0, "off"),
+                                                     (1000.0, "max", "off"), (40.0, "default", "nlos")])
+def test_shared_terms_stay_within_their_bound(courtyard, sky6h, profile, half_m, tile, multipath):
+    """Per-(time, satellite) terms shared by a tile's cells (planning/shared.py) against every cell its own:
+    the states, counts, RTK indicator and good-satellite counts equal (the C/N0 per entry near its thresholds),
+    NaN / inf where the per-cell fields have them, the DOPs and the expected accuracy within the documented
+    bound; in and around the courtyard (the default tile; tiles of 20 m: several) and over 2 km (the largest
+    tile); with reflected paths (reflected-only satellites, the C/N0 of the composite signal) too."""
+    import dataclasses
+
+    from gnss_sim_ros2.core.planning import quality
+    from gnss_sim_ros2.core.planning.predicted_cn0 import predictor_from_profile
+    from gnss_sim_ros2.core.planning.ranging import budget_from_profile, tracked_systems
+    from gnss_sim_ros2.core.planning.shared import Tiles
+    from gnss_sim_ros2.core.planning.sight_lines import AntennaAxes
+    from gnss_sim_ros2.core.visibility import VisibilityOptions
+
+    tile_m = {"default": quality.DEFAULT_SHARE_TILE_M, "max": quality.MAX_SHARE_TILE_M}.get(tile, tile)
+    xy = np.random.default_rng(7).uniform(-half_m, half_m, (120, 2))
+    ant = np.c_[xy, np.full(len(xy), 1.5)]
+    keep = np.isin(sky6h.system, list(tracked_systems(profile, "GREC")))
+    inp = quality.PlanInputs(sky6h.pos_ecef_m[:, keep], sky6h.system[keep], budget_from_profile(profile, "GREC"),
+                             cn0=predictor_from_profile(profile, "GREC"), t_s=sky6h.t_s, max_rays=20000,
+                             share_tile_m=0.0)
+    vis = VisibilityOptions(mask_deg=10.0, multipath=multipath)
+    states = [np.full((len(ant),) + inp.sat_pos_ecef_m.shape[:2], -2, np.int8) for _ in range(2)]
+    ref = quality.quality_block(courtyard, vis, ant, inp, states_out=states[0])
+    got = quality.quality_block(courtyard, vis, ant, dataclasses.replace(inp, share_tile_m=tile_m),
+                                states_out=states[1])
+    np.testing.assert_array_equal(states[1], states[0])
+    tiles = Tiles.of(courtyard, ant, AntennaAxes.of(courtyard, ant), tile_m)
+    radius = tiles.radius_m[tiles.index][:, None]
+    assert (len(tiles.cells) > 4) == (tile_m < 40.0)
+    for k, dt in quality.FIELDS.items():
+        a, b = ref[k].astype(float), got[k].astype(float)
+        if np.dtype(dt).kind != "f":
+            np.testing.assert_array_equal(b, a, err_msg=k)
+            continue
+        np.testing.assert_array_equal(np.isfinite(b), np.isfinite(a), err_msg=k)
+        ok = np.isfinite(a)
+        assert ok.mean() > 0.5, k
+        dop = ref["hdop" if k == "h_acc_m" else k].astype(float)
+        bound = np.abs(a) * (SHARE_BOUND_FACTOR * (dop + 1.0) * radius / 1.9e7 + SHARE_FLOAT32_REL)
+        if k == "nlos_share":
+            bound = np.zeros_like(a)
+        excess = (np.abs(b - a) - bound)[ok]
+        assert excess.max() <= 0.0, f"{k}: {np.abs(b - a)[ok].max()} beyond the bound by {excess.max()}"
+    assert got["n_good"].any() and (got["n_attenuated"].any() or half_m > 100.0)   # foliage in the courtyard
+    assert got["n_reflected"].any() == (multipath != "off")
+
+
+@pytest.mark.parametrize("profile", ["ublox_f9p", "ublox_m8t_hk"])
+def test_shared_cn0_within_its_margin(courtyard, profile):
+    """The open-sky C/N0 at a tile's centre differs from a cell's (its own range and elevation) by less than the
+    margin within which the planner computes an entry per entry (Tiles.cn0_margin_db): cells over the largest tile,
+    0-50 m up, every satellite above the horizon over a day; the margin stays small (< 0.05 dB)."""
+    from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris
+    from gnss_sim_ros2.core.planning import quality
+    from gnss_sim_ros2.core.planning.predicted_cn0 import predictor_from_profile
+    from gnss_sim_ros2.core.planning.shared import Tiles
+    from gnss_sim_ros2.core.planning.sight_lines import AntennaAxes
+    from gnss_sim_ros2.core.planning.sky import plan_sky, time_steps
+
+    start = GnssTime.from_iso(DEMO_START, scale="GPS")
+    provider, _ = open_ephemeris("synthetic", start, 86400.0, "GREC")
+    sky = plan_sky(provider, time_steps(start, 24.0, 60.0), "GREC")
+    pred = predictor_from_profile(profile, "GREC")
+    half = quality.MAX_SHARE_TILE_M / 2
+    rng = np.random.default_rng(5)
+    ant = np.c_[rng.uniform(-half, half, (200, 2)), rng.uniform(0.0, 50.0, 200)]
+    axes = AntennaAxes.of(courtyard, ant)
+    tiles = Tiles.of(courtyard, ant, axes, 2 * half + 1.0)
+    assert len(tiles.cells) == 1
+    here = np.isfinite(sky.pos_ecef_m[..., 0]).all(axis=0)
+    sat, sysv = sky.pos_ecef_m[:, here], np.asarray(sky.system)[here]
+    _, rng0, sin0 = tiles.sky(sat)
+    el0 = np.degrees(np.arcsin(sin0[0]))
+    margin = tiles.cn0_margin_db(pred, sysv, float(rng0.min()))[0]
+    range_c, enu = axes.to_satellites(sat, per_time=True)
+    range_c = range_c.reshape(len(ant), len(sat), len(sysv))
+    el_c = np.degrees(np.arcsin(np.clip(enu[2], -1.0, 1.0))).reshape(range_c.shape)
+    compared = 0
+    for k, s in enumerate(sysv.tolist()):
+        up = el0[:, k] > 0.0
+        if s not in pred.signal or not up.any():
+            continue
+        centre = pred.open_sky_dbhz(s, rng0[0, up, k], el0[up, k])
+        cells = pred.open_sky_dbhz(s, range_c[:, up, k].ravel(), el_c[:, up, k].ravel()).reshape(len(ant), -1)
+        assert np.abs(cells - centre).max() <= margin[k], s
+        compared += cells.size
+    assert compared > 10000 and margin[np.isfinite(margin)].max() < 0.05
+
+
+@pytest.mark.parametrize("bad", [-1.0, float("nan"), float("inf"), 1e6, "250"])
+def test_bad_share_tile_is_named(sky, bad):
+    from gnss_sim_ros2.core.planning.quality import PlanInputs
+    from gnss_sim_ros2.core.planning.ranging import budget_from_profile
+
+    with pytest.raises(ValueError, match="share_tile_m"):
+        PlanInputs(sky.pos_ecef_m, sky.system, budget_from_profile("ublox_f9p", "GEC"), share_tile_m=bad)
+
+
 @pytest.mark.parametrize("profile", ["ublox_f9p", "ublox_m8t_hk"])     # link budget; fitted C/N0 tables
 def test_predicted_cn0_is_the_receivers_link_budget(profile):
     """The planner's predicted C/N0 (each system's entries computed in blocks) is receiver/cn0.cn0_dbhz of

@@ -31,6 +31,11 @@ from ..vocabulary import VisibilityState
 DEFAULT_GOOD_CN0_DBHZ = 35.0
 #: entries computed at a time without reflected paths: 16,384 float64 = 128 kB a temporary, in the caches
 COLUMN_BLOCK_ENTRIES = 1 << 14
+#: elevation step of the slope bound [deg] (elevation_slope_db_per_deg)
+SLOPE_STEP_DEG = 0.05
+#: bound on |d(open-sky C/N0) / d(range)| x range [dB]: 20 log10(e) = 8.69 for the free-space loss, tripled for the
+#: power's share and the edge range's dependence on the orbit radius (receiver/cn0.py: both below one)
+RANGE_SLOPE_DB = 3.0 * 20.0 / np.log(10.0)
 
 
 @dataclass
@@ -87,7 +92,6 @@ class Cn0Predictor:
         by flat index (one pass to find them, one take per input, one put of the result; the entries below the
         mask, absent or blocked are not computed), ``COLUMN_BLOCK_ENTRIES`` at a time; the same element-wise
         arithmetic on contiguous float64, so the same numbers."""
-        table = bool(self.budget.cn0_table_dbhz)
         n_s = need.shape[1]
         rng_f, el_f, att_f = (np.asarray(x, float).reshape(-1) for x in (rng, el, att))
         out_f = np.ascontiguousarray(out).reshape(-1)          # ``out`` itself when contiguous (np.where's)
@@ -103,13 +107,39 @@ class Cn0Predictor:
             flat = r * n_s + (cols[0] + c if run else cols[c])
             for i0 in range(0, len(flat), COLUMN_BLOCK_ENTRIES):   # the temporaries stay in the caches
                 f = flat[i0:i0 + COLUMN_BLOCK_ENTRIES]
-                rho = np.maximum(rng_f.take(f), 1.0)
-                with np.errstate(invalid="ignore", divide="ignore"):
-                    open_sky = cn0_model.cn0_dbhz_from_params(p_edge, el_min, rho, el_f.take(f), 0.0,
-                                                              budget=self.budget, frequency_hz=freq,
-                                                              signal_keys=np.full(len(f), key) if table else None)
-                out_f[f] = open_sky - att_f.take(f)
+                out_f[f] = self.open_sky_dbhz(s, rng_f.take(f), el_f.take(f)) - att_f.take(f)
         return out_f.reshape(out.shape)
+
+    def open_sky_dbhz(self, system: str, range_m, el_deg) -> np.ndarray:
+        """Unobstructed C/N0 [dB-Hz] of ``system``'s first signal at distances ``range_m`` and elevations ``el_deg``
+        (1-D, same length; the receiver's link budget, as :meth:`cn0_dbhz` computes it); -inf for a system the
+        profile does not track."""
+        if system not in self.signal:
+            return np.full(len(range_m), -np.inf)
+        p_edge, el_min, freq, key, _ = self.signal[system]
+        table = bool(self.budget.cn0_table_dbhz)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return cn0_model.cn0_dbhz_from_params(p_edge, el_min, np.maximum(range_m, 1.0), el_deg, 0.0,
+                                                  budget=self.budget, frequency_hz=freq,
+                                                  signal_keys=np.full(len(range_m), key) if table else None)
+
+    def elevation_slope_db_per_deg(self, system: str) -> float:
+        """Bound on |d(open-sky C/N0) / d(elevation)| [dB/deg] of ``system`` at any GNSS range: the largest
+        difference quotient over 0..90 deg every SLOPE_STEP_DEG at 15,000..45,000 km (the antenna gain and the
+        C/N0 tables are piecewise linear in elevation: a step inside a segment gives its slope; the power's
+        smooth dependence through the orbit radius is sampled finely), doubled."""
+        cache = self.__dict__.setdefault("_slopes", {})
+        if system not in cache:
+            if system not in self.signal:
+                cache[system] = 0.0
+            else:
+                el = np.arange(0.0, 90.0 + SLOPE_STEP_DEG / 2, SLOPE_STEP_DEG)
+                worst = 0.0
+                for rho in np.linspace(1.5e7, 4.5e7, 7):
+                    f = self.open_sky_dbhz(system, np.full(len(el), rho), el)
+                    worst = max(worst, float(np.max(np.abs(np.diff(f)))) / SLOPE_STEP_DEG)
+                cache[system] = 2.0 * worst
+        return cache[system]
 
     def _with_paths(self, val, open_sky, paths, r, c, blocked, att, el, chip, freq):
         """Entries with a reflected path: open-sky C/N0 + 20 log10 |composite amplitude| (engine's reflections)."""

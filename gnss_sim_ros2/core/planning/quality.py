@@ -11,6 +11,11 @@ satellites a receiver would use (line of sight, attenuated, reflected-only: solv
 per system); ``nlos_share`` (reflected-only / used); ``h_acc_m``: HDOP x UERE, UERE the RMS of the used
 satellites' sigma (ranging.py); ``n_rtk`` and ``rtk`` (rtk_rule.py); ``n_good``: satellites whose C/N0 predicted
 from the profile's link budget is >= ``good_cn0_dbhz`` (predicted_cn0.py; -1 without a predictor).
+
+The lines of sight, the UERE's elevation terms and the open-sky C/N0 are computed once per (tile, time, satellite)
+at the centre of square tiles of ``PlanInputs.share_tile_m`` and shared by the tile's cells (shared.py): the
+states, counts, RTK indicator and good-satellite counts are those of per-cell terms, the DOPs and the expected
+accuracy within a bound of them (docs/PLANNING.md); ``share_tile_m`` 0: per-cell terms (sight_lines.py).
 """
 from __future__ import annotations
 
@@ -24,6 +29,7 @@ from ..vocabulary import VisibilityState
 from .predicted_cn0 import DEFAULT_GOOD_CN0_DBHZ, Cn0Predictor
 from .ranging import RangingBudget
 from .rtk_rule import RtkArcs, RtkRule
+from .shared import Tiles, enu_moments, moment_terms, row_sums
 from .sight_lines import AntennaAxes
 
 #: the (C, T) outputs and their dtypes
@@ -36,6 +42,11 @@ FIELDS = {"n_los": np.int16, "n_attenuated": np.int16, "n_reflected": np.int16, 
 DEFAULT_MAX_RAYS = 1 << 18
 #: rays of one task's block of cells (cell_blocks): at least this x 8 (a task's fixed cost spread over its cells)
 BLOCK_BASE_RAYS = 1 << 21
+#: square tiles [m] whose cells share per-(time, satellite) lines of sight, UERE and C/N0 terms (shared.py); the
+#: differences this makes against per-cell terms grow with the size: docs/PLANNING.md, test_planning
+DEFAULT_SHARE_TILE_M = 250.0
+#: largest tile [m]: the differences stay below the bounds test_planning holds
+MAX_SHARE_TILE_M = 2000.0
 
 
 @dataclass
@@ -50,6 +61,14 @@ class PlanInputs:
     cn0: Cn0Predictor | None = None    # the profile's C/N0 prediction (n_good, attenuated RTK candidates); None:
     good_cn0_dbhz: float = DEFAULT_GOOD_CN0_DBHZ    # n_good = -1 and no attenuated satellite counts for RTK
     t_s: np.ndarray | None = None     # (T,) seconds of the steps (RTK outages); None: no outage bridged
+    share_tile_m: float = DEFAULT_SHARE_TILE_M    # tiles sharing per-(time, satellite) terms (shared.py); 0: per cell
+
+    def __post_init__(self):
+        if not (isinstance(self.share_tile_m, (int, float, np.floating, np.integer))
+                and np.isfinite(self.share_tile_m) and 0.0 <= self.share_tile_m <= MAX_SHARE_TILE_M):
+            raise ValueError(f"planning: share_tile_m is {self.share_tile_m!r}: a tile size in "
+                             f"0..{MAX_SHARE_TILE_M:g} m is needed (0: every cell its own lines of sight, C/N0 and "
+                             f"UERE terms)")
 
 
 def quality_block(scene, vis, antenna_world_m, inp: PlanInputs, stats=None, states_out=None) -> dict:
@@ -83,30 +102,37 @@ def quality_block(scene, vis, antenna_world_m, inp: PlanInputs, stats=None, stat
     # elevation at the block's centre, less the largest tilt of the vertical across the block
     el_c = np.nan_to_num(_elevation_deg(centre_ecef, sat_all), nan=-90.0)
     up_all = np.isfinite(sat_all[..., 0]) & (el_c >= vis.mask_deg - margin_deg)                 # (T, S)
+    tiles = Tiles.of(scene, ant, axes, inp.share_tile_m) if inp.share_tile_m > 0 else None
+    n_groups = len(letters)
+
     def finish(tt, cols, sat, present_t, state, att, v):
         """Everything after a window's cast, in order (the RTK arcs step from window to window)."""
         m_rows = c * len(tt)
-        present = np.broadcast_to(present_t[:, cols][None], (c, len(tt), len(cols))).reshape(m_rows, len(cols))
-        above = present & (np.asarray(v.el_deg) >= vis.mask_deg)
+        above = np.asarray(v.el_deg) >= vis.mask_deg
+        above.reshape(c, len(tt), len(cols))[:] &= present_t[:, cols][None]     # present: broadcast, no copy
         if states_out is not None:
             st = np.where(above, state, -1).astype(np.int8).reshape(c, len(tt), len(cols))
             states_out[:, tt[0]:tt[-1] + 1] = -1
             states_out[:, tt[0]:tt[-1] + 1, cols] = st
-        rng, los_enu = axes.to_satellites(sat, per_time=True)        # cell x time x satellite, broadcast
-        cn0 = _predicted_cn0(inp, sysv[cols], state, att, v, above, rng)
-        vals, cand, used = _rows_quality(state, att, v, above, los_enu, sysv[cols], clock_all[cols], dual[cols], inp,
-                                         cn0)
+        if tiles is None:                              # per cell
+            rng, los_enu = axes.to_satellites(sat, per_time=True)        # cell x time x satellite, broadcast
+            cn0 = _predicted_cn0(inp, sysv[cols], state, att, v, above, rng)
+            vals, cand, used = _rows_quality(state, att, v, above, los_enu, sysv[cols], clock_all[cols], dual[cols],
+                                             inp, cn0)
+            rtk_geometry = lambda cont: _rtk_geometry(los_enu, cont, clock_all[cols], inp.rule, used)   # noqa: E731
+        else:                                          # per tile and (time, satellite): shared.py
+            vals, cand, rtk_geometry = _rows_quality_shared(tiles, axes, sat, state, att, v, above, sysv[cols],
+                                                            clock_all[cols], n_groups, dual[cols], inp)
         cand = cand.reshape(c, len(tt), len(cols))
         cont = np.zeros_like(cand)
         for j in range(len(tt)):                       # unbroken arcs (rtk_rule.py)
-            cur = np.zeros((c, n_s), bool)
-            cur[:, cols] = cand[:, j]
-            cont[:, j] = arcs.unbroken(cur, t_all[tt[j]], gap)[:, cols]
-        n_rtk, pdop_rtk = _rtk_geometry(los_enu, cont.reshape(m_rows, len(cols)), clock_all[cols], inp.rule, used)
+            cont[:, j] = arcs.unbroken(cand[:, j], t_all[tt[j]], gap, cols)
+        n_rtk, pdop_rtk = rtk_geometry(cont.reshape(m_rows, len(cols)))
         n_rtk, pdop_rtk = n_rtk.reshape(c, len(tt)), pdop_rtk.reshape(c, len(tt))
         rtk = np.stack([arcs.fix(n_rtk[:, j], pdop_rtk[:, j]) for j in range(len(tt))], axis=1)
         vals["n_rtk"], vals["rtk"] = n_rtk, rtk
-        vals["n_good"] = _n_good(cn0, inp, m_rows)
+        if tiles is None:
+            vals["n_good"] = _n_good(cn0, inp, m_rows)
         for k, val in vals.items():
             out[k][:, tt] = np.asarray(val).reshape(c, len(tt))
 
@@ -179,17 +205,144 @@ def _time_windows(up, n_cells: int, max_rays: int) -> list[np.ndarray]:
     return out
 
 
+def _states(state, above):
+    """(line of sight, attenuated, reflected-only, blocked, used) (M, S) of the satellites ``above`` the mask."""
+    los = above & (state == int(VisibilityState.VISIBLE))
+    attn = above & (state == int(VisibilityState.ATTENUATED))
+    refl = above & (state == int(VisibilityState.REFLECTED_ONLY))
+    blocked = above & (state == int(VisibilityState.BLOCKED))
+    return los, attn, refl, blocked, los | attn | refl
+
+
+def _rows_quality_shared(tiles: Tiles, axes, sat, state, att, v, above, sysv, clock, n_groups, dual, inp: PlanInputs):
+    """:func:`_rows_quality` of a window's rows (cell * T + time) from per-(tile, time, satellite) terms (shared.py):
+    (the FIELDS but the RTK ones, with n_good; the RTK candidates (M, S); a function of the unbroken candidates
+    (M, S) giving (n_rtk, PDOP))."""
+    n_t, n_s = sat.shape[:2]
+    el = np.asarray(v.el_deg)
+    los, attn, refl, blocked, used = _states(state, above)
+    u, rng0, sin0 = tiles.sky(sat)                                  # (n, T, S) at each tile's centre
+    el0 = np.degrees(np.arcsin(np.clip(sin0, -1.0, 1.0)))
+    col = np.broadcast_to(np.arange(n_s), el0.shape).reshape(-1)
+    var0 = inp.budget.variance_of_columns_m2(sysv, col, el0.reshape(-1), np.zeros(col.shape), 0.0,
+                                             sin_el=sin0.reshape(-1)).reshape(el0.shape)
+    untracked = ~np.isfinite(var0)                   # a system the profile does not track: infinite sigma
+    terms = moment_terms(u, clock, n_groups, extra=np.where(untracked, 0.0, var0))
+    sums = row_sums(used, tiles, terms)
+    moments = enu_moments(sums, axes, n_t, n_groups)
+    gdop, pdop, hdop, vdop, _ = dops_from_moments(*moments)
+    var_sum = sums[:, -1].copy()
+    if untracked.any():                             # as the per-entry sum: infinite with one of them used
+        var_sum[_count(used & tiles.rows(untracked)) > 0] = np.inf
+    # per entry on top: an attenuated satellite's thermal noise at its lower C/N0, a reflected-only one's excess
+    e = np.flatnonzero(attn & (att != 0.0))
+    if len(e):
+        r, k = np.divmod(e, n_s)
+        t_e, tile_e = r % n_t, tiles.index[r // n_t]
+        keep = ~untracked[tile_e, t_e, k]           # (an untracked system's row is infinite already)
+        e, r, k, t_e, tile_e = e[keep], r[keep], k[keep], t_e[keep], tile_e[keep]
+        el_e, sin_e = el0[tile_e, t_e, k], sin0[tile_e, t_e, k]
+        att_e = np.asarray(att, float).reshape(-1).take(e)
+        d = (inp.budget.variance_of_columns_m2(sysv, k, el_e, att_e, 0.0, sin_el=sin_e)
+             - inp.budget.variance_of_columns_m2(sysv, k, el_e, np.zeros(len(e)), 0.0, sin_el=sin_e))
+        var_sum += np.bincount(r, weights=d, minlength=len(var_sum))
+    if refl.any():
+        e = np.flatnonzero(refl)
+        ex = np.nan_to_num(np.asarray(v.extra_path_m, float).reshape(-1).take(e))
+        var_sum += np.bincount(e // n_s, weights=ex * ex, minlength=len(var_sum))
+    n_used = _count(used)
+    n_refl = _count(refl)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        uere = np.sqrt(var_sum / n_used)
+        nlos = n_refl / n_used
+    tracked, n_good = los, np.full(len(used), -1)
+    if inp.cn0 is not None:
+        n_good, tracked = _shared_cn0(tiles, axes, sat, state, att, v, above, los, attn, rng0, el0, sysv, inp)
+    cand = tracked & (el >= inp.rule.ar_mask_deg) & dual
+    vals = {"n_los": _count(los), "n_attenuated": _count(attn), "n_reflected": n_refl,
+            "n_blocked": _count(blocked), "gdop": gdop, "pdop": pdop, "hdop": hdop, "vdop": vdop,
+            "nlos_share": nlos, "h_acc_m": hdop * uere, "n_good": n_good}
+
+    def rtk_geometry(cont):                         # the PDOP does not depend on the axes: ECEF moments as they are
+        n_rtk = _count(cont)
+        sums_c = row_sums(cont, tiles, terms)
+        pdop_rtk = dops_from_moments(sums_c[:, :n_groups].T, sums_c[:, n_groups:4 * n_groups].reshape(
+            -1, 3, n_groups).transpose(1, 2, 0), sums_c[:, 4 * n_groups:4 * n_groups + 6].T)[1]
+        return n_rtk, _rtk_pdop(n_rtk, pdop_rtk, inp.rule)
+    return vals, cand, rtk_geometry
+
+
+def _shared_cn0(tiles: Tiles, axes, sat, state, att, v, above, los, attn, rng0, el0, sysv, inp: PlanInputs):
+    """(n_good (M,), tracked (M, S)) of a window's rows from the predicted C/N0 (the satellites at or above
+    ``good_cn0_dbhz``; in line of sight, or attenuated at or above the profile's tracking threshold when the rule
+    counts those): an entry's C/N0 is its tile centre's open-sky C/N0 less its attenuation (an entry without
+    attenuation: the centre's decision, bool arrays broadcast to the cells), computed per entry (its own range and
+    elevation, predicted_cn0's arithmetic) where the centre's is within the sharing's error bound of a threshold
+    (shared.py): the decisions of the per-cell C/N0."""
+    pred = inp.cn0
+    count_att = inp.rule.count_attenuated
+    good, trk = inp.good_cn0_dbhz, pred.tracking_cn0_dbhz
+    if getattr(v, "paths", None) is not None:       # reflected paths: the composite amplitudes, per entry
+        rng, _ = axes.to_satellites(sat, per_time=True)
+        cn0 = _predicted_cn0(inp, sysv, state, att, v, above, rng)
+        with np.errstate(invalid="ignore"):
+            return _count(cn0 >= good), (los | (attn & (cn0 >= trk))) if count_att else los
+    n_t, n_s = sat.shape[:2]
+    open0 = np.full(rng0.shape, -np.inf)            # (n, T, S) at the tiles' centres
+    for s in np.unique(sysv).tolist():
+        k = np.flatnonzero(sysv == s)
+        open0[..., k] = pred.open_sky_dbhz(s, rng0[..., k].reshape(-1), el0[..., k].reshape(-1)).reshape(
+            rng0[..., k].shape)
+    margin = tiles.cn0_margin_db(pred, sysv, float(np.min(rng0)))[:, None, :]      # (n, 1, S)
+    att_f = np.asarray(att, float)
+    need = los | attn
+    own = need & (att_f != 0.0)                     # attenuated entries: their own value, per entry
+    near = np.abs(open0 - good) <= margin
+    e_mask = own | (need & tiles.rows(near))
+    if count_att:
+        near_t = np.abs(open0 - trk) <= margin
+        e_mask |= attn & tiles.rows(near_t)
+    common = need & ~e_mask                        # the centre's decisions hold
+    n_good = _count(common & tiles.rows(open0 >= good))
+    tracked = los | (attn & common & tiles.rows(open0 >= trk)) if count_att else los.copy()
+    e = np.flatnonzero(e_mask)
+    if len(e):
+        r, k = np.divmod(e, n_s)
+        t_e, tile_e = r % n_t, tiles.index[r // n_t]
+        att_e = att_f.reshape(-1).take(e)
+        val = open0[tile_e, t_e, k] - att_e
+        m_e = margin[tile_e, 0, k]
+        is_att = attn.reshape(-1).take(e)
+        close = (np.abs(val - good) <= m_e) | (count_att & is_att & (np.abs(val - trk) <= m_e))
+        x = e[close]
+        if len(x):                                  # per entry, as predicted_cn0 and sight_lines compute it
+            rx = axes.ecef_m[r[close] // n_t]
+            pos = sat[t_e[close], k[close]]
+            d = [pos[:, i] - rx[:, i] for i in range(3)]
+            rng = d[0] * d[0]
+            rng += d[1] * d[1]
+            rng += d[2] * d[2]
+            rng = np.sqrt(rng)
+            el_x = np.asarray(v.el_deg, float).reshape(-1).take(x)
+            kx = k[close]
+            exact = np.empty(len(x))
+            for s in np.unique(sysv[kx]).tolist():
+                w = np.flatnonzero(sysv[kx] == s)
+                exact[w] = pred.open_sky_dbhz(s, rng[w], el_x[w]) - att_e[close][w]
+            val[close] = exact
+        n_good += np.bincount(r, weights=val >= good, minlength=len(n_good)).astype(n_good.dtype)
+        if count_att:
+            tracked.reshape(-1)[e] |= is_att & (val >= trk)
+    return n_good, tracked
+
+
 def _rows_quality(state, att, v, above, los_enu, sysv, clock, dual, inp: PlanInputs, cn0=None):
     """Per antenna row (M rows x S satellites of one cast; ``los_enu`` their unit lines of sight (e, n, u), each
     (M, S), sight_lines.py): the FIELDS but the RTK ones, the RTK candidates (M, S) (dual-frequency, tracked
     above the AR mask: rtk_rule.py; ``cn0`` the predicted C/N0 or None) and the used satellites (M, S) with
     their DOP moments (solver.dop_moments: the RTK set's are those less the few used satellites not in it)."""
     el = np.asarray(v.el_deg)
-    los = above & (state == int(VisibilityState.VISIBLE))
-    attn = above & (state == int(VisibilityState.ATTENUATED))
-    refl = above & (state == int(VisibilityState.REFLECTED_ONLY))
-    blocked = above & (state == int(VisibilityState.BLOCKED))
-    used = los | attn | refl
+    los, attn, refl, blocked, used = _states(state, above)
     moments = dop_moments(los_enu, used, clock)
     gdop, pdop, hdop, vdop, _ = dops_from_moments(*moments)
     # the used satellites only (sigma ignores the others), gathered by flat index (row-major: r, k ascending)
@@ -243,17 +396,19 @@ def _rtk_geometry(los_enu, cont, clock, rule: RtkRule, used=None):
         cnt, s1, s2 = used[1]
         drop_r, drop_s = np.divmod(np.flatnonzero(used[0] & ~cont), cont.shape[1])
         d_cnt, d_s1, d_s2 = dop_moments_of_entries(los_enu, drop_r, drop_s, len(cont), clock, cnt.shape[0])
-        pdop = dops_from_moments(cnt - d_cnt, s1 - d_s1, s2 - d_s2)[1]
-        pdop[n_rtk < min(rule.min_sats, rule.min_hold_sats)] = np.inf
-        return n_rtk, np.nan_to_num(pdop, nan=np.inf)
+        return n_rtk, _rtk_pdop(n_rtk, dops_from_moments(cnt - d_cnt, s1 - d_s1, s2 - d_s2)[1], rule)
     enough = np.flatnonzero(n_rtk >= min(rule.min_sats, rule.min_hold_sats))     # only those can pass: their PDOP
     if 2 * len(enough) >= len(n_rtk):               # most rows: all of them, no gathered copies (each row's DOPs
-        pdop = dops_from_los_enu(los_enu, cont, clock)[1]          # are its own), the others' set back to inf
-        pdop[n_rtk < min(rule.min_sats, rule.min_hold_sats)] = np.inf
-        return n_rtk, np.nan_to_num(pdop, nan=np.inf)
+        return n_rtk, _rtk_pdop(n_rtk, dops_from_los_enu(los_enu, cont, clock)[1], rule)   # are its own)
     pdop = np.full(len(n_rtk), np.inf)
     pdop[enough] = dops_from_los_enu(tuple(x[enough] for x in los_enu), cont[enough], clock)[1]
     return n_rtk, np.nan_to_num(pdop, nan=np.inf)
+
+
+def _rtk_pdop(n_rtk, pdop, rule: RtkRule) -> np.ndarray:
+    """``pdop`` (M,) with the rows under the hold count and the degenerate ones (NaN) set to inf (no fix)."""
+    pdop[n_rtk < min(rule.min_sats, rule.min_hold_sats)] = np.inf
+    return np.nan_to_num(pdop, nan=np.inf)
 
 
 def _step_times(t_s, n: int, rule: RtkRule):

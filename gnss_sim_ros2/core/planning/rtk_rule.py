@@ -58,15 +58,20 @@ class RtkArcs:
         self.fixed = np.zeros(n_rows, bool)
         self.t_prev = None
 
-    def unbroken(self, cand, t_s: float, max_outage_s: float | None = None) -> np.ndarray:
-        """(rows, S) candidates ``cand`` at time ``t_s`` whose arc is unbroken (module doc; the first step: all)."""
+    def unbroken(self, cand, t_s: float, max_outage_s: float | None = None, cols=None) -> np.ndarray:
+        """(rows, S) candidates ``cand`` at time ``t_s`` whose arc is unbroken (module doc; the first step: all).
+        ``cols``: the satellites (S') ``cand`` (rows, S') holds, the others not candidates at this step."""
         gap = self.rule.max_outage_s if max_outage_s is None else max_outage_s
         cand = np.asarray(cand, bool)
+        last = self.last_s if cols is None else self.last_s[:, cols]
         if self.t_prev is None:
             cont = cand.copy()
         else:
-            cont = cand & ((self.last_s >= self.t_prev) | (t_s - self.last_s <= gap))
-        self.last_s = np.where(cand, t_s, self.last_s)
+            cont = cand & ((last >= self.t_prev) | (t_s - last <= gap))
+        if cols is None:
+            self.last_s = np.where(cand, t_s, last)
+        else:
+            self.last_s[:, cols] = np.where(cand, t_s, last)
         self.t_prev = t_s
         return cont
 
