@@ -67,6 +67,42 @@ def test_states_bytes_equal_rclpy(iono):
     assert iono_back == conversions.iono_from_msg(msg)
 
 
+IONOS = [None, {"GPSA": [1e-8, 2e-8, -6e-8, 1e-7], "GPSB": [9e4, 1e5, -6e4, -3e5], "GAL": [87.75, 0.41797, -0.010742]},
+         {"GAL": [1.0, 2.0, 3.0, 4.0]}, {"GPSA": [1e-8, 2e-8, -6e-8, 1e-7], "GPSB": [9e4, 1e5, -6e4]},
+         {"GPSA": [np.float32(1e-8)] * 4, "GPSB": [1, 2, 3, 4], "GAL": [1.0, 2.0]}]
+
+
+@pytest.mark.parametrize("iono", IONOS)
+@pytest.mark.parametrize("case", ["all", "empty", "sp3+clk", "unknown source", "float32 and lists", "one row"])
+def test_states_as_decoded_is_the_decode_of_the_bytes(iono, case):
+    """What the ephemeris node hands in-process beside its message (conversions.states_as_decoded) is, bit for bit
+    and dtype for dtype, what decode_states gives of encode_states' bytes."""
+    import dataclasses
+
+    _, st = _states()
+    if case == "empty":
+        st = st.select(np.zeros(0, dtype=np.int64))
+    elif case == "one row":
+        st = st.select(np.array([3]))
+    elif case in ("sp3+clk", "unknown source"):
+        st = dataclasses.replace(st, source="sp3+clk" if case == "sp3+clk" else "almanac")
+    elif case == "float32 and lists":
+        st = dataclasses.replace(st, sv=list(st.sv), pos_ecef_m=st.pos_ecef_m.astype(np.float32),
+                                 health=st.health.astype(np.int32).tolist(), tgd_s=st.tgd_s.astype(np.float32))
+    t = T0 + 0.1          # a tow with a fraction
+    stamp = (1234, 100_000_000)
+    ref = conversions.decode_states(conversions.encode_states(st, t, stamp, "earth", iono))
+    got = conversions.states_as_decoded(st, t, stamp, iono)
+    assert got[0] == ref[0] and got[1] == ref[1] and got[3] == ref[3]
+    a, b = got[2], ref[2]
+    assert a.t == b.t and a.source == b.source
+    for name in ("sv", "pos_ecef_m", "vel_ecef_mps", "acc_ecef_mps2", "clock_bias_s", "clock_drift_sps",
+                 "relativistic_s", "tgd_s", "health", "iode", "age_s", "glo_channel"):
+        x, y = getattr(a, name), getattr(b, name)
+        assert (x.dtype, x.shape, x.flags.c_contiguous) == (y.dtype, y.shape, y.flags.c_contiguous), name
+        assert x.tobytes() == y.tobytes(), name
+
+
 def test_empty_messages_and_odd_strings():
     """No satellite, empty frame id, strings of other lengths (alignment changes from element to element),
     non-ASCII text: field by field equal to rclpy's message both ways."""

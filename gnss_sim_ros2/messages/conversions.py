@@ -183,6 +183,36 @@ def encode_states(states: SatelliteStates, t: GnssTime, stamp, frame_id: str, io
         "nequick_coefficients": [float(v) for v in gal]})
 
 
+def states_as_decoded(states: SatelliteStates, t: GnssTime, stamp, iono: dict | None = None):
+    """What decode_states(encode_states(states, t, stamp, frame, iono)) gives, without the bytes: the ephemeris node
+    hands it with the message to the nodes of its process (nodes/in_process.py), which then skip the decode
+    (test_messages holds the two equal, bit for bit)."""
+    sec, nanosec = (stamp.sec, stamp.nanosec) if hasattr(stamp, "sec") else stamp
+    week, tow = t.week_tow()
+    t_msg = GnssTime.from_week_tow(int(week), float(tow))
+    n = len(states.sv)
+
+    def rows(a, dtype):
+        return np.array(a, dtype=dtype).reshape(n)
+
+    source = states.source.split("+")[0] if n else "broadcast"
+    states_msg = SatelliteStates(
+        t=t_msg, sv=np.asarray(states.sv).astype("<U3"),
+        pos_ecef_m=np.array(states.pos_ecef_m, dtype=float).reshape(n, 3),
+        vel_ecef_mps=np.array(states.vel_ecef_mps, dtype=float).reshape(n, 3),
+        acc_ecef_mps2=np.array(states.acc_ecef_mps2, dtype=float).reshape(n, 3),
+        clock_bias_s=rows(states.clock_bias_s, float), clock_drift_sps=rows(states.clock_drift_sps, float),
+        relativistic_s=rows(states.relativistic_s, float), tgd_s=rows(states.tgd_s, float),
+        health=rows(states.health, np.int64), iode=rows(states.iode, np.int64), age_s=rows(states.age_s, float),
+        glo_channel=rows(states.glo_channel, np.int64), source=source if source in _SOURCES else "broadcast")
+    out = {}
+    if iono and iono.get("GPSA") and iono.get("GPSB") and len(iono["GPSA"]) == 4 and len(iono["GPSB"]) == 4:
+        out["GPSA"], out["GPSB"] = [float(v) for v in iono["GPSA"]], [float(v) for v in iono["GPSB"]]
+    if iono and iono.get("GAL") and len(iono["GAL"]) >= 3:
+        out["GAL"] = [float(v) for v in iono["GAL"][:3]]
+    return (int(sec), int(nanosec)), t_msg, states_msg, out or None
+
+
 def decode_states(data: bytes) -> tuple[tuple[int, int], GnssTime, SatelliteStates, dict | None]:
     """(stamp (sec, nanosec), epoch, SatelliteStates, iono) of serialised gnss_sim_msgs/SatelliteStates: what
     states_from_msg and iono_from_msg give of the message. Raises cdr.CdrError on bytes it does not read."""

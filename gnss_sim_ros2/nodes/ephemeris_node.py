@@ -17,7 +17,7 @@ import tempfile
 from diagnostic_msgs.msg import DiagnosticArray
 
 from gnss_sim_ros2.core.time import GnssTime
-from gnss_sim_ros2.messages.conversions import encode_states
+from gnss_sim_ros2.messages.conversions import encode_states, states_as_decoded
 from gnss_sim_ros2.messages.diagnostics import diagnostic_array, diagnostic_status
 from gnss_sim_ros2.nodes.common import GnssSimNode, TimeMapping, run_node, run_origin_ns
 from gnss_sim_ros2.nodes.in_process import Offer
@@ -106,10 +106,14 @@ class EphemerisNode(GnssSimNode):
         states = self.provider.states(t, systems=self.params["systems"])
         # the serialised message straight from the arrays (cdr.py; what states_to_msg + rclpy would send)
         iono = getattr(self.provider, "iono", None)
-        data = encode_states(states, t, self.mapping.to_ros(t), "earth", iono)
+        stamp = self.mapping.to_ros(t)
+        data = encode_states(states, t, stamp, "earth", iono)
         self.pub.publish(data)             # first: the latency of what follows starts at this publication
-        for deliver in self.offer.takers():
-            deliver(data)
+        takers = self.offer.takers()
+        if takers:                         # the message and its decode, built from the arrays (no parsing)
+            handed = (data, states_as_decoded(states, t, stamp, iono))
+            for deliver in takers:
+                deliver(handed)
         self.published += 1
         if self.published % max(1, int(round(10.0 / self.period_s))) == 1:
             self._diagnose(t, len(states))

@@ -96,7 +96,7 @@ class FleetVisibilityNode(VisibilityNode):
         p = self.params
         n = len(self.antenna_frames)
         while self.queue:
-            data, stamp, arrived = self.queue[0]
+            data, stamp, arrived, decoded = self.queue[0]
             # the head epoch's antennas found so far: a TF message (every robot's player sends them) retries only
             # the robots still waited for, not all N (N players x N lookups per message otherwise)
             if self._head is None or self._head[0] is not data:
@@ -122,7 +122,7 @@ class FleetVisibilityNode(VisibilityNode):
                                         f"{stamp.sec + stamp.nanosec * 1e-9:.3f} s: those robots' epoch dropped "
                                         f"({self.dropped} so far)")
             if have.any():
-                self.process_fleet(data, np.flatnonzero(have), antennas[have])
+                self.process_fleet(data, np.flatnonzero(have), antennas[have], decoded)
 
     def fleet_obstacles(self, stamp, robots):
         """The moving boxes at ``stamp`` as seen by the antenna rows of ``robots`` (MovingBoxes (M, B)), or None:
@@ -143,10 +143,11 @@ class FleetVisibilityNode(VisibilityNode):
             boxes = models if boxes is None else boxes.concat(models)
         return boxes
 
-    def process_fleet(self, data: bytes, robots, antennas_world_m):
+    def process_fleet(self, data: bytes, robots, antennas_world_m, decoded=None):
         """One epoch for the robots ``robots`` at ``antennas_world_m`` (M, 3): one cast, one Visibility each
-        (handed in-process first where a receiver of this process takes it, published after its observations)."""
-        decoded = states_from_cdr(data)
+        (handed in-process first where a receiver of this process takes it, published after its observations);
+        ``decoded``: the states' decode handed with them (None: decoded here)."""
+        decoded = decoded or states_from_cdr(data)
         (sec, nanosec), _, states, _ = decoded
         stamp = Time(sec=sec, nanosec=nanosec)
         obstacles = self.fleet_obstacles(stamp, robots)

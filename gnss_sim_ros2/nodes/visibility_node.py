@@ -138,7 +138,8 @@ class VisibilityNode(GnssSimNode):
         over_middleware = subscription_switch(
             lambda: self.active_subscription(SatelliteStates, "satellite_states", self._on_states, 100, raw=True),
             self.drop_active)
-        self._states_taker = Taker(self, "satellite_states", self.speaking(self._on_states), over_middleware)
+        self._states_taker = Taker(self, "satellite_states", self.speaking(lambda handed: self._on_states(*handed)),
+                                   over_middleware)
         if self.model_poses is not None:
             from tf2_msgs.msg import TFMessage
 
@@ -162,9 +163,10 @@ class VisibilityNode(GnssSimNode):
         self.sky_view = None
 
     # ------------------------------------------------------------------
-    def _on_states(self, data: bytes):
+    def _on_states(self, data: bytes, decoded=None):
+        """A SatelliteStates message (its bytes), with its decode when handed in-process (else decoded when cast)."""
         sec, nanosec = stamp_of(data)
-        self.queue.append((data, Time(sec=sec, nanosec=nanosec), time.monotonic()))
+        self.queue.append((data, Time(sec=sec, nanosec=nanosec), time.monotonic(), decoded))
         self._drain()
 
     def _drain(self):
@@ -173,10 +175,10 @@ class VisibilityNode(GnssSimNode):
         alive but behind is waited for) is dropped; later ones wait behind it, so waits never add up."""
         p = self.params
         while self.queue:
-            data, stamp, arrived = self.queue[0]
+            data, stamp, arrived, decoded = self.queue[0]
             if self.fixed_world_m is not None:
                 self.queue.popleft()
-                self.process(data, self.fixed_world_m)
+                self.process(data, self.fixed_world_m, decoded)
                 continue
             try:
                 tr = self.tf.position(p["world_frame"], p["antenna_frame"], stamp)
@@ -192,7 +194,7 @@ class VisibilityNode(GnssSimNode):
                     continue   # the epochs behind it have been waiting meanwhile: their own clocks run on
                 return
             self.queue.popleft()
-            self.process(data, np.asarray(tr))
+            self.process(data, np.asarray(tr), decoded)
 
     def _on_model_poses(self, msg):
         """Gazebo's model poses (tf2_msgs/TFMessage: child_frame_id = model name, pose in world_frame)."""
@@ -241,9 +243,10 @@ class VisibilityNode(GnssSimNode):
             return None
         return MovingBoxes.from_bases(np.array(base)[None], np.array(rot)[None], np.array(size)[None])
 
-    def process(self, data: bytes, antenna_world_m):
-        """One epoch: the serialised SatelliteStates in, the serialised Visibility published."""
-        (sec, nanosec), _, states, _ = states_from_cdr(data)
+    def process(self, data: bytes, antenna_world_m, decoded=None):
+        """One epoch: the serialised SatelliteStates in (``decoded``: their decode, None: decoded here), the
+        serialised Visibility published."""
+        (sec, nanosec), _, states, _ = decoded or states_from_cdr(data)
         obstacles = self._obstacles(Time(sec=sec, nanosec=nanosec))
         ecef = self.scene.antenna_ecef(antenna_world_m)
         rows = np.zeros(0, dtype=np.int64)
