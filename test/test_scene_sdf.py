@@ -382,3 +382,28 @@ def _repo_world():
     from pathlib import Path
 
     return Path(__file__).resolve().parents[1] / "worlds" / "courtyard.sdf"
+
+
+@pytest.mark.parametrize("lat, lon, h, heading", [(22.3, 114.2, 50.0, 0.0), (-33.9, 151.2, 3.0, 37.5),
+                                                  (89.9, -179.0, -20.0, 90.0), (0.0, 0.0, 0.0, -180.0)])
+def test_world_to_ecef_terms_kept_follow_the_fields(lat, lon, h, heading):
+    """world_to_ecef keeps its rotation and origin between calls: the same bits as the ENU route computed afresh,
+    for a point and arrays, and again after a field changes."""
+    from gnss_sim_ros2.core import frames
+    from gnss_sim_ros2.core.scene.georeference import SphericalCoordinates
+
+    rng = np.random.default_rng(7)
+    sc = SphericalCoordinates(lat, lon, h, heading)
+
+    def afresh(p):
+        return frames.enu_to_ecef(np.asarray(p, dtype=float) @ sc.rotation_enu0_from_world().T, sc.latitude_deg,
+                                  sc.longitude_deg, sc.elevation_m)
+
+    for shape in [(3,), (5, 3), (2, 4, 3)]:
+        p = rng.normal(size=shape) * 1e3
+        got = sc.world_to_ecef(p)
+        assert got.shape == shape and got.tobytes() == afresh(p).tobytes()
+    sc.latitude_deg, sc.heading_deg = lat / 2.0, heading + 10.0
+    p = rng.normal(size=(4, 3))
+    assert sc.world_to_ecef(p).tobytes() == afresh(p).tobytes()
+    assert sc == SphericalCoordinates(lat / 2.0, lon, h, heading + 10.0)     # the kept terms are not a field

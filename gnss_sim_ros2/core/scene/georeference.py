@@ -45,10 +45,22 @@ class SphericalCoordinates:
         """3x3: world vector = R @ ECEF vector."""
         return self.rotation_enu0_from_world().T @ frames.enu_rotation(self.latitude_deg, self.longitude_deg)
 
+    def _world_to_ecef_terms(self):
+        """(Rz(heading).T, ENU rotation, origin ECEF [m]) of the present field values, computed once per value
+        (world_to_ecef runs every epoch; the same products in the same order as frames.enu_to_ecef)."""
+        key = (self.latitude_deg, self.longitude_deg, self.elevation_m, self.heading_deg)
+        cached = self.__dict__.get("_terms")
+        if cached is None or cached[0] != key:
+            origin = np.array(frames.geodetic_to_ecef(self.latitude_deg, self.longitude_deg, self.elevation_m))
+            cached = self.__dict__["_terms"] = (key, self.rotation_enu0_from_world().T,
+                                                frames.enu_rotation(self.latitude_deg, self.longitude_deg), origin)
+        return cached[1:]
+
     def world_to_ecef(self, pos_world_m) -> np.ndarray:
         """World points [..., 3] -> ECEF [..., 3] (float64)."""
-        enu = np.asarray(pos_world_m, dtype=np.float64) @ self.rotation_enu0_from_world().T
-        return frames.enu_to_ecef(enu, self.latitude_deg, self.longitude_deg, self.elevation_m)
+        heading_t, enu_rot, origin = self._world_to_ecef_terms()
+        enu = np.asarray(pos_world_m, dtype=np.float64) @ heading_t
+        return enu @ enu_rot + origin
 
     def ecef_to_world(self, pos_ecef_m) -> np.ndarray:
         """ECEF points [..., 3] -> world [..., 3] (float64)."""
