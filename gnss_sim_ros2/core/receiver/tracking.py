@@ -487,7 +487,9 @@ def update_trackers(trackers, ts, sv, code, cn0_dbhz, visible, seg):
     steady = np.zeros(len(trackers), dtype=bool)
     if cand:
         held = np.concatenate(held_of)
-        rows = np.repeat(np.isin(np.arange(len(trackers)), cand), n_ep)
+        is_cand = np.zeros(len(trackers), dtype=bool)
+        is_cand[cand] = True
+        rows = np.repeat(is_cand, n_ep)
         change = np.where(held, stop_tracked[rows], start_untracked[rows])
         lens = n_ep[cand]
         moved = np.logical_or.reduceat(change, np.concatenate([[0], np.cumsum(lens)[:-1]]))
