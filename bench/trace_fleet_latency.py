@@ -90,11 +90,11 @@ def install():
     def encode_marked(*a, **k):
         data = encode(*a, **k)
         last_states["stamp"] = stamp_of(data)
+        # the span starts here, the states about to be published: since the states are handed in-process the
+        # whole epoch runs inside publish_epoch, so its end is the epoch's end
+        MARKS[("states", last_states["stamp"])] = time.perf_counter()
         return data
     ephemeris_node.encode_states = encode_marked
-
-    def states_published(t1, args):
-        MARKS[("states", last_states["stamp"])] = t1
 
     from gnss_sim_ros2.nodes import receiver_session
     encode_obs = receiver_session.encode_observations
@@ -111,8 +111,8 @@ def install():
         return data
     receiver_session.encode_observations = encode_obs_marked
 
-    wrap("step ephemeris: epoch published", "gnss_sim_ros2.nodes.ephemeris_node", "EphemerisNode.publish_epoch",
-         states_published)
+    wrap("step ephemeris: epoch published (and, handed in-process, every node's epoch)",
+         "gnss_sim_ros2.nodes.ephemeris_node", "EphemerisNode.publish_epoch")
     wrap("step receiver: one robot's epoch (process)", "gnss_sim_ros2.nodes.receiver_session",
          "ReceiverSession.process")
 

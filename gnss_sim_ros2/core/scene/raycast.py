@@ -74,6 +74,11 @@ class RayScene:
             n = np.cross(b - a, c - a)
             self._pen_normals = n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
             self._pen_att = att[~opaque]
+        # Embree builds a scene's BVH at its first query: one ray now, so loading pays it, not the first epoch
+        probe = o3d.core.Tensor(np.array([[0.0, 0.0, 0.0, 0.0, 0.0, 1.0]], dtype=np.float32))
+        for built in (self._opaque, self._pen):
+            if built is not None:
+                built.test_occlusions(probe, nthreads=self.nthreads)
 
     @property
     def has_penetrable(self) -> bool:
