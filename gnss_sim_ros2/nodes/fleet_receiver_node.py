@@ -61,19 +61,16 @@ class FleetReceiverNode(GnssSimNode):
         #: robot k's visibility taken in-process (nodes/in_process.py; activate .. deactivate)
         self._takers: list[Taker] = []
 
-    def decoded_states(self, data: bytes):
+    def decoded_states(self, data: bytes, decoded=None):
         """states_from_cdr of ``data`` (the one message object every robot's pairing holds), decoded once: the
-        robots read the same arrays (the chain does not write into the states)."""
+        robots read the same arrays (the chain does not write into the states); ``decoded``: its decode handed
+        with it (kept for the robots), None: decoded here if not kept yet."""
         hit = self._decoded.get(id(data))
         if hit is None or hit[0] is not data:
-            hit = self._keep_decoded(data, states_from_cdr(data))
+            hit = self._decoded[id(data)] = (data, decoded if decoded is not None else states_from_cdr(data))
+            while len(self._decoded) > DECODED_KEPT:
+                del self._decoded[next(iter(self._decoded))]
         return hit[1]
-
-    def _keep_decoded(self, data: bytes, decoded):
-        hit = self._decoded[id(data)] = (data, decoded)
-        while len(self._decoded) > DECODED_KEPT:
-            del self._decoded[next(iter(self._decoded))]
-        return hit
 
     def observe_due(self):
         """A robot's epoch is paired: observe it with the other robots' paired by then, in a task queued behind the
@@ -177,8 +174,7 @@ class FleetReceiverNode(GnssSimNode):
         """Robot ``r``'s epoch handed by the fleet visibility node: its visibility decoded (the columns the
         message's decode gives) and the SatelliteStates it cast (its bytes and their decode: every robot's, decoded
         once), paired at once (the middleware's copy of the states then comes after its epoch: dropped)."""
-        if self._decoded.get(id(states_data), (None,))[0] is not states_data:
-            self._keep_decoded(states_data, states_decoded)
+        self.decoded_states(states_data, states_decoded)
         r.on_states(states_data)
         r.on_visibility(columns, stamp)
 
