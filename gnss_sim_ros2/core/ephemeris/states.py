@@ -60,7 +60,10 @@ class SatelliteStates:
         """Rows chosen by a boolean mask or an index array (the instants follow)."""
         idx = np.asarray(idx)
         t = self.t if np.ndim(self.t.sec) == 0 else GnssTime(np.asarray(self.t.sec)[idx], np.asarray(self.t.frac)[idx])
-        kw = {name: np.asarray(getattr(self, name))[idx] for name in ROW_FIELDS}
+        if idx.ndim == 1 and idx.dtype.kind in "iu":      # take: the rows of fancy indexing, faster on (N, 3)
+            kw = {name: np.asarray(getattr(self, name)).take(idx, axis=0) for name in ROW_FIELDS}
+        else:
+            kw = {name: np.asarray(getattr(self, name))[idx] for name in ROW_FIELDS}
         return SatelliteStates(t=t, source=self.source, **kw)
 
     def by_sv(self, sv: str) -> SatelliteStates:

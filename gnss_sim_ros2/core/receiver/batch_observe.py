@@ -169,19 +169,42 @@ def observe_block(rxs: list[Receiver], epochs: list[ReceiverEpoch], prepared) ->
     return lead._assemble(b)
 
 
-def _stacked_states(parts: list[SatelliteStates], n_r: list[int]) -> SatelliteStates:
-    """SatelliteStates.concatenate of ``parts`` (``n_r`` rows each): the instants of states at one instant each
-    repeated per row at once (the values concatenate's per-part rows hold)."""
+def _stacked_states(parts: list[SatelliteStates], n_r: list[int]):
+    """SatelliteStates.concatenate of ``parts`` (``n_r`` rows each) as Receiver._satellites_above_horizon reads it:
+    the instants of states at one instant each repeated per row at once (the values concatenate's per-part rows
+    hold); one part shared by every receiver (the fleet node's robots: one decoded message's states) as
+    _SharedStates."""
     if (not sum(n_r) or len({p.source for p in parts}) > 1
             or not all(np.ndim(p.t.sec) == 0 and np.ndim(p.t.frac) == 0 for p in parts)):
         return SatelliteStates.concatenate(parts)
+    if all(p is parts[0] for p in parts):
+        return _SharedStates(parts[0], len(parts))
     t = GnssTime(np.repeat(np.array([p.t.sec for p in parts], dtype=np.int64), n_r),
                  np.repeat(np.array([p.t.frac for p in parts], dtype=float), n_r))
-    if all(p is parts[0] for p in parts):          # the fleet node's robots share one decoded message's states
-        kw = {name: np.concatenate([np.asarray(getattr(parts[0], name))] * len(parts)) for name in ROW_FIELDS}
-    else:
-        kw = {name: np.concatenate([np.asarray(getattr(p, name)) for p in parts]) for name in ROW_FIELDS}
+    kw = {name: np.concatenate([np.asarray(getattr(p, name)) for p in parts]) for name in ROW_FIELDS}
     return SatelliteStates(t=t, source=parts[0].source, **kw)
+
+
+class _SharedStates:
+    """``copies`` copies of the rows of ``states`` (at one instant) one after another, as
+    Receiver._satellites_above_horizon reads them (len, sv, pos_ecef_m, select): ``select`` gathers the rows it
+    keeps from ``states`` itself (the values of the stacked states' select, instants per row), no field stacked
+    but the two it reads."""
+
+    def __init__(self, states: SatelliteStates, copies: int):
+        self.states = states
+        self.sv = np.concatenate([np.asarray(states.sv)] * copies)
+        self.pos_ecef_m = np.concatenate([np.asarray(states.pos_ecef_m)] * copies)
+
+    def __len__(self) -> int:
+        return len(self.sv)
+
+    def select(self, idx: np.ndarray) -> SatelliteStates:
+        """Stacked rows ``idx`` (an index array)."""
+        out = self.states.select(idx % len(self.states))
+        t = self.states.t
+        out.t = GnssTime(np.full(len(idx), t.sec, dtype=np.int64), np.full(len(idx), t.frac, dtype=float))
+        return out
 
 
 def _tracking(rxs, b: _Block) -> None:
