@@ -140,13 +140,18 @@ def quality_block(scene, vis, antenna_world_m, inp: PlanInputs, stats=None, stat
     # (numpy and Open3D release the GIL): the same arithmetic in the same order as one after the other
     with ThreadPoolExecutor(max_workers=1, thread_name_prefix="plan-finish") if OVERLAP_FINISH else _InOrder() as pool:
         pending = None
-        for tt in _time_windows(up_all, c, inp.max_rays):
+        rows_buf = [np.empty(0), np.empty(0)]       # the rows' satellites, written in place: alternate windows'
+        for w, tt in enumerate(_time_windows(up_all, c, inp.max_rays)):
             cols = np.flatnonzero(up_all[tt].any(axis=0))
             present_t = np.isfinite(sat_all[tt, :, 0])                     # (Tc, S)
             sat = np.where(np.isfinite(sat_all[tt][:, cols]), sat_all[tt][:, cols], 0.0)     # (Tc, S', 3)
             m_rows = c * len(tt)
             ant_rows = np.repeat(ant, len(tt), axis=0)                     # row = cell * Tc + time
-            sat_rows = np.broadcast_to(sat[None], (c,) + sat.shape).reshape(m_rows, len(cols), 3)
+            if rows_buf[w % 2].size < m_rows * sat[0].size:                # (no fresh pages per window)
+                rows_buf[w % 2] = np.empty(m_rows * sat[0].size)
+            sat_rows = rows_buf[w % 2][:m_rows * sat[0].size].reshape((c,) + sat.shape)
+            sat_rows[:] = sat[None]
+            sat_rows = sat_rows.reshape(m_rows, len(cols), 3)
             t_start = _time.perf_counter()
             state, att, v = vis.cast(scene, ant_rows, sat_rows, azimuth=False)     # the elevations only
             if stats is not None:
