@@ -53,6 +53,12 @@ def _as_rows3(a, name):
     return a
 
 
+def _n_rows(a, shape):
+    """``a`` broadcast to ``shape``: an array of that shape as it is (the receiver's per-row arrays: no
+    np.broadcast_to view made per call)."""
+    return a if a.shape == shape else np.broadcast_to(a, shape)
+
+
 def _unpack_state(st, n_expected=None):
     if hasattr(st, "pos_ecef_m"):
         pos, vel = st.pos_ecef_m, st.vel_ecef_mps
@@ -101,15 +107,17 @@ def _finish(rx, rx_vel, tau, pos, vel, omega):
     return p, v, rng, rr, u
 
 
-def _solve(rx_ecef_m, rx_vel_ecef_mps, state_of_tau, n, iterations, omega_e_radps):
-    rx = np.broadcast_to(_as_rows3(rx_ecef_m, "rx_ecef_m"), (n, 3))
-    rx_vel = np.broadcast_to(
+def _solve(rx_ecef_m, rx_vel_ecef_mps, state_of_tau, n, iterations, omega_e_radps, pos_at_reception=None):
+    """The light-time iterations on ``state_of_tau`` (satellite (pos, vel) at t_rx - tau); ``pos_at_reception``:
+    the position state_of_tau(0) gives when known (the first guess without an evaluation)."""
+    rx = _n_rows(_as_rows3(rx_ecef_m, "rx_ecef_m"), (n, 3))
+    rx_vel = _n_rows(
         _as_rows3(np.zeros(3) if rx_vel_ecef_mps is None else rx_vel_ecef_mps, "rx_vel_ecef_mps"), (n, 3))
     if int(iterations) < 1:
         raise ValueError(f"propagation: parameter 'iterations' = {iterations!r} must be >= 1")
-    omega = np.broadcast_to(np.asarray(omega_e_radps, dtype=np.float64), (n,))
+    omega = _n_rows(np.asarray(omega_e_radps, dtype=np.float64), (n,))
     # initial guess: the satellite at the reception instant
-    pos, vel = state_of_tau(np.zeros(n))
+    pos = state_of_tau(np.zeros(n))[0] if pos_at_reception is None else pos_at_reception
     tau = _norm_rows(pos - rx) / k.C_MPS
     for _ in range(int(iterations)):
         pos, vel = state_of_tau(tau)
@@ -194,10 +202,10 @@ def transmit_time_refined(rx_ecef_m, t_rx, states_at_callable, tau_guess_s, rx_v
     """
     tau0 = np.atleast_1d(np.asarray(tau_guess_s, dtype=np.float64))
     n = tau0.shape[0]
-    rx = np.broadcast_to(_as_rows3(rx_ecef_m, "rx_ecef_m"), (n, 3))
-    rx_vel = np.broadcast_to(
+    rx = _n_rows(_as_rows3(rx_ecef_m, "rx_ecef_m"), (n, 3))
+    rx_vel = _n_rows(
         _as_rows3(np.zeros(3) if rx_vel_ecef_mps is None else rx_vel_ecef_mps, "rx_vel_ecef_mps"), (n, 3))
-    omega = np.broadcast_to(np.asarray(omega_e_radps, dtype=np.float64), (n,))
+    omega = _n_rows(np.asarray(omega_e_radps, dtype=np.float64), (n,))
     if int(max_evaluations) < 1:
         raise ValueError(f"propagation: parameter 'max_evaluations' = {max_evaluations!r} must be >= 1")
     for _ in range(int(max_evaluations)):
@@ -270,11 +278,14 @@ def transmit_time_from_states(rx_ecef_m, pos_ecef_m, vel_ecef_mps, acc_ecef_mps2
         raise ValueError(
             f"propagation.transmit_time_from_states: pos/vel/acc shapes differ: {pos.shape}, {vel.shape}, {acc.shape}")
 
+    half_acc = 0.5 * acc
+
     def state_of_tau(tau):
         t = tau[:, None]
-        return pos - vel * t + 0.5 * acc * t * t, vel - acc * t
+        return pos - vel * t + half_acc * t * t, vel - acc * t
 
-    tau, p, v, rng, rr, u = _solve(rx_ecef_m, rx_vel_ecef_mps, state_of_tau, n, iterations, omega_e_radps)
+    # at tau = 0 the series is pos itself (pos - v 0 + a 0 0 / 2, the same bits for finite states)
+    tau, p, v, rng, rr, u = _solve(rx_ecef_m, rx_vel_ecef_mps, state_of_tau, n, iterations, omega_e_radps, pos)
     t_tx = None if t_rx is None else _shift(t_rx, -tau)
     return LightTimeSolution(t_tx, tau, p, v, rng, rr, u)
 
@@ -458,7 +469,7 @@ def tropo_slant_parts_m(el_deg, lat_deg, h_m, doy, humidity=TROPO_HUMIDITY_DEFAU
             zhd, zwd = zhd[epoch_of_row], zwd[epoch_of_row]
     mh, mw = niell_mapping(el_deg, lat_deg, h_m, doy, epoch_of_row)
     slant = zhd * mh + zwd * mw
-    return slant, np.broadcast_to(zwd, np.shape(slant)), mw
+    return slant, _n_rows(np.asarray(zwd), np.shape(slant)), mw
 
 
 @functools.lru_cache(maxsize=64)
