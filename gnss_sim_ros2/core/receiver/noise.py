@@ -50,7 +50,7 @@ def _positive(name, v):
         if not v > 0:
             raise ValueError(f"receiver.noise: parameter {name!r} = {v!r} must be > 0")
         return
-    if np.any(np.asarray(v) <= 0):
+    if (np.asarray(v) <= 0).any():
         raise ValueError(f"receiver.noise: parameter {name!r} = {v!r} must be > 0")
 
 
@@ -60,7 +60,7 @@ def dll_sigma_chips(cn0_dbhz, bn_hz=1.0, spacing_chips=0.5, t_int_s=0.02, fronte
     _positive("bn_hz", bn_hz)
     _positive("t_int_s", t_int_s)
     d = np.asarray(spacing_chips, dtype=np.float64)
-    if np.any((d <= 0) | (d > 1)):
+    if (spacing_chips <= 0 or spacing_chips > 1) if type(spacing_chips) is float else ((d <= 0) | (d > 1)).any():
         raise ValueError(f"receiver.noise: parameter 'spacing_chips' = {spacing_chips!r} must be in (0, 1]")
     c = _ratio(cn0_dbhz)
     squaring = 1.0 + 2.0 / (t_int_s * c * (2.0 - d))
@@ -145,7 +145,9 @@ def slip_probability(cn0_dbhz, dt_s, bn_hz=15.0, t_int_s=0.001):
     rho = c / bn_hz / (1.0 + 1.0 / (2.0 * t_int_s * c)) / 4.0
     rho_b = np.maximum(rho, 0.5)
     bound = np.minimum(np.log(np.pi**2 * rho_b / (2.0 * bn_hz)) - np.log(2.0 * np.pi * rho_b) + 2.0 * rho_b, 700.0)
-    dt = np.broadcast_to(np.asarray(dt_s, dtype=np.float64), np.shape(c))
+    dt = np.asarray(dt_s, dtype=np.float64)
+    if dt.shape != c.shape:
+        dt = np.broadcast_to(dt, c.shape)
     maybe = (rho < 0.5) | (bound <= np.log(dt) + 38.0)
     p = np.zeros(np.shape(c))
     if maybe.any():
