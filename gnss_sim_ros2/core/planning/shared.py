@@ -53,7 +53,8 @@ class Tiles:
         key = np.floor((ant[:, :2] - ant[:, :2].min(axis=0)) / float(tile_m)).astype(np.int64)
         _, index = np.unique(key, axis=0, return_inverse=True)
         index = index.reshape(-1)
-        cells = [np.flatnonzero(index == j) for j in range(int(index.max()) + 1)]
+        order = np.argsort(index, kind="stable")                           # each tile's cells ascending
+        cells = np.split(order, np.flatnonzero(np.diff(index[order])) + 1)
         mid = np.array([0.5 * (ant[c].min(axis=0) + ant[c].max(axis=0)) for c in cells])
         centre = AntennaAxes.of(scene, mid)
         radius = np.array([np.max(np.linalg.norm(cell_axes.ecef_m[c] - centre.ecef_m[j], axis=1))
