@@ -46,12 +46,27 @@ def _chbevl(x, coefficients):
     return 0.5 * (b0 - b2)
 
 
+#: at most this many arguments: the series evaluated on each as a Python float (the same IEEE operations in the
+#: same order, without the ~0.5 us of a numpy call per step: ~75 steps per series)
+_FEW_ROWS = 8
+
+
+def _chbevl_rows(x, coefficients):
+    """_chbevl of every element of the array ``x``."""
+    if x.size <= _FEW_ROWS:
+        return np.array([_chbevl(v, coefficients) for v in x.ravel().tolist()], dtype=np.float64).reshape(x.shape)
+    return _chbevl(x, coefficients)
+
+
 def i0e(x):
     """exp(-|x|) I0(x) of a scalar or an array (float64)."""
     x = np.abs(np.asarray(x, dtype=np.float64))
     out = np.empty_like(x)
     small = x <= 8.0
-    out[small] = _chbevl(x[small] / 2.0 - 2.0, _I0E_A)
     big = ~small
-    out[big] = _chbevl(32.0 / x[big] - 2.0, _I0E_B) / np.sqrt(x[big])
+    # a series only where it has arguments (each step a numpy call whatever the count of rows)
+    if small.any():
+        out[small] = _chbevl_rows(x[small] / 2.0 - 2.0, _I0E_A)
+    if big.any():
+        out[big] = _chbevl_rows(32.0 / x[big] - 2.0, _I0E_B) / np.sqrt(x[big])
     return out if out.ndim else float(out)
