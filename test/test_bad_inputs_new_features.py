@@ -54,6 +54,8 @@ def _cases(tmp: Path, write: bool = True):
         ("plan-workers-0", [*plan, "--workers", "0"], ["option --workers is 0"]),
         ("plan-height-huge", [*plan, "--height-m", "1e9"], ["option --height-m", "0..10000 m"]),
         ("plan-good-cn0", [*plan, "--good-cn0-dbhz", "-400"], ["option --good-cn0-dbhz is -400"]),
+        ("plan-share-tile-negative", [*plan, "--share-tile-m", "-1"], ["option --share-tile-m is -1.0", "0..2000 m"]),
+        ("plan-share-tile-nan", [*plan, "--share-tile-m", "nan"], ["option --share-tile-m is nan", "0..2000 m"]),
         ("plan-start-span", [*plan, "--start", "3025-01-01T00:00:00"], ["option --start", "supported span"]),
         ("plan-polygon-empty", [*plan, "--polygon="], ["option --polygon", "empty value ''"]),   # cli.py
         ("plan-path-outside", [*plan, "--path", far], [f"option --path {far}, point 2", "outside the world"]),

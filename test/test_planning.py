@@ -407,3 +407,17 @@ def test_plan_writes_its_outputs(tmp_path, capsys):
     rc, res = _plan(["--world", str(WORLD), "--out", str(out), "--polygon=-10,-10;10,-10;10,10",
                      "--hours", "1", "--every-min", "30"], capsys)
     assert rc == 2 and "mine.txt" in res.err
+
+
+def test_plan_option_share_tile_m_default_is_the_planners():
+    """`gnss-sim plan --help` states the default tile of the shared terms that PlanInputs uses."""
+    import argparse
+
+    from gnss_sim_ros2.commands import plan
+    from gnss_sim_ros2.core.planning.quality import DEFAULT_SHARE_TILE_M, PlanInputs
+
+    parser = argparse.ArgumentParser()
+    plan.add_arguments(parser)
+    (action,) = [a for a in parser._actions if "--share-tile-m" in a.option_strings]
+    assert f"default {DEFAULT_SHARE_TILE_M:g}" in action.help
+    assert PlanInputs(np.zeros((0, 0, 3)), np.array([]), None).share_tile_m == DEFAULT_SHARE_TILE_M

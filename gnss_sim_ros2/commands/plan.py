@@ -74,6 +74,10 @@ def add_arguments(parser):
                         help="area share of the best windows (default 0.95)")
     parser.add_argument("--max-rays", type=int, default=1 << 18,
                         help="rays per cast call (memory bound; default 262144)")
+    parser.add_argument("--share-tile-m", type=float, default=None, metavar="M",
+                        help="cells within a tile of this size share each satellite's direction, C/N0 link budget and "
+                             "UERE terms (exact states, counts and RTK; DOPs within a bound: docs/PLANNING.md); 0: "
+                             "every cell its own [m] (default 250: core/planning/quality.DEFAULT_SHARE_TILE_M)")
     cl = parser.add_mutually_exclusive_group()
     cl.add_argument("--workers", type=int, help="run the blocks on a local Dask cluster of N workers")
     cl.add_argument("--scheduler", metavar="ADDRESS", help="run the blocks on an existing Dask scheduler")
@@ -136,6 +140,10 @@ def _check_options(args) -> None:
         raise ValueError(f"option --threshold is {args.threshold}: an area share in (0, 1] is needed")
     if args.max_rays < 1:
         raise ValueError(f"option --max-rays is {args.max_rays}: at least 1")
+    if args.share_tile_m is not None:
+        from gnss_sim_ros2.core.planning.quality import check_share_tile_m
+
+        check_share_tile_m(args.share_tile_m, "option --share-tile-m")
     param("visibility", "elevation_mask_deg").check(args.mask_deg, "option --mask-deg")
     if args.sky_mask and not args.origin:
         raise ValueError("option --sky-mask needs --origin LAT,LON,H (where the mask was measured)")
@@ -166,7 +174,7 @@ def _run(args, stage: Path) -> None:
     from gnss_sim_ros2.core.frames import check_receiver_position
     from gnss_sim_ros2.core.planning import area as pa
     from gnss_sim_ros2.core.planning.predicted_cn0 import predictor_from_profile
-    from gnss_sim_ros2.core.planning.quality import PlanInputs
+    from gnss_sim_ros2.core.planning.quality import DEFAULT_SHARE_TILE_M, PlanInputs
     from gnss_sim_ros2.core.planning.ranging import budget_from_profile, tracked_systems
     from gnss_sim_ros2.core.planning.rtk_rule import RtkRule
     from gnss_sim_ros2.core.planning.runner import SceneSpec, run_blocks
@@ -216,7 +224,8 @@ def _run(args, stage: Path) -> None:
     sky = plan_sky(provider, times, systems, excluded)
     rule = RtkRule()
     inp = PlanInputs(sky.pos_ecef_m, sky.system, budget, rule, int(args.max_rays),
-                     predictor_from_profile(args.profile, systems), float(args.good_cn0_dbhz), sky.t_s)
+                     predictor_from_profile(args.profile, systems), float(args.good_cn0_dbhz), sky.t_s,
+                     DEFAULT_SHARE_TILE_M if args.share_tile_m is None else float(args.share_tile_m))
     vis = VisibilityOptions(mask_deg=float(args.mask_deg), multipath=args.multipath)
     n_t = len(sky.t_s)
     print(f"{COMMAND}: {area.n_cells} cells x {n_t} time steps x {len(sky.sv)} satellites "

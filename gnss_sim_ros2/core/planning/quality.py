@@ -64,11 +64,15 @@ class PlanInputs:
     share_tile_m: float = DEFAULT_SHARE_TILE_M    # tiles sharing per-(time, satellite) terms (shared.py); 0: per cell
 
     def __post_init__(self):
-        if not (isinstance(self.share_tile_m, (int, float, np.floating, np.integer))
-                and np.isfinite(self.share_tile_m) and 0.0 <= self.share_tile_m <= MAX_SHARE_TILE_M):
-            raise ValueError(f"planning: share_tile_m is {self.share_tile_m!r}: a tile size in "
-                             f"0..{MAX_SHARE_TILE_M:g} m is needed (0: every cell its own lines of sight, C/N0 and "
-                             f"UERE terms)")
+        check_share_tile_m(self.share_tile_m, "planning: share_tile_m")
+
+
+def check_share_tile_m(value, where: str) -> None:
+    """The one rule of the tile size sharing per-(time, satellite) terms; ValueError naming ``where``."""
+    if not (isinstance(value, (int, float, np.floating, np.integer)) and np.isfinite(value)
+            and 0.0 <= value <= MAX_SHARE_TILE_M):
+        raise ValueError(f"{where} is {value!r}: a tile size in 0..{MAX_SHARE_TILE_M:g} m is needed (0: every cell "
+                         f"its own lines of sight, C/N0 and UERE terms)")
 
 
 def quality_block(scene, vis, antenna_world_m, inp: PlanInputs, stats=None, states_out=None) -> dict:
