@@ -238,6 +238,12 @@ class Tracker:
         (N,) line of sight usable; ``force_slip``: optional (N,) bool.  Keys
         tracked before and absent now lose lock.
         """
+        return self._update(t, sv, code, cn0_dbhz, visible, force_slip)
+
+    def _update(self, t, sv, code, cn0_dbhz, visible=True, force_slip=None, slip_p=None) -> TrackingOutput:
+        """:meth:`update`; ``slip_p``: the rows' slip probabilities over this epoch's interval computed already
+        (update_many, update_trackers: over every row of their epochs at once; only the rows kept tracking are
+        read, a row losing or acquiring its track may hold anything), None: computed here."""
         sv = np.atleast_1d(np.asarray(sv, dtype=str))
         code = np.atleast_1d(np.asarray(code, dtype=str))
         n = sv.shape[0]
@@ -246,7 +252,7 @@ class Tracker:
         cn0 = _as_rows(cn0_dbhz, np.float64, n)
         vis = _as_rows(visible, bool, n)
         forced = np.zeros(n, bool) if force_slip is None else np.broadcast_to(np.asarray(force_slip, bool), (n,))
-        if np.any(~np.isfinite(cn0) & vis):
+        if (~np.isfinite(cn0) & vis).any():
             raise ValueError("Tracker.update: 'cn0_dbhz' has non-finite values for visible rows")
         if not isinstance(t, GnssTime):
             t = float(t)
@@ -298,7 +304,7 @@ class Tracker:
                 self._half_end[inew] = c.half_cycle_time_s
         slipped = keep & forced
         if c.random_slips and dt > 0 and np.any(keep):
-            p = slip_probability(cn0, dt, c.pll_bn_hz, c.pll_t_int_s)
+            p = slip_probability(cn0, dt, c.pll_bn_hz, c.pll_t_int_s) if slip_p is None else slip_p
             u = self.rng.random(n)
             slipped |= keep & (u < p)
         n_slip = int(slipped.sum())
@@ -357,7 +363,7 @@ class Tracker:
         t_s = [self._seconds(t) for t in ts]
         prev = [self._t_prev] + t_s[:-1]
         dt_ep = np.array([t - p if p is not None else 0.0 for t, p in zip(t_s, prev)])
-        n_ep = np.diff(seg)
+        n_ep = seg[1:] - seg[:-1]
         # per row: what would change the state of a tracked key (lost, or a possible slip), of an untracked one
         if c.aided_cn0_dbhz is None:
             thr_track = c.tracking_cn0_dbhz
@@ -369,10 +375,11 @@ class Tracker:
                 thr_track[s], thr_acq[s], _ = self._thresholds(sv[s])
         ok_track = vis & (cn0 >= thr_track)
         stop_tracked = ~ok_track
+        slip_p = None             # the slip probabilities of the rows keeping their track (the others: 0)
         if c.random_slips and n_all:
-            p = slip_probability(np.where(ok_track, cn0, 99.0), np.repeat(np.where(dt_ep > 0, dt_ep, 1.0), n_ep),
-                                 c.pll_bn_hz, c.pll_t_int_s)
-            stop_tracked |= p > 0
+            slip_p = slip_probability(np.where(ok_track, cn0, 99.0),
+                                      np.repeat(np.where(dt_ep > 0, dt_ep, 1.0), n_ep), c.pll_bn_hz, c.pll_t_int_s)
+            stop_tracked |= slip_p > 0
         start_untracked = vis & (cn0 >= thr_acq)
         may = ((n_ep > 0) & (dt_ep > 0)).tolist()
         run: list = []            # epochs of the current steady run
@@ -420,7 +427,7 @@ class Tracker:
                         run.append(b)
                         continue
             flush()
-            out = self.update(ts[b], sv[s], code[s], cn0[s], visible=vis[s])
+            out = self._update(ts[b], sv[s], code[s], cn0[s], vis[s], slip_p=None if slip_p is None else slip_p[s])
             tracked[s], lli[s], lock[s], amb[s] = out.tracked, out.lli, out.lock_time_s, out.ambiguity_cyc
         flush()
         return tracked, lli, lock, amb
@@ -459,7 +466,7 @@ def update_trackers(trackers, ts, sv, code, cn0_dbhz, visible, seg):
     ts = [t if isinstance(t, GnssTime) else float(t) for t in ts]
     t_s = [tr._seconds(t) for tr, t in zip(trackers, ts)]
     dt = [t - tr._t_prev if tr._t_prev is not None else 0.0 for tr, t in zip(trackers, t_s)]
-    n_ep = np.diff(seg)
+    n_ep = seg[1:] - seg[:-1]
     bounds = seg.tolist()
     if c.aided_cn0_dbhz is None:
         thr_track, thr_acq = c.tracking_cn0_dbhz, c.acquisition_cn0_dbhz
@@ -470,9 +477,11 @@ def update_trackers(trackers, ts, sv, code, cn0_dbhz, visible, seg):
             thr_track[s], thr_acq[s], _ = trackers[r]._thresholds(sv[s])
     ok_track = vis & (cn0 >= thr_track)
     stop_tracked = ~ok_track
+    slip_p = None                 # the slip probabilities of the rows keeping their track (the others: 0)
     if c.random_slips and n_all:
         dt_row = np.repeat(np.array([d if d > 0 else 1.0 for d in dt]), n_ep)
-        stop_tracked |= slip_probability(np.where(ok_track, cn0, 99.0), dt_row, c.pll_bn_hz, c.pll_t_int_s) > 0
+        slip_p = slip_probability(np.where(ok_track, cn0, 99.0), dt_row, c.pll_bn_hz, c.pll_t_int_s)
+        stop_tracked |= slip_p > 0
     start_untracked = vis & (cn0 >= thr_acq)
     # the steady candidates: their previous epoch's keys; steady when no row would change its state
     cand, idx_of, held_of = [], [], []
@@ -520,6 +529,6 @@ def update_trackers(trackers, ts, sv, code, cn0_dbhz, visible, seg):
         if steady[r]:
             continue
         s = slice(bounds[r], bounds[r + 1])
-        out = tr.update(ts[r], sv[s], code[s], cn0[s], visible=vis[s])
+        out = tr._update(ts[r], sv[s], code[s], cn0[s], vis[s], slip_p=None if slip_p is None else slip_p[s])
         tracked[s], lli[s], lock[s], amb[s] = out.tracked, out.lli, out.lock_time_s, out.ambiguity_cyc
     return tracked, lli, lock, amb
