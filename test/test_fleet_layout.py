@@ -246,15 +246,34 @@ def test_in_process_link_one_context_and_executor(monkeypatch):
     assert other.takers() == []
     elsewhere = in_process.Offer(_Node(ctx, object()), _Publisher())        # another executor: not handed
     assert elsewhere.takers() == []
+    second_offer = in_process.Offer(_Node(ctx, executor), _Publisher())     # a second publisher of the topic
     too.close()
-    assert offer.takers() == [deliver]
+    assert offer.takers() == [deliver] and second_offer.takers() == [deliver]
     offer.withdraw()
-    assert first == [True, False]                    # an offer of the context is still there
+    assert first == [True, False]                    # an offer of the context and executor is still there
+    second_offer.withdraw()
+    assert first == [True, False, True]              # the last one gone (another executor's does not link)
     elsewhere.withdraw()
-    assert first == [True, False, True]              # the last one gone: the middleware again
     other.withdraw()
     taker.close()
     assert not in_process._LINKS
+    # a MultiThreadedExecutor may run the taker's callbacks beside a hand-over: nothing is linked there
+    import rclpy
+    from rclpy.executors import MultiThreadedExecutor
+
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    try:
+        threads = MultiThreadedExecutor(num_threads=2, context=context)
+        first.clear()
+        taker = in_process.Taker(_Node(ctx, threads), "/robot0/gnss/visibility", deliver, first.append)
+        offer = in_process.Offer(_Node(ctx, threads), _Publisher())
+        assert first == [True] and offer.takers() == [] and not in_process._LINKS
+        offer.withdraw()
+        taker.close()
+        threads.shutdown()
+    finally:
+        rclpy.shutdown(context=context)
     monkeypatch.setenv(in_process.IN_PROCESS_ENV, "off")
     first.clear()
     taker = in_process.Taker(_Node(ctx, executor), "/robot0/gnss/visibility", deliver, first.append)

@@ -17,8 +17,10 @@ once, the middleware's copy of it dropped).  So in the fleet layout one epoch ru
 every robot's observations published in one callback, with no middleware hop in between.
 ``GNSS_SIM_IN_PROCESS=off`` turns the hand-over off (every message through the middleware).
 
-The registry is keyed by (context, resolved topic name); the context by its rcl handle, new at every rclpy.init
-(a process that runs the graph twice, e.g. tests, never links a node of the first run).  Lifecycle: an offer
+The registry is keyed by (context, executor, resolved topic name); the context by its rcl handle, new at every
+rclpy.init (a process that runs the graph twice, e.g. tests, never links a node of the first run); the executor
+the node's when the offer or taker is made (nodes spun by different executors are never linked, and a
+MultiThreadedExecutor, which may run a taker's callbacks beside the hand-over, links nothing).  Lifecycle: an offer
 from configure to cleanup, a taker from activate to deactivate (the driver's: the run).
 """
 from __future__ import annotations
@@ -31,7 +33,7 @@ from collections.abc import Callable
 IN_PROCESS_ENV = "GNSS_SIM_IN_PROCESS"
 
 _LOCK = threading.Lock()
-_LINKS: dict = {}          # (context, topic) -> _Link
+_LINKS: dict = {}          # (context, executor, topic) -> _Link
 
 
 class _Link:
@@ -62,14 +64,22 @@ def _follow(takers, linked: bool):
         taker.set_linked(linked)
 
 
+def _concurrent(executor) -> bool:
+    """Whether ``executor`` may run two callbacks at once (rclpy's MultiThreadedExecutor): a hand-over would then
+    run the taker's code beside its own callbacks, so its messages go through the middleware instead."""
+    from rclpy.executors import MultiThreadedExecutor
+
+    return isinstance(executor, MultiThreadedExecutor)
+
+
 class Offer:
     """``node``'s publisher ``publisher`` handing its messages to the takers of the same process (:meth:`takers`)."""
 
     def __init__(self, node, publisher):
         self.node = node
-        self.key = (node.context.handle, publisher.topic_name)
+        self.key = (node.context.handle, node.executor, publisher.topic_name)
         self._link = None
-        if not enabled():
+        if not enabled() or _concurrent(node.executor):
             return
         with _LOCK:
             link = self._link = _LINKS.setdefault(self.key, _Link())
@@ -82,8 +92,7 @@ class Offer:
         link = self._link
         if link is None:
             return []
-        executor = self.node.executor
-        return [t.deliver for t in link.takers if executor is not None and t.node.executor is executor]
+        return [t.deliver for t in link.takers]
 
     def withdraw(self):
         """No more hand-overs (idempotent); takers left without an offer subscribe through the middleware."""
@@ -115,12 +124,12 @@ class Taker:
 
     def __init__(self, node, topic: str, deliver: Callable, over_middleware: Callable[[bool], None]):
         self.node = node
-        self.key = (node.context.handle, node.resolve_topic_name(topic))
+        self.key = (node.context.handle, node.executor, node.resolve_topic_name(topic))
         self.deliver = deliver
         self._over_middleware = over_middleware
         self._registered = False
         linked = False
-        if enabled():
+        if enabled() and not _concurrent(node.executor):
             with _LOCK:
                 link = _LINKS.setdefault(self.key, _Link())
                 link.takers.append(self)
