@@ -39,6 +39,8 @@ import numpy as np
 
 from gnss_sim_ros2.core import signals as _signals
 from gnss_sim_ros2.core.bessel import i0e
+from gnss_sim_ros2.core.memo import BoundedCache
+from gnss_sim_ros2.core.receiver.signal_rows import array_key
 
 
 def _ratio(cn0_dbhz):
@@ -66,12 +68,26 @@ def dll_sigma_chips(cn0_dbhz, bn_hz=1.0, spacing_chips=0.5, t_int_s=0.02, fronte
     squaring = 1.0 + 2.0 / (t_int_s * c * (2.0 - d))
     if frontend_bw_chips is None:
         return np.sqrt(bn_hz * d / (2.0 * c) * squaring)
-    _positive("frontend_bw_chips", frontend_bw_chips)
-    b = np.asarray(frontend_bw_chips, dtype=np.float64)
-    d_eff = np.where(d >= np.pi / b, d, np.where(d > 1.0 / b, 1.0 / b + b / (np.pi - 1.0) * (d - 1.0 / b) ** 2,
-                                                 1.0 / b))
-    squaring = np.where(d > 1.0 / b, squaring, 1.0 + 1.0 / (t_int_s * c))
+    d_eff, wide = _front_end(d, np.asarray(frontend_bw_chips, dtype=np.float64))
+    squaring = np.where(wide, squaring, 1.0 + 1.0 / (t_int_s * c))
     return np.sqrt(bn_hz * d_eff / (2.0 * c) * squaring)
+
+
+#: _front_end's values by its arguments' contents: a receiver's signals come back epoch after epoch
+_FRONT_END = BoundedCache(16)
+
+
+def _front_end(d, b):
+    """(effective spacing D' [chips], where D > 1/b) of the correlator spacing ``d`` [chips] with the front-end
+    bandwidths ``b`` in chip rates (dll_sigma_chips, module doc); cached by the contents of both."""
+    key = (array_key(d), array_key(b))
+    hit = _FRONT_END.get(key)
+    if hit is None:
+        _positive("frontend_bw_chips", b)
+        d_eff = np.where(d >= np.pi / b, d, np.where(d > 1.0 / b, 1.0 / b + b / (np.pi - 1.0) * (d - 1.0 / b) ** 2,
+                                                     1.0 / b))
+        hit = _FRONT_END.put(key, (d_eff, d > 1.0 / b))
+    return hit
 
 
 def dll_sigma_m(cn0_dbhz, chip_length_m, bn_hz=1.0, spacing_chips=0.5, t_int_s=0.02, frontend_bw_chips=None):
