@@ -400,7 +400,8 @@ def saastamoinen_zenith_m(lat_deg, h_m, humidity=TROPO_HUMIDITY_DEFAULT, temp0_c
     clipped to 0 and above 10 km to 10 km (outside the model's range).
     """
     h = np.clip(np.asarray(h_m, dtype=np.float64), 0.0, 1.0e4)
-    if np.any((np.asarray(humidity) < 0) | (np.asarray(humidity) > 1)):
+    if ((humidity < 0 or humidity > 1) if type(humidity) is float
+            else ((np.asarray(humidity) < 0) | (np.asarray(humidity) > 1)).any()):
         raise ValueError(f"propagation.saastamoinen: parameter 'humidity' = {humidity!r} must be within 0..1")
     pres = p0_hpa * (1.0 - 2.2557e-5 * h) ** 5.2568
     temp = temp0_c - 6.5e-3 * h + 273.16   # [K] (RTKLIB's 273.16)
