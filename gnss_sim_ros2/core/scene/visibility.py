@@ -146,24 +146,47 @@ def _local_enu_rows(lat_deg, lon_deg):
     """(M, 3, 3): rows east, north, up in ECEF at each geodetic position."""
     lat, lon = np.radians(lat_deg), np.radians(lon_deg)
     sl, cl, so, co = np.sin(lat), np.cos(lat), np.sin(lon), np.cos(lon)
-    z = np.zeros_like(lat)
-    return np.stack([np.stack([-so, co, z], -1), np.stack([-sl * co, -sl * so, cl], -1),
-                     np.stack([cl * co, cl * so, sl], -1)], axis=-2)
+    rows = np.empty(np.shape(lat) + (3, 3))
+    rows[..., 0, 0], rows[..., 0, 1], rows[..., 0, 2] = -so, co, 0.0
+    rows[..., 1, 0], rows[..., 1, 1], rows[..., 1, 2] = -sl * co, -sl * so, cl
+    rows[..., 2, 0], rows[..., 2, 1], rows[..., 2, 2] = cl * co, cl * so, sl
+    return rows
 
 
-def _per_run(per_antenna, a):
-    """``per_antenna(a)`` of antenna rows (M, 3), computed once per run of equal consecutive rows and repeated (the
-    planner's rows repeat each cell's antenna once per time step); element-wise arithmetic, so each row's numbers
-    are those of its own call."""
-    if len(a) < 2:
-        return per_antenna(a)
-    first = np.empty(len(a), bool)
+def _runs(a):
+    """(starts, counts) of the runs of equal consecutive antenna rows (M, 3), or None when no row repeats the one
+    before it (the planner's rows repeat each cell's antenna once per time step: the per-antenna work is done once
+    per run and repeated; element-wise arithmetic, so each row's numbers are those of its own call)."""
+    m = len(a)
+    if m < 2:
+        return None
+    first = np.empty(m, bool)
     first[0] = True
-    np.any(a[1:] != a[:-1], axis=1, out=first[1:])
+    (a[1:] != a[:-1]).any(axis=1, out=first[1:])
     if first.all():
-        return per_antenna(a)
+        return None
     starts = np.flatnonzero(first)
-    return np.repeat(per_antenna(a[starts]), np.diff(np.append(starts, len(a))), axis=0)
+    return starts, np.diff(np.append(starts, m))
+
+
+def _repeat_runs(x, runs):
+    """Per-run rows ``x`` repeated to one per antenna row (as they are when ``runs`` is None)."""
+    return x if runs is None else np.repeat(x, runs[1], axis=0)
+
+
+def _local_enu_rows_at_ecef(rx):
+    """(M, 3, 3): rows east, north, up in ECEF at the WGS 84 positions of ECEF points ``rx`` (M, 3)
+    (frames.ecef_to_geodetic)."""
+    lat, lon, _ = frames.ecef_to_geodetic(rx[:, 0], rx[:, 1], rx[:, 2])
+    return _local_enu_rows(np.atleast_1d(lat), np.atleast_1d(lon))
+
+
+def _check_cast(a, foliage):
+    """The checks of a cast's antenna rows (M, 3) and foliage model, before any work."""
+    if foliage not in ("path", "touch"):
+        raise ValueError(f"visibility: parameter 'foliage' must be 'path' or 'touch', got {foliage!r}")
+    if not np.isfinite(a).all():
+        raise ValueError("antenna_world_m: non-finite position")
 
 
 def _first_row(res: VisibilityResult) -> VisibilityResult:
@@ -208,16 +231,26 @@ class Scene:
         a = np.asarray(antenna_world_m, dtype=np.float64).reshape(-1, 3)
         if self.spherical is None:
             return np.broadcast_to(np.eye(3), (len(a), 3, 3)).copy()
-        rows = _enu_rows_at_ecef(self.spherical.world_to_ecef(a))             # enu_A = rows @ ecef
+        return self._world_from_enu_at_ecef(self.spherical.world_to_ecef(a))
+
+    def _world_from_enu_at_ecef(self, rx) -> np.ndarray:
+        """world_from_local_enu of antennas at ECEF points ``rx`` (M, 3)."""
+        rows = _enu_rows_at_ecef(rx)                                         # enu_A = rows @ ecef
         # R = W @ rows.T with W = world <- ECEF: one (3M, 3) @ (3, 3) product, then a per-antenna transposed view
-        w = self.spherical.rotation_world_from_ecef()
-        return (rows.reshape(-1, 3) @ w.T).reshape(-1, 3, 3).transpose(0, 2, 1)
+        return (rows.reshape(-1, 3) @ self._world_from_ecef_t()).reshape(-1, 3, 3).transpose(0, 2, 1)
+
+    def _world_from_ecef_t(self) -> np.ndarray:
+        """rotation_world_from_ecef().T of the present spherical coordinates, computed once per value."""
+        sc = self.spherical
+        key = (sc.latitude_deg, sc.longitude_deg, sc.heading_deg)
+        cached = self.__dict__.get("_w_t")
+        if cached is None or cached[0] != key:
+            cached = self.__dict__["_w_t"] = (key, sc.rotation_world_from_ecef().T)
+        return cached[1]
 
     def _local_enu_rows_at(self, antenna_world_m) -> np.ndarray:
         """(M, 3, 3): rows east, north, up in ECEF at the antennas' WGS 84 positions (frames.ecef_to_geodetic)."""
-        rx = self.antenna_ecef(antenna_world_m)
-        lat, lon, _ = frames.ecef_to_geodetic(rx[:, 0], rx[:, 1], rx[:, 2])
-        return _local_enu_rows(np.atleast_1d(lat), np.atleast_1d(lon))
+        return _local_enu_rows_at_ecef(self.antenna_ecef(antenna_world_m))
 
     def antenna_ecef(self, antenna_world_m) -> np.ndarray:
         if self.spherical is None:
@@ -238,36 +271,54 @@ class Scene:
         given as ``sat_dirs_enu`` (no arctan2 for a caller that reads only the elevations: the planner); the
         states and the rays are the same.
         """
-        if foliage not in ("path", "touch"):
-            raise ValueError(f"visibility: parameter 'foliage' must be 'path' or 'touch', got {foliage!r}")
         a = np.asarray(antenna_world_m, dtype=np.float64)
         single = a.ndim == 1
         a = a.reshape(-1, 3)
-        if not np.all(np.isfinite(a)):
-            raise ValueError("antenna_world_m: non-finite position")
+        _check_cast(a, foliage)
         m = len(a)
+        planes = None
         if sat_dirs_enu is not None:
             d = np.asarray(sat_dirs_enu, dtype=np.float64)
             if d.shape[-1] != 3 or d.ndim not in (2, 3):
                 raise ValueError(f"sat_dirs_enu: expected (N, 3) or (M, N, 3), got {d.shape}")
-            d = np.broadcast_to(d, (m,) + d.shape[-2:]) if d.ndim == 2 else d
+            # the three coordinates as contiguous (M, N) planes (what _visibility works on)
+            planes = self.rays.scratch("d_enu", (3, m if d.ndim == 2 else len(d), d.shape[-2]), np.float64)
+            for k in range(3):
+                np.copyto(planes[k], d[..., k])
+        res = self._visibility(a, planes, None, az_deg, el_deg, mask_deg, fresnel_rays, wavelength_m,
+                               fresnel_probe_m, tnear_m, foliage, foliage_touch_db, azimuth)
+        return _first_row(res) if single else res
+
+    def _visibility(self, a, planes, frames_u, az_deg, el_deg, mask_deg, fresnel_rays, wavelength_m,
+                    fresnel_probe_m, tnear_m, foliage, foliage_touch_db, azimuth) -> VisibilityResult:
+        """visibility() of antenna rows ``a`` (M, 3) and directions either as ``planes`` (3, M, N) float64 (the
+        east, north, up coordinates, contiguous) or as ``az_deg``/``el_deg``; ``frames_u``: (runs, ECEF of each
+        run's antenna) when the caller has them (visibility_ecef), else None."""
+        m = len(a)
+        scr = self.rays.scratch
+        if planes is not None:
+            x, y, z = planes
+            dshape = x.shape
             # |d| as np.linalg.norm computes it ((x x + y y) + z z, bit for bit) without its (M, N, 3) temporary
-            # (in per-thread scratch arrays: no fresh (M, N, 3) float64 pages on every call)
-            scr = self.rays.scratch
-            norm, sq = scr("d_norm", d.shape[:2], np.float64), scr("d_sq", d.shape[:2], np.float64)
-            np.multiply(d[..., 0], d[..., 0], out=norm)
-            norm += np.multiply(d[..., 1], d[..., 1], out=sq)
-            norm += np.multiply(d[..., 2], d[..., 2], out=sq)
+            # (in per-thread scratch arrays: no fresh (M, N) float64 pages on every call)
+            norm, sq = scr("d_norm", dshape, np.float64), scr("d_sq", dshape, np.float64)
+            np.multiply(x, x, out=norm)
+            norm += np.multiply(y, y, out=sq)
+            norm += np.multiply(z, z, out=sq)
             np.sqrt(norm, out=norm)
-            if np.any(norm == 0):
+            if not norm.all():
                 raise ValueError("sat_dirs_enu: zero direction vector")
-            unit = scr("d_unit", d.shape, np.float64)
-            for k in range(3):                           # unit directions, one coordinate at a time
-                np.divide(d[..., k], norm, out=unit[..., k])
-            d = unit
-            az = np.degrees(np.arctan2(d[..., 0], d[..., 1])) % 360.0 if azimuth else None
-            el = np.clip(d[..., 2], -1.0, 1.0)
-            el = np.degrees(np.arcsin(el, out=el), out=el)
+            # unit directions: up always (the elevation), east and north in float64 where the azimuth needs them
+            uz = np.divide(z, norm, out=scr("d_uz", dshape, np.float64))
+            if azimuth:
+                ue = np.divide(x, norm, out=scr("d_ue", dshape, np.float64))
+                un = np.divide(y, norm, out=scr("d_un", dshape, np.float64))
+                az = np.arctan2(ue, un)
+                np.remainder(np.degrees(az, out=az), 360.0, out=az)
+            else:
+                ue = un = az = None
+            el = np.minimum(np.maximum(uz, -1.0), 1.0)                    # np.clip's numbers (NaN kept)
+            np.degrees(np.arcsin(el, out=el), out=el)
         else:
             if az_deg is None or el_deg is None:
                 raise ValueError("visibility: give sat_dirs_enu or az_deg and el_deg")
@@ -291,17 +342,23 @@ class Scene:
             flat = np.flatnonzero(cast)
             per_ant = np.count_nonzero(cast, axis=1)
         # float32 work arrays are per-thread scratch (RayScene.scratch): no fresh pages on every call
-        scr = self.rays.scratch
         dims = shape if all_cast else (len(flat),)
         # many antennas with directions given: rotate all (M, N) directions with (M, 1) coefficients, then keep
         # the cast ones (the same float32 products and sums per ray as rotating only those, without gathering
         # nine coefficients and three directions per ray)
-        dense = all_cast or (sat_dirs_enu is not None and m > 1 and self.spherical is not None)
+        dense = all_cast or (planes is not None and m > 1 and self.spherical is not None)
         work = shape if dense else dims
-        if sat_dirs_enu is not None:
+        if planes is not None:
             e_c, n_c, u_c = (scr(name, work) for name in ("e", "n", "u"))
-            for k, dst in enumerate((e_c, n_c, u_c)):
-                np.copyto(dst, d[..., k] if dense else d[..., k].take(flat), casting="same_kind")
+            if dense and ue is None:                     # float32 of the float64 quotient, in one pass
+                np.divide(x, norm, out=e_c)
+                np.divide(y, norm, out=n_c)
+                np.copyto(u_c, uz, casting="same_kind")
+            else:
+                for src, dst in ((ue, e_c), (un, n_c), (uz, u_c)):
+                    if src is None:                      # (a single antenna without azimuth: the kept ones)
+                        src = np.divide(x if dst is e_c else y, norm, out=scr("d_q", dshape, np.float64))
+                    np.copyto(dst, src if dense else src.take(flat), casting="same_kind")
         else:
             az_r, el_r, ce, e_c = (scr(name, dims) for name in ("az", "el", "ce", "e"))
             np.copyto(az_r, az if all_cast else az.take(flat), casting="same_kind")
@@ -323,7 +380,8 @@ class Scene:
         if self.spherical is None:                       # no geodetic origin: world = local ENU everywhere
             rays[..., 3], rays[..., 4], rays[..., 5] = e_c, n_c, u_c
         else:
-            R = _per_run(self.world_from_local_enu, a).astype(np.float32)     # (M, 3, 3)
+            runs, rx_u = frames_u if frames_u is not None else self._frames(a)
+            R = _repeat_runs(self._world_from_enu_at_ecef(rx_u).astype(np.float32), runs)     # (M, 3, 3)
             # R[m, k, j] per ray: (M, 1) broadcast over the satellites, a scalar for one antenna, or repeated
             # per cast satellite (K,)
             if dense:
@@ -382,8 +440,13 @@ class Scene:
         else:
             state = np.full(shape, STATE_BELOW_MASK, dtype=np.int8)
             state.reshape(-1)[flat] = st
-        res = VisibilityResult(state, att_db, path, np.zeros(shape), frac, diff, az, el)
-        return _first_row(res) if single else res
+        return VisibilityResult(state, att_db, path, np.zeros(shape), frac, diff, az, el)
+
+    def _frames(self, a):
+        """(runs of equal antenna rows or None, ECEF of each run's antenna (R, 3)): the per-antenna work's input,
+        computed once per run."""
+        runs = _runs(a)
+        return runs, self.spherical.world_to_ecef(a if runs is None else a[runs[0]])
 
     def _fresnel_fraction(self, o, d, t0, k, lam, probe_m, tnear_m):
         rho, phi = _sunflower(k)
@@ -411,24 +474,45 @@ class Scene:
             frac[has] = occ.reshape(-1, k).mean(axis=1)
         return frac
 
-    def visibility_ecef(self, antenna_world_m, sat_ecef_m, **kwargs) -> VisibilityResult:
-        """Visibility from satellite ECEF positions (N, 3) or (M, N, 3); az/el in the antenna's local ENU."""
+    def visibility_ecef(self, antenna_world_m, sat_ecef_m, *, mask_deg: float = 0.0, fresnel_rays: int = 0,
+                        wavelength_m: float = L1_WAVELENGTH_M, fresnel_probe_m: float = 20.0, tnear_m: float = 1e-3,
+                        foliage: str = "path", foliage_touch_db: float = FOLIAGE_MEDIAN_LOSS_DB,
+                        azimuth: bool = True) -> VisibilityResult:
+        """Visibility from satellite ECEF positions (N, 3) or (M, N, 3); az/el in the antenna's local ENU
+        (keywords as :meth:`visibility`)."""
         a = np.asarray(antenna_world_m, dtype=np.float64)
         single = a.ndim == 1
         a2 = a.reshape(-1, 3)
-        rx = _per_run(self.antenna_ecef, a2)             # (M, 3)
+        _check_cast(a2, foliage)
+        m = len(a2)
+        if self.spherical is None:
+            self.antenna_ecef(a2)                        # its error: no geodetic origin
         sat = np.asarray(sat_ecef_m, dtype=np.float64)
-        if sat.ndim == 2:
-            sat = np.broadcast_to(sat, (len(a2),) + sat.shape)
-        # (M, N, 3) float64 temporaries in per-thread scratch arrays (visibility copies what it keeps)
+        if sat.shape[-1:] != (3,) or not (sat.ndim == 2 or (sat.ndim == 3 and len(sat) == m)):
+            raise ValueError(f"sat_ecef_m: expected (N, 3) or (M, N, 3) with M = {m} antenna positions, "
+                             f"got {sat.shape}")
+        # the per-antenna work once per run of equal rows: the antenna's ECEF and its ENU rows
+        runs, rx_u = frames_u = self._frames(a2)
+        rows_u = _local_enu_rows_at_ecef(rx_u)
+        rx = _repeat_runs(rx_u, runs)
+        # (3, M, N): the ECEF differences and their ENU coordinates as contiguous planes, in per-thread scratch
+        # arrays (_visibility copies what it keeps)
+        n = sat.shape[-2]
         scr = self.rays.scratch
-        d_ecef = scr("d_ecef", sat.shape, np.float64)
-        for k in range(3):                               # one coordinate at a time: inner loops along N, not 3
-            np.subtract(sat[..., k], rx[:, None, k], out=d_ecef[..., k])
-        rows = _per_run(self._local_enu_rows_at, a2)
-        # (M, N, 3): rows @ d per antenna
-        d_enu = np.matmul(d_ecef, rows.transpose(0, 2, 1), out=scr("d_enu", sat.shape, np.float64))
-        res = self.visibility(a2, d_enu, **kwargs)
+        d_ecef = scr("d_ecef", (3, m, n), np.float64)
+        for k in range(3):
+            np.subtract(sat[..., k], rx[:, k, None], out=d_ecef[k])
+        # rows @ d per antenna, as (3, 3) @ (3, N) products (BLAS; each element the same sum of products as
+        # d @ rows.T's); one product per run when the runs are equally long (their rows' columns side by side)
+        if runs is not None and (runs[1] == runs[1][0]).all():
+            groups, rows_g = len(runs[0]), rows_u
+        else:
+            groups, rows_g = m, _repeat_runs(rows_u, runs)
+        d_enu = scr("d_enu", (3, m, n), np.float64)
+        g_shape = (3, groups, (m // groups) * n) if groups else (3, 0, 0)
+        np.matmul(rows_g, d_ecef.reshape(g_shape).transpose(1, 0, 2), out=d_enu.reshape(g_shape).transpose(1, 0, 2))
+        res = self._visibility(a2, d_enu, frames_u, None, None, mask_deg, fresnel_rays, wavelength_m,
+                               fresnel_probe_m, tnear_m, foliage, foliage_touch_db, azimuth)
         return _first_row(res) if single else res
 
     # ---------------------------------------------------------------- skyline
