@@ -28,6 +28,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from ..ephemeris.states import ROW_FIELDS, SatelliteStates
+from ..frames import az_el_at
 from ..memo import BoundedCache
 from ..time import GnssTime
 from .code_multipath import advance_states
@@ -151,7 +152,8 @@ def observe_block(rxs: list[Receiver], epochs: list[ReceiverEpoch], prepared) ->
                           for e, n in zip(epochs, n_r)])
     att = np.concatenate([np.zeros(n) if e.attenuation_db is None else np.asarray(e.attenuation_db, float)
                           for e, n in zip(epochs, n_r)])
-    lead._satellites_above_horizon(b, states, e_all, vis, att)
+    lead._satellites_above_horizon(b, states, e_all, vis, att,
+                                   states.az_el(b) if isinstance(states, _SharedStates) else None)
     lead._signals(b, rxs)
     if b.m == 0:
         return [rx._empty(e.t, b.bias_ep[r], b.drift_ep[r], *b.sat_rows(r)) for r, (rx, e) in
@@ -187,17 +189,24 @@ def _stacked_states(parts: list[SatelliteStates], n_r: list[int]):
 
 class _SharedStates:
     """``copies`` copies of the rows of ``states`` (at one instant) one after another, as
-    Receiver._satellites_above_horizon reads them (len, sv, pos_ecef_m, select): ``select`` gathers the rows it
-    keeps from ``states`` itself (the values of the stacked states' select, instants per row), no field stacked
-    but the two it reads."""
+    Receiver._satellites_above_horizon reads them (len, sv, select, and az_el given): ``select`` gathers the rows
+    it keeps from ``states`` itself (the values of the stacked states' select, instants per row), no field stacked
+    but the satellites' names."""
 
     def __init__(self, states: SatelliteStates, copies: int):
         self.states = states
         self.sv = np.concatenate([np.asarray(states.sv)] * copies)
-        self.pos_ecef_m = np.concatenate([np.asarray(states.pos_ecef_m)] * copies)
 
     def __len__(self) -> int:
         return len(self.sv)
+
+    def az_el(self, b: _Block) -> tuple:
+        """(azimuth, elevation) [deg] of every stacked row: copy r seen from antenna r of ``b`` (rx_ep, lat_ep,
+        lon_ep), the antennas against the satellites broadcast in one frames.az_el_at (element by element the
+        operations of the stacked rows' call, the antennas' trigonometry once each)."""
+        az, el, _ = az_el_at(b.rx_ep[:, None, :], b.lat_ep[:, None], b.lon_ep[:, None],
+                             np.asarray(self.states.pos_ecef_m))
+        return az.reshape(-1), el.reshape(-1)
 
     def select(self, idx: np.ndarray) -> SatelliteStates:
         """Stacked rows ``idx`` (an index array)."""

@@ -284,13 +284,19 @@ class Receiver:
             return bias, drift, dt_s
         return self.clock.bias_s, self.clock.steered_drift_sps, dt_s
 
-    def _satellites_above_horizon(self, b: _Block, states, epoch_of_row, vis_state, attenuation_db) -> None:
-        """The rows of ``states`` the receiver looks at (received systems, above the horizon): az/el, visibility."""
+    def _satellites_above_horizon(self, b: _Block, states, epoch_of_row, vis_state, attenuation_db,
+                                  az_el=None) -> None:
+        """The rows of ``states`` the receiver looks at (received systems, above the horizon): az/el, visibility.
+        ``az_el``: (azimuth, elevation) [deg] of every row computed already (batch_observe.py: the states every
+        robot shares, seen from each antenna at once), None: here."""
         e_all = np.asarray(epoch_of_row, dtype=np.int64)
         n_all = len(states)
         vis = np.zeros(n_all, dtype=np.int64) if vis_state is None else np.asarray(vis_state, dtype=np.int64)
         att = np.zeros(n_all) if attenuation_db is None else np.asarray(attenuation_db, dtype=float)
-        az, el, _ = az_el_at(b.rx_ep[e_all], b.lat_ep[e_all], b.lon_ep[e_all], states.pos_ecef_m)
+        if az_el is None:
+            az, el, _ = az_el_at(b.rx_ep[e_all], b.lat_ep[e_all], b.lon_ep[e_all], states.pos_ecef_m)
+        else:
+            az, el = az_el
         b.keep = self._keep_mask(np.asarray(states.sv)) & (el > 0.0)
         b.seg_all = np.searchsorted(e_all, np.arange(b.k_n + 1))
         kidx = np.flatnonzero(b.keep)
