@@ -223,10 +223,10 @@ def test_trackers_stepped_together_keep_each_ones_state_and_stream(aided, monkey
     keys_sv, keys_code = np.repeat(sats, 2), np.tile(np.array(["1C", "2W"]), len(sats))
     rng = np.random.default_rng(3)
     base = rng.uniform(36.0, 50.0, (6, len(keys_sv)))
-    updates = []
-    original_update = Tracker.update
-    monkeypatch.setattr(Tracker, "update", lambda self, *a, **kw: updates.append(self) or original_update(
-        self, *a, **kw))
+    updates = []                  # the trackers of ``together`` stepped through Tracker._update (update's body)
+    original_update, original_step = Tracker.update, Tracker._update
+    monkeypatch.setattr(Tracker, "_update", lambda self, *a, **kw: (
+        any(self is x for x in together) and updates.append(self)) or original_step(self, *a, **kw))
     t0 = GnssTime.from_iso("2024-01-01T00:00:00")
     calls = slips = acquired = robot_epochs = 0
     for i in range(80):
@@ -269,3 +269,41 @@ def test_trackers_stepped_together_keep_each_ones_state_and_stream(aided, monkey
         assert a._lock_start[: a._n].tobytes() == b._lock_start[: b._n].tobytes()
     assert robot_epochs - calls > 100       # steady robot-epochs filled together, not through Tracker.update
     assert slips > 0 and acquired > 0
+
+
+def test_trackers_with_only_slip_chances_step_together_unless_one_slips(monkeypatch):
+    """A robot whose tracked signals are weak enough to slip (a slip probability every epoch) but whose keys and
+    tracks do not change is filled with the steady robots, its slip uniforms drawn from its own stream as
+    Tracker.update draws them: only the epochs where one of them slips go through Tracker._update, and every
+    output row and stream state is what its own Tracker.update gives."""
+    from gnss_sim_ros2.core.receiver.tracking import Tracker, TrackingConfig, update_trackers
+    from gnss_sim_ros2.core.time import GnssTime
+
+    cfg = TrackingConfig(acquisition_cn0_dbhz=25.0, tracking_cn0_dbhz=23.0)
+    alone = [Tracker(cfg, 7 + r) for r in range(3)]
+    together = [Tracker(cfg, 7 + r) for r in range(3)]
+    sv, code = np.repeat(np.array(["G01", "G02", "G03", "G04"]), 2), np.tile(np.array(["1C", "2W"]), 4)
+    cn0 = np.array([[45.0] * 8, [45.0, 24.0, 45.0, 45.0, 24.5, 45.0, 45.0, 45.0], [23.5] * 8])
+    stepped = []
+    original_step = Tracker._update
+    monkeypatch.setattr(Tracker, "_update", lambda self, *a, **kw: (
+        any(self is x for x in together) and stepped.append(self)) or original_step(self, *a, **kw))
+    t0 = GnssTime.from_iso("2024-01-01T00:00:00")
+    slipped_epochs = 0
+    for i in range(300):
+        t = t0 + 0.1 * i
+        want = [alone[r].update(t, sv, code, cn0[r]) for r in range(3)]
+        stepped.clear()
+        got = update_trackers(together, [t] * 3, np.tile(sv, 3), np.tile(code, 3), cn0.reshape(-1),
+                              np.ones(24, dtype=bool), np.arange(0, 25, 8))
+        for r, w in enumerate(want):
+            s = slice(8 * r, 8 * r + 8)
+            for a, b in zip((w.tracked, w.lli, w.lock_time_s, w.ambiguity_cyc), got):
+                assert a.dtype == b[s].dtype and a.tobytes() == b[s].tobytes(), (i, r)
+        if i:
+            slips = [bool(w.slipped.any()) for w in want]
+            slipped_epochs += sum(slips)
+            assert [any(x is tr for x in stepped) for tr in together] == slips, i
+    for a, b in zip(alone, together):
+        assert a.rng.bit_generator.state == b.rng.bit_generator.state
+    assert slipped_epochs > 0 and all(alone[r].is_tracked("G01", "1C") for r in range(3))

@@ -240,10 +240,13 @@ class Tracker:
         """
         return self._update(t, sv, code, cn0_dbhz, visible, force_slip)
 
-    def _update(self, t, sv, code, cn0_dbhz, visible=True, force_slip=None, slip_p=None) -> TrackingOutput:
+    def _update(self, t, sv, code, cn0_dbhz, visible=True, force_slip=None, slip_p=None,
+                slip_u=None) -> TrackingOutput:
         """:meth:`update`; ``slip_p``: the rows' slip probabilities over this epoch's interval computed already
         (update_many, update_trackers: over every row of their epochs at once; only the rows kept tracking are
-        read, a row losing or acquiring its track may hold anything), None: computed here."""
+        read, a row losing or acquiring its track may hold anything), None: computed here; ``slip_u``: the
+        uniforms of the slips drawn already from this tracker's stream (update_trackers, when nothing but a slip
+        changes this epoch), None: drawn here."""
         sv = np.atleast_1d(np.asarray(sv, dtype=str))
         code = np.atleast_1d(np.asarray(code, dtype=str))
         n = sv.shape[0]
@@ -305,7 +308,7 @@ class Tracker:
         slipped = keep & forced
         if c.random_slips and dt > 0 and np.any(keep):
             p = slip_probability(cn0, dt, c.pll_bn_hz, c.pll_t_int_s) if slip_p is None else slip_p
-            u = self.rng.random(n)
+            u = self.rng.random(n) if slip_u is None else slip_u
             slipped |= keep & (u < p)
         n_slip = int(slipped.sum())
         if n_slip:
@@ -457,9 +460,10 @@ def update_trackers(trackers, ts, sv, code, cn0_dbhz, visible, seg):
     ambiguity_cyc) per row, the bits of the separate calls.
 
     What has no memory -- thresholds, the slip probabilities -- is evaluated once over every row; a tracker whose
-    epoch is steady (update_many's run of one epoch: its previous keys, nothing to acquire, lose or slip) is
-    filled from its own state with the others' steady rows, drawing its uniforms from its own stream as update
-    does; every other tracker goes through its own update."""
+    epoch is steady (its previous keys, nothing to acquire or lose, and no slip in the uniforms update draws, drawn
+    here from its own stream) is filled from its own state with the others' steady rows; every other tracker goes
+    through its own update (with the uniforms drawn already when one of them slipped).  update_many stays more
+    cautious: an epoch with a slip probability above 0 goes through update."""
     n_all = len(sv)
     (tracked, lli, lock, amb), (seg, sv, code, cn0, vis) = _rows_io(seg, sv, code, cn0_dbhz, visible)
     c = trackers[0].config
@@ -476,14 +480,13 @@ def update_trackers(trackers, ts, sv, code, cn0_dbhz, visible, seg):
             s = slice(bounds[r], bounds[r + 1])
             thr_track[s], thr_acq[s], _ = trackers[r]._thresholds(sv[s])
     ok_track = vis & (cn0 >= thr_track)
-    stop_tracked = ~ok_track
     slip_p = None                 # the slip probabilities of the rows keeping their track (the others: 0)
     if c.random_slips and n_all:
         dt_row = np.repeat(np.array([d if d > 0 else 1.0 for d in dt]), n_ep)
         slip_p = slip_probability(np.where(ok_track, cn0, 99.0), dt_row, c.pll_bn_hz, c.pll_t_int_s)
-        stop_tracked |= slip_p > 0
     start_untracked = vis & (cn0 >= thr_acq)
-    # the steady candidates: their previous epoch's keys; steady when no row would change its state
+    # the steady candidates: their previous epoch's keys; steady when no row changes its state: none lost, none
+    # acquired, and no slip in the uniforms update would draw (drawn here, from the tracker's stream)
     cand, idx_of, held_of = [], [], []
     for r, tr in enumerate(trackers):
         j0, j1 = bounds[r], bounds[r + 1]
@@ -494,24 +497,33 @@ def update_trackers(trackers, ts, sv, code, cn0_dbhz, visible, seg):
                 idx_of.append(idx)
                 held_of.append(tr._tracked[idx])
     steady = np.zeros(len(trackers), dtype=bool)
+    slip_u: dict = {}             # tracker -> the uniforms drawn for it, a slip among them (it steps through update)
     if cand:
         held = np.concatenate(held_of)
         is_cand = np.zeros(len(trackers), dtype=bool)
         is_cand[cand] = True
         rows = np.repeat(is_cand, n_ep)
-        change = np.where(held, stop_tracked[rows], start_untracked[rows])
+        change = np.where(held, ~ok_track[rows], start_untracked[rows])
         lens = n_ep[cand]
-        moved = np.logical_or.reduceat(change, np.concatenate([[0], np.cumsum(lens)[:-1]]))
-        steady[np.asarray(cand)[~moved]] = True
-        keep_c = np.repeat(~moved, lens)
-        if keep_c.any():
-            on = held[keep_c]
-            sel = [i for i, mv in enumerate(moved.tolist()) if not mv]
+        starts = np.concatenate([[0], np.cumsum(lens)[:-1]])
+        moved = np.logical_or.reduceat(change, starts).tolist()
+        may_slip = (np.logical_or.reduceat(held & (slip_p[rows] > 0), starts).tolist() if slip_p is not None
+                    else [False] * len(cand))
+        for i, r in enumerate(cand):
+            if moved[i]:
+                continue
+            if c.random_slips and held_of[i].any():
+                u = trackers[r].rng.random(len(idx_of[i]))      # the uniforms update draws for its slips
+                if may_slip[i] and (held_of[i] & (u < slip_p[bounds[r]:bounds[r + 1]])).any():
+                    slip_u[r] = u
+                    continue
+            steady[r] = True
+        sel = [i for i, r in enumerate(cand) if steady[r]]
+        if sel:
+            on = held[np.repeat(steady[cand], lens)]
             parts = []
             for i in sel:
                 tr, idx = trackers[cand[i]], idx_of[i]
-                if c.random_slips and held_of[i].any():
-                    tr.rng.random(len(idx))           # the draws update makes (every slip probability is 0)
                 tr._cand_since[idx] = np.nan
                 tr._t_prev = t_s[cand[i]]
                 parts.append((tr._amb[idx], tr._lock_start[idx], tr._track_start[idx], tr._pilot[idx],
@@ -529,6 +541,7 @@ def update_trackers(trackers, ts, sv, code, cn0_dbhz, visible, seg):
         if steady[r]:
             continue
         s = slice(bounds[r], bounds[r + 1])
-        out = tr._update(ts[r], sv[s], code[s], cn0[s], vis[s], slip_p=None if slip_p is None else slip_p[s])
+        out = tr._update(ts[r], sv[s], code[s], cn0[s], vis[s], slip_p=None if slip_p is None else slip_p[s],
+                         slip_u=slip_u.get(r))
         tracked[s], lli[s], lock[s], amb[s] = out.tracked, out.lli, out.lock_time_s, out.ambiguity_cyc
     return tracked, lli, lock, amb
