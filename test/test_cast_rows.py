@@ -79,3 +79,35 @@ def test_single_antenna_result_keeps_no_azimuth_row(tmp_path):
     r = scene.visibility_ecef(ant[0], sat[0], mask_deg=10.0, azimuth=False)
     assert r.az_deg is None and r.state.shape == (5,)
 
+
+
+def test_rotation_paths_and_kept_antenna_terms_hand_the_same_rays(tmp_path, monkeypatch):
+    """The nine rotation products in one call (few rays) or in place per component (many), and the per-antenna
+    terms kept from the previous cast or computed afresh: the same float32 rays and the same results."""
+    from gnss_sim_ros2.core.scene import visibility as vis
+
+    scene = wall_scene(tmp_path, 20.0, 15.0)
+    seen = _spy_rays(scene)
+    ant, sat = _rows_and_sats()
+    cases = [(ant, sat), (ant[0], sat[0]), (ant[:3], sat[0]), (ant[::4], sat[::4])]
+
+    def run():
+        out = []
+        for a, s in cases:
+            for mask in (10.0, -90.0):                   # ragged and every satellite cast
+                r = scene.visibility_ecef(a, s, mask_deg=mask)
+                out.append((seen[-1].tobytes(), r.state.tobytes(), r.el_deg.tobytes(), r.az_deg.tobytes()))
+        return out
+
+    monkeypatch.setattr(vis, "FUSED_ROTATION_MAX", 0)
+    in_place = run()
+    monkeypatch.setattr(vis, "FUSED_ROTATION_MAX", 1 << 30)
+    fused = run()
+    assert fused == in_place
+    fresh = []
+    for a, s in cases:                                   # no terms kept from the previous cast
+        for mask in (10.0, -90.0):
+            scene.__dict__.pop("_terms", None)
+            r = scene.visibility_ecef(a, s, mask_deg=mask)
+            fresh.append((seen[-1].tobytes(), r.state.tobytes(), r.el_deg.tobytes(), r.az_deg.tobytes()))
+    assert fresh == fused

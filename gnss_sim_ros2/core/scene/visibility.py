@@ -46,7 +46,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import frames
-from ..constants import C_MPS, F_L1_HZ, FOLIAGE_MEDIAN_LOSS_DB
+from ..constants import C_MPS, F_L1_HZ, FOLIAGE_MEDIAN_LOSS_DB, WGS84_A_M, WGS84_F
 from .raycast import RayScene
 from .world_mesh import WorldMesh
 
@@ -61,6 +61,10 @@ STATE_NAMES = {STATE_BELOW_MASK: "below_mask", STATE_VISIBLE: "visible", STATE_B
 #: GPS L1 wavelength [m] (C_MPS / F_L1_HZ)
 L1_WAVELENGTH_M = C_MPS / F_L1_HZ
 _RAD_PER_DEG_F32 = np.float32(math.pi / 180.0)
+#: up to this many directions (M x N, or the K cast of one antenna) the nine rotation products are one numpy call
+#: (fewer calls for the fleet's few rays); above it, three products and two sums per component in place (less
+#: memory traffic for the planner's many).  The same float32 numbers either way (test_cast_rows).
+FUSED_ROTATION_MAX = 8192
 
 
 @dataclass
@@ -117,8 +121,6 @@ def _enu_rows_at_ecef(ecef):
     iteration of a general converter.  The sines and cosines come from the tangent's two terms,
     no angle is formed; on the polar axis (p = 0) longitude 0 is taken.
     """
-    from ..constants import WGS84_A_M, WGS84_F
-
     a = WGS84_A_M
     b = a * (1.0 - WGS84_F)
     e2 = WGS84_F * (2.0 - WGS84_F)
@@ -189,6 +191,38 @@ def _check_cast(a, foliage):
         raise ValueError("antenna_world_m: non-finite position")
 
 
+def _world_from_enu_at_ecef(rx, w_t) -> np.ndarray:
+    """Scene.world_from_local_enu of antennas at ECEF points ``rx`` (M, 3); ``w_t``: world <- ECEF, transposed."""
+    rows = _enu_rows_at_ecef(rx)                                             # enu_A = rows @ ecef
+    # R = W @ rows.T with W = world <- ECEF: one (3M, 3) @ (3, 3) product, then a per-antenna transposed view
+    return (rows.reshape(-1, 3) @ w_t).reshape(-1, 3, 3).transpose(0, 2, 1)
+
+
+class _AntennaTerms:
+    """Per-antenna terms of a cast, computed when first asked for and kept (read-only): ``rx`` the antennas' ECEF
+    (R, 3), ``enu_rows`` their local ENU rows (R, 3, 3) (frames.ecef_to_geodetic), ``world_f32`` world <- local
+    ENU as float32 (R, 3, 3) (Scene.world_from_local_enu)."""
+
+    def __init__(self, rx, world_from_ecef_t):
+        self.rx, self._w_t = rx, world_from_ecef_t
+        rx.setflags(write=False)
+        self._enu = self._world = None
+
+    @property
+    def enu_rows(self):
+        if self._enu is None:
+            self._enu = _local_enu_rows_at_ecef(self.rx)
+            self._enu.setflags(write=False)
+        return self._enu
+
+    @property
+    def world_f32(self):
+        if self._world is None:
+            self._world = _world_from_enu_at_ecef(self.rx, self._w_t).astype(np.float32)
+            self._world.setflags(write=False)
+        return self._world
+
+
 def _first_row(res: VisibilityResult) -> VisibilityResult:
     """The result of a single antenna position: each (1, N) array's row (az_deg None stays None)."""
     return VisibilityResult(*(None if x is None else np.asarray(x)[0]
@@ -231,13 +265,7 @@ class Scene:
         a = np.asarray(antenna_world_m, dtype=np.float64).reshape(-1, 3)
         if self.spherical is None:
             return np.broadcast_to(np.eye(3), (len(a), 3, 3)).copy()
-        return self._world_from_enu_at_ecef(self.spherical.world_to_ecef(a))
-
-    def _world_from_enu_at_ecef(self, rx) -> np.ndarray:
-        """world_from_local_enu of antennas at ECEF points ``rx`` (M, 3)."""
-        rows = _enu_rows_at_ecef(rx)                                         # enu_A = rows @ ecef
-        # R = W @ rows.T with W = world <- ECEF: one (3M, 3) @ (3, 3) product, then a per-antenna transposed view
-        return (rows.reshape(-1, 3) @ self._world_from_ecef_t()).reshape(-1, 3, 3).transpose(0, 2, 1)
+        return _world_from_enu_at_ecef(self.spherical.world_to_ecef(a), self._world_from_ecef_t())
 
     def _world_from_ecef_t(self) -> np.ndarray:
         """rotation_world_from_ecef().T of the present spherical coordinates, computed once per value."""
@@ -292,8 +320,8 @@ class Scene:
     def _visibility(self, a, planes, frames_u, az_deg, el_deg, mask_deg, fresnel_rays, wavelength_m,
                     fresnel_probe_m, tnear_m, foliage, foliage_touch_db, azimuth) -> VisibilityResult:
         """visibility() of antenna rows ``a`` (M, 3) and directions either as ``planes`` (3, M, N) float64 (the
-        east, north, up coordinates, contiguous) or as ``az_deg``/``el_deg``; ``frames_u``: (runs, ECEF of each
-        run's antenna) when the caller has them (visibility_ecef), else None."""
+        east, north, up coordinates, contiguous) or as ``az_deg``/``el_deg``; ``frames_u``: _frames(a) when the
+        caller has them (visibility_ecef), else None."""
         m = len(a)
         scr = self.rays.scratch
         if planes is not None:
@@ -348,8 +376,9 @@ class Scene:
         # nine coefficients and three directions per ray)
         dense = all_cast or (planes is not None and m > 1 and self.spherical is not None)
         work = shape if dense else dims
+        enu_c = scr("enu_c", (3,) + work)               # float32 east, north, up of each (cast) direction
         if planes is not None:
-            e_c, n_c, u_c = (scr(name, work) for name in ("e", "n", "u"))
+            e_c, n_c, u_c = enu_c
             if dense and ue is None:                     # float32 of the float64 quotient, in one pass
                 np.divide(x, norm, out=e_c)
                 np.divide(y, norm, out=n_c)
@@ -360,7 +389,8 @@ class Scene:
                         src = np.divide(x if dst is e_c else y, norm, out=scr("d_q", dshape, np.float64))
                     np.copyto(dst, src if dense else src.take(flat), casting="same_kind")
         else:
-            az_r, el_r, ce, e_c = (scr(name, dims) for name in ("az", "el", "ce", "e"))
+            az_r, el_r, ce = (scr(name, dims) for name in ("az", "el", "ce"))
+            e_c, n_c, u_c = enu_c
             np.copyto(az_r, az if all_cast else az.take(flat), casting="same_kind")
             np.copyto(el_r, el if all_cast else el.take(flat), casting="same_kind")
             # x * float32(pi / 180): the same float32 numbers as np.radians(az, dtype=np.float32), SIMD
@@ -369,9 +399,9 @@ class Scene:
             np.cos(el_r, out=ce)
             np.sin(az_r, out=e_c)
             e_c *= ce
-            n_c = np.cos(az_r, out=az_r)
+            np.cos(az_r, out=n_c)
             n_c *= ce
-            u_c = np.sin(el_r, out=el_r)
+            np.sin(el_r, out=u_c)
         # rays: origins at the antennas (shifted by the scene centre), directions local ENU -> world (float32)
         if all_cast:
             rays = self.rays.rays_buffer(a, n, scratch=True)
@@ -380,11 +410,21 @@ class Scene:
         if self.spherical is None:                       # no geodetic origin: world = local ENU everywhere
             rays[..., 3], rays[..., 4], rays[..., 5] = e_c, n_c, u_c
         else:
-            runs, rx_u = frames_u if frames_u is not None else self._frames(a)
-            R = _repeat_runs(self._world_from_enu_at_ecef(rx_u).astype(np.float32), runs)     # (M, 3, 3)
+            runs, terms = frames_u if frames_u is not None else self._frames(a)
+            R = _repeat_runs(terms.world_f32, runs)                            # (M, 3, 3) float32
             # R[m, k, j] per ray: (M, 1) broadcast over the satellites, a scalar for one antenna, or repeated
             # per cast satellite (K,)
-            if dense:
+            if (dense or m == 1) and e_c.size <= FUSED_ROTATION_MAX:
+                # few rays: the nine products in one call ((3, 3) x directions), then the two sums per component
+                # (the same float32 products and sums, in the same order, as below; fewer calls for a few rays)
+                prod = np.multiply(enu_c[None], R.transpose(1, 2, 0)[..., None] if dense else R[0][:, :, None],
+                                   out=scr("prod", (3, 3) + work))
+                acc3 = np.add(prod[:, 0], prod[:, 1], out=scr("acc3", (3,) + work))
+                acc3 += prod[:, 2]
+                for k in range(3):
+                    rays[..., 3 + k] = acc3[k] if not dense or all_cast else acc3[k].reshape(-1)[flat]
+                coef = None
+            elif dense:
                 coef = [[R[:, k, j, None] for j in range(3)] for k in range(3)]
             elif m == 1:
                 coef = R[0]
@@ -393,7 +433,7 @@ class Scene:
                 coef = [[np.take(R[:, k, j], ant, mode="clip", out=scr(f"R{k}{j}", dims)) for j in range(3)]
                         for k in range(3)]
             acc, tmp = scr("acc", work), scr("tmp", work)
-            for k in range(3):                           # e c0 + n c1 + u c2, in that order, in place
+            for k in range(3 if coef is not None else 0):          # e c0 + n c1 + u c2, in that order, in place
                 np.multiply(e_c, coef[k][0], out=acc)
                 acc += np.multiply(n_c, coef[k][1], out=tmp)
                 acc += np.multiply(u_c, coef[k][2], out=tmp)
@@ -443,10 +483,22 @@ class Scene:
         return VisibilityResult(state, att_db, path, np.zeros(shape), frac, diff, az, el)
 
     def _frames(self, a):
-        """(runs of equal antenna rows or None, ECEF of each run's antenna (R, 3)): the per-antenna work's input,
-        computed once per run."""
+        """(runs of equal antenna rows or None, per-run antenna terms): the per-antenna work, done once per run
+        (see _AntennaTerms)."""
         runs = _runs(a)
-        return runs, self.spherical.world_to_ecef(a if runs is None else a[runs[0]])
+        return runs, self._antenna_terms(a if runs is None else a[runs[0]])
+
+    def _antenna_terms(self, a_u) -> _AntennaTerms:
+        """_AntennaTerms of antenna positions ``a_u`` (R, 3), those of the previous call when its positions and the
+        geodetic origin are the same bytes (the planner casts the same cells in every time window, a static
+        antenna stands at the same place every epoch)."""
+        key = (a_u.tobytes(), a_u.shape, self.spherical.latitude_deg, self.spherical.longitude_deg,
+               self.spherical.elevation_m, self.spherical.heading_deg)
+        last = self.__dict__.get("_terms")
+        if last is None or last[0] != key:
+            last = self.__dict__["_terms"] = (key, _AntennaTerms(self.spherical.world_to_ecef(a_u),
+                                                                    self._world_from_ecef_t()))
+        return last[1]
 
     def _fresnel_fraction(self, o, d, t0, k, lam, probe_m, tnear_m):
         rho, phi = _sunflower(k)
@@ -492,9 +544,9 @@ class Scene:
             raise ValueError(f"sat_ecef_m: expected (N, 3) or (M, N, 3) with M = {m} antenna positions, "
                              f"got {sat.shape}")
         # the per-antenna work once per run of equal rows: the antenna's ECEF and its ENU rows
-        runs, rx_u = frames_u = self._frames(a2)
-        rows_u = _local_enu_rows_at_ecef(rx_u)
-        rx = _repeat_runs(rx_u, runs)
+        runs, terms = frames_u = self._frames(a2)
+        rows_u = terms.enu_rows
+        rx = _repeat_runs(terms.rx, runs)
         # (3, M, N): the ECEF differences and their ENU coordinates as contiguous planes, in per-thread scratch
         # arrays (_visibility copies what it keeps)
         n = sat.shape[-2]
