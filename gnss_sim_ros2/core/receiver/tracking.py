@@ -306,7 +306,7 @@ class Tracker:
             else:
                 self._half_end[inew] = c.half_cycle_time_s
         slipped = keep & forced
-        if c.random_slips and dt > 0 and np.any(keep):
+        if c.random_slips and dt > 0 and keep.any():
             p = slip_probability(cn0, dt, c.pll_bn_hz, c.pll_t_int_s) if slip_p is None else slip_p
             u = self.rng.random(n) if slip_u is None else slip_u
             slipped |= keep & (u < p)
@@ -327,7 +327,7 @@ class Tracker:
         lli[tracked & ((new & ~warm) | slipped)] |= LLI_LOSS_OF_LOCK
         lli[self._half_cycle_open(idx, tracked, ts, track_start)] |= LLI_HALF_CYCLE
         lock_time = np.where(tracked, ts - lock_start, 0.0)
-        return TrackingOutput(tracked.copy(), lli, lock_time, amb.copy(), new.copy(), slipped.copy())
+        return TrackingOutput(tracked, lli, lock_time, amb, new, slipped)     # fresh arrays (state holds copies)
 
     def _thresholds(self, sv):
         """(tracking, acquisition thresholds [dB-Hz], row of each row's satellite's first signal or None) of an
