@@ -325,26 +325,29 @@ class Scene:
         m = len(a)
         scr = self.rays.scratch
         if planes is not None:
-            x, y, z = planes
-            dshape = x.shape
+            dshape = planes.shape[1:]
             # |d| as np.linalg.norm computes it ((x x + y y) + z z, bit for bit) without its (M, N, 3) temporary
             # (in per-thread scratch arrays: no fresh (M, N) float64 pages on every call)
-            norm, sq = scr("d_norm", dshape, np.float64), scr("d_sq", dshape, np.float64)
-            np.multiply(x, x, out=norm)
-            norm += np.multiply(y, y, out=sq)
-            norm += np.multiply(z, z, out=sq)
+            sq = np.multiply(planes, planes, out=scr("d_sq", planes.shape, np.float64))
+            norm = np.add(sq[0], sq[1], out=scr("d_norm", dshape, np.float64))
+            norm += sq[2]
             np.sqrt(norm, out=norm)
             if not norm.all():
                 raise ValueError("sat_dirs_enu: zero direction vector")
-            # unit directions: up always (the elevation), east and north in float64 where the azimuth needs them
-            uz = np.divide(z, norm, out=scr("d_uz", dshape, np.float64))
+            # unit directions: all three in float64 (the azimuth, the kept ones of a ragged cast), else up only (the
+            # elevation) and east, north straight into float32 (below)
+            quick = not azimuth and (m > 1 and self.spherical is not None)
+            if quick:
+                unit = None
+                uz = np.divide(planes[2], norm, out=scr("d_uz", dshape, np.float64))
+            else:
+                unit = np.divide(planes, norm, out=scr("d_unit", planes.shape, np.float64))
+                uz = unit[2]
             if azimuth:
-                ue = np.divide(x, norm, out=scr("d_ue", dshape, np.float64))
-                un = np.divide(y, norm, out=scr("d_un", dshape, np.float64))
-                az = np.arctan2(ue, un)
+                az = np.arctan2(unit[0], unit[1])
                 np.remainder(np.degrees(az, out=az), 360.0, out=az)
             else:
-                ue = un = az = None
+                az = None
             el = np.minimum(np.maximum(uz, -1.0), 1.0)                    # np.clip's numbers (NaN kept)
             np.degrees(np.arcsin(el, out=el), out=el)
         else:
@@ -367,8 +370,8 @@ class Scene:
         if all_cast:
             flat = slice(None)
         else:
-            flat = np.flatnonzero(cast)
-            per_ant = np.count_nonzero(cast, axis=1)
+            flat = cast.reshape(-1).nonzero()[0]
+            per_ant = cast.sum(axis=1)
         # float32 work arrays are per-thread scratch (RayScene.scratch): no fresh pages on every call
         dims = shape if all_cast else (len(flat),)
         # many antennas with directions given: rotate all (M, N) directions with (M, 1) coefficients, then keep
@@ -379,15 +382,11 @@ class Scene:
         enu_c = scr("enu_c", (3,) + work)               # float32 east, north, up of each (cast) direction
         if planes is not None:
             e_c, n_c, u_c = enu_c
-            if dense and ue is None:                     # float32 of the float64 quotient, in one pass
-                np.divide(x, norm, out=e_c)
-                np.divide(y, norm, out=n_c)
+            if quick:                                    # (dense) float32 of the float64 quotient, in one pass
+                np.divide(planes[:2], norm, out=enu_c[:2])
                 np.copyto(u_c, uz, casting="same_kind")
             else:
-                for src, dst in ((ue, e_c), (un, n_c), (uz, u_c)):
-                    if src is None:                      # (a single antenna without azimuth: the kept ones)
-                        src = np.divide(x if dst is e_c else y, norm, out=scr("d_q", dshape, np.float64))
-                    np.copyto(dst, src if dense else src.take(flat), casting="same_kind")
+                np.copyto(enu_c, unit if dense else unit.reshape(3, -1).take(flat, axis=1), casting="same_kind")
         else:
             az_r, el_r, ce = (scr(name, dims) for name in ("az", "el", "ce"))
             e_c, n_c, u_c = enu_c
@@ -421,8 +420,8 @@ class Scene:
                                    out=scr("prod", (3, 3) + work))
                 acc3 = np.add(prod[:, 0], prod[:, 1], out=scr("acc3", (3,) + work))
                 acc3 += prod[:, 2]
-                for k in range(3):
-                    rays[..., 3 + k] = acc3[k] if not dense or all_cast else acc3[k].reshape(-1)[flat]
+                kept = acc3 if not dense or all_cast else acc3.reshape(3, -1).take(flat, axis=1)
+                np.copyto(rays[..., 3:], np.moveaxis(kept, 0, -1))
                 coef = None
             elif dense:
                 coef = [[R[:, k, j, None] for j in range(3)] for k in range(3)]
@@ -452,11 +451,7 @@ class Scene:
             diff.reshape(-1)[flat] = knife_edge_loss_db(f)
         else:
             blocked = self.rays.occluded_buffer(rays, tnear_m=tnear_m)
-            if all_cast:
-                frac = blocked.astype(np.float64).reshape(shape)
-            else:
-                frac = np.zeros(shape)
-                frac.reshape(-1)[flat] = blocked
+            frac = None                                  # from the states, below
         st = blocked.astype(np.int8)                     # STATE_BLOCKED = 1, STATE_VISIBLE = 0
         if self.rays.has_penetrable and len(st):
             # foliage only along the rays that are not blocked: a contiguous float32 copy of those
@@ -480,6 +475,8 @@ class Scene:
         else:
             state = np.full(shape, STATE_BELOW_MASK, dtype=np.int8)
             state.reshape(-1)[flat] = st
+        if frac is None:                                 # 1 where the central ray is blocked, else 0 (below the mask)
+            frac = np.equal(state, STATE_BLOCKED).astype(np.float64)
         return VisibilityResult(state, att_db, path, np.zeros(shape), frac, diff, az, el)
 
     def _frames(self, a):
@@ -552,8 +549,8 @@ class Scene:
         n = sat.shape[-2]
         scr = self.rays.scratch
         d_ecef = scr("d_ecef", (3, m, n), np.float64)
-        for k in range(3):
-            np.subtract(sat[..., k], rx[:, k, None], out=d_ecef[k])
+        np.subtract(np.moveaxis(sat, -1, 0)[:, None] if sat.ndim == 2 else np.moveaxis(sat, -1, 0), rx.T[:, :, None],
+                    out=d_ecef)
         # rows @ d per antenna, as (3, 3) @ (3, N) products (BLAS; each element the same sum of products as
         # d @ rows.T's); one product per run when the runs are equally long (their rows' columns side by side)
         if runs is not None and (runs[1] == runs[1][0]).all():

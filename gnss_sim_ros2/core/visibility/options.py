@@ -69,7 +69,8 @@ class VisibilityOptions:
         bare = self.multipath == "off" and obstacles is None
         v = scene.visibility_ecef(antenna_world_m, sat_ecef_m, mask_deg=self.mask_deg,
                                   fresnel_rays=self.fresnel_rays, foliage=self.foliage, azimuth=azimuth or not bare)
-        state = np.where(v.state < 0, int(VisibilityState.VISIBLE), v.state).astype(np.int64)
+        # below the mask (-1, the only negative state) -> VISIBLE (0): the larger of the two
+        state = np.maximum(v.state, int(VisibilityState.VISIBLE), dtype=np.int64)
         if obstacles is not None:
             state = block_by_obstacles(scene, antenna_world_m, sat_ecef_m, v, state, self.mask_deg, obstacles)
         att = v.attenuation_db + v.diffraction_db
