@@ -355,3 +355,27 @@ def test_horizon_profile_of_an_antenna_closed_in_on_every_side():
     assert len(az) == 36 and np.all(el == 90.0)
     _, el_foliage = scene.horizon_profile(np.zeros(3), az_step_deg=10.0, which="foliage")
     assert np.all(el_foliage == 0.0)
+
+
+def test_enu_rows_of_a_few_points_on_python_floats_equal_numpys(monkeypatch):
+    """_enu_rows_at_ecef and _local_enu_rows of a few points (a fleet's antennas) on Python floats: the same bits as
+    their numpy path, the polar axis (longitude 0) included."""
+    from gnss_sim_ros2.core.scene import visibility as vis
+
+    rng = np.random.default_rng(5)
+    few, many = [], []
+    for k in range(400):
+        n = int(rng.integers(1, vis._FEW_POINTS + 1))
+        lat, lon = rng.uniform(-0.5 * np.pi, 0.5 * np.pi, n), rng.uniform(-np.pi, np.pi, n)
+        r = WGS84_A_M + rng.uniform(-2.2e4, 1.0e5, n)
+        ecef = np.stack([r * np.cos(lat) * np.cos(lon), r * np.cos(lat) * np.sin(lon), r * np.sin(lat)], axis=1)
+        if k % 40 == 0:
+            ecef[0, :2] = 0.0
+        few.append((vis._enu_rows_at_ecef(ecef).tobytes(), vis._local_enu_rows(np.degrees(lat), np.degrees(lon))))
+        with monkeypatch.context() as mp:
+            mp.setattr(vis, "_FEW_POINTS", 0)
+            many.append((vis._enu_rows_at_ecef(ecef).tobytes(),
+                         vis._local_enu_rows(np.degrees(lat), np.degrees(lon))))
+    few = [(a, b.tobytes()) for a, b in few]
+    many = [(a, b.tobytes()) for a, b in many]
+    assert few == many

@@ -36,6 +36,8 @@ import open3d as o3d
 
 #: scratch arrays above this many elements are not kept between calls (64 MB of float32)
 SCRATCH_MAX_ELEMENTS = 1 << 24
+#: nor those of up to this many (a fresh small array is cheaper than the look-up, and costs no page faults)
+SCRATCH_MIN_ELEMENTS = 4096
 
 
 def _tensor(a, dtype):
@@ -96,9 +98,9 @@ class RayScene:
     def scratch(self, name: str, shape: tuple, dtype=np.float32) -> np.ndarray:
         """An uninitialised array kept per thread and per ``name`` and reused by the next request of the same
         name in this thread (so: for one query at a time; never hand it out).  Above SCRATCH_MAX_ELEMENTS
-        a fresh array each time."""
+        and up to SCRATCH_MIN_ELEMENTS a fresh array each time."""
         size = math.prod(shape)
-        if size > SCRATCH_MAX_ELEMENTS:
+        if size > SCRATCH_MAX_ELEMENTS or size <= SCRATCH_MIN_ELEMENTS:
             return np.empty(shape, dtype)
         store = getattr(self._local, "arrays", None)
         if store is None:

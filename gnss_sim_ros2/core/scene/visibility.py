@@ -119,28 +119,56 @@ def _enu_rows_at_ecef(ecef):
     tan(theta) = z a / (p b),  tan(lat) = (z + e'^2 b sin^3 theta) / (p - e^2 a cos^3 theta).  Error below
     1e-9 deg for heights within +-10 km, far below what a direction needs, and vectorised without the
     iteration of a general converter.  The sines and cosines come from the tangent's two terms,
-    no angle is formed; on the polar axis (p = 0) longitude 0 is taken.
+    no angle is formed; on the polar axis (p = 0) longitude 0 is taken.  A few points (<= _FEW_POINTS) on Python
+    floats: the same IEEE operations in the same order (no numpy call per operation on a fleet's antennas).
     """
+    if len(ecef) <= _FEW_POINTS:
+        try:
+            terms = []
+            for x, y, z in ecef.tolist():
+                sl, cl, p = _bowring_terms(x, y, z, math.sqrt)
+                terms.append((sl, cl) + ((y / p, x / p) if p > 0 else (0.0, 1.0)))
+            return _enu_rows(*zip(*terms)) if terms else np.empty((0, 3, 3))
+        except ZeroDivisionError:                   # the Earth's centre: numpy's NaN, as many points get
+            pass
+    x, y, z = ecef[:, 0], ecef[:, 1], ecef[:, 2]
+    sl, cl, p = _bowring_terms(x, y, z, np.sqrt)
+    off_axis = p > 0
+    so = np.divide(y, p, out=np.zeros_like(p), where=off_axis)
+    co = np.divide(x, p, out=np.ones_like(p), where=off_axis)
+    return _enu_rows(sl, cl, so, co)
+
+
+#: up to this many points the ENU rows' arithmetic (_enu_rows_at_ecef, _local_enu_rows) is done on Python floats
+_FEW_POINTS = 8
+
+
+def _bowring_terms(x, y, z, sqrt):
+    """(sin lat, cos lat, p) of _enu_rows_at_ecef from ECEF x, y, z (arrays, or floats with math.sqrt)."""
     a = WGS84_A_M
     b = a * (1.0 - WGS84_F)
     e2 = WGS84_F * (2.0 - WGS84_F)
     ep2 = e2 / (1.0 - e2)
-    x, y, z = ecef[:, 0], ecef[:, 1], ecef[:, 2]
-    p = np.sqrt(x * x + y * y)
+    p = sqrt(x * x + y * y)
     za, pb = z * a, p * b
-    r = np.sqrt(za * za + pb * pb)
+    r = sqrt(za * za + pb * pb)
     s_t, c_t = za / r, pb / r                                   # sin, cos theta
     num = z + ep2 * b * (s_t * s_t * s_t)
     den = p - e2 * a * (c_t * c_t * c_t)
-    h = np.sqrt(num * num + den * den)
-    sl, cl = num / h, den / h
-    off_axis = p > 0
-    so = np.divide(y, p, out=np.zeros_like(p), where=off_axis)
-    co = np.divide(x, p, out=np.ones_like(p), where=off_axis)
-    rows = np.empty((len(p), 3, 3))
-    rows[:, 0, 0], rows[:, 0, 1], rows[:, 0, 2] = -so, co, 0.0
-    rows[:, 1, 0], rows[:, 1, 1], rows[:, 1, 2] = -sl * co, -sl * so, cl
-    rows[:, 2, 0], rows[:, 2, 1], rows[:, 2, 2] = cl * co, cl * so, sl
+    h = sqrt(num * num + den * den)
+    return num / h, den / h, p
+
+
+def _enu_rows(sl, cl, so, co):
+    """(M, 3, 3): rows east, north, up in ECEF from the sines and cosines of latitude and longitude ((M,) arrays,
+    or sequences of a few floats: the products on Python floats, the same IEEE operations)."""
+    if not isinstance(sl, np.ndarray):
+        return np.array([(-so_, co_, 0.0, -sl_ * co_, -sl_ * so_, cl_, cl_ * co_, cl_ * so_, sl_)
+                         for sl_, cl_, so_, co_ in zip(sl, cl, so, co)]).reshape(-1, 3, 3)
+    rows = np.empty(np.shape(sl) + (3, 3))
+    rows[..., 0, 0], rows[..., 0, 1], rows[..., 0, 2] = -so, co, 0.0
+    rows[..., 1, 0], rows[..., 1, 1], rows[..., 1, 2] = -sl * co, -sl * so, cl
+    rows[..., 2, 0], rows[..., 2, 1], rows[..., 2, 2] = cl * co, cl * so, sl
     return rows
 
 
@@ -148,11 +176,9 @@ def _local_enu_rows(lat_deg, lon_deg):
     """(M, 3, 3): rows east, north, up in ECEF at each geodetic position."""
     lat, lon = np.radians(lat_deg), np.radians(lon_deg)
     sl, cl, so, co = np.sin(lat), np.cos(lat), np.sin(lon), np.cos(lon)
-    rows = np.empty(np.shape(lat) + (3, 3))
-    rows[..., 0, 0], rows[..., 0, 1], rows[..., 0, 2] = -so, co, 0.0
-    rows[..., 1, 0], rows[..., 1, 1], rows[..., 1, 2] = -sl * co, -sl * so, cl
-    rows[..., 2, 0], rows[..., 2, 1], rows[..., 2, 2] = cl * co, cl * so, sl
-    return rows
+    if sl.ndim == 1 and len(sl) <= _FEW_POINTS:
+        sl, cl, so, co = sl.tolist(), cl.tolist(), so.tolist(), co.tolist()
+    return _enu_rows(sl, cl, so, co)
 
 
 def _runs(a):
@@ -421,7 +447,7 @@ class Scene:
                 acc3 = np.add(prod[:, 0], prod[:, 1], out=scr("acc3", (3,) + work))
                 acc3 += prod[:, 2]
                 kept = acc3 if not dense or all_cast else acc3.reshape(3, -1).take(flat, axis=1)
-                np.copyto(rays[..., 3:], np.moveaxis(kept, 0, -1))
+                np.copyto(rays[..., 3:], kept.transpose(tuple(range(1, kept.ndim)) + (0,)))
                 coef = None
             elif dense:
                 coef = [[R[:, k, j, None] for j in range(3)] for k in range(3)]
@@ -549,8 +575,7 @@ class Scene:
         n = sat.shape[-2]
         scr = self.rays.scratch
         d_ecef = scr("d_ecef", (3, m, n), np.float64)
-        np.subtract(np.moveaxis(sat, -1, 0)[:, None] if sat.ndim == 2 else np.moveaxis(sat, -1, 0), rx.T[:, :, None],
-                    out=d_ecef)
+        np.subtract(sat.T[:, None, :] if sat.ndim == 2 else sat.transpose(2, 0, 1), rx.T[:, :, None], out=d_ecef)
         # rows @ d per antenna, as (3, 3) @ (3, N) products (BLAS; each element the same sum of products as
         # d @ rows.T's); one product per run when the runs are equally long (their rows' columns side by side)
         if runs is not None and (runs[1] == runs[1][0]).all():
