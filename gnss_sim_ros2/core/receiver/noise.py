@@ -80,7 +80,7 @@ _FRONT_END = BoundedCache(16)
 def _front_end(d, b):
     """(effective spacing D' [chips], where D > 1/b) of the correlator spacing ``d`` [chips] with the front-end
     bandwidths ``b`` in chip rates (dll_sigma_chips, module doc); cached by the contents of both."""
-    key = (array_key(d), array_key(b))
+    key = (d.shape, b.shape, array_key(d), array_key(b))    # the shapes too: array_key holds a scalar as one value
     hit = _FRONT_END.get(key)
     if hit is None:
         _positive("frontend_bw_chips", b)
