@@ -42,9 +42,11 @@ import numpy as np
 
 from gnss_sim_ros2.core import constants as k
 from gnss_sim_ros2.core import signals as _signals
+from gnss_sim_ros2.core.memo import BoundedCache
 from gnss_sim_ros2.core.multipath import antenna as _antenna
 
 from . import signal_tables
+from .signal_rows import array_key
 
 #: share of the free-space loss change over the Earth disc left after the satellites' shaped beams (module doc)
 SAT_PATTERN_PATH_SHARE = 0.4
@@ -103,9 +105,22 @@ DEFAULT_BUDGET = LinkBudget()
 
 def slant_range_m(sat_radius_m, el_deg, earth_radius_m=k.R_EARTH_MEAN_M):
     """Range [m] from a point on a sphere of radius R to a satellite at radius r seen at elevation el."""
+    return _slant_range_m(np.asarray(sat_radius_m, dtype=np.float64), *_slant_terms(el_deg, earth_radius_m))
+
+
+def _slant_terms(el_deg, earth_radius_m):
+    """(-R sin el [m], (R cos el)^2 [m^2]): what slant_range_m's range takes from the elevation."""
     e = np.radians(el_deg)
-    r = np.asarray(sat_radius_m, dtype=np.float64)
-    return -earth_radius_m * np.sin(e) + np.sqrt(r * r - (earth_radius_m * np.cos(e)) ** 2)
+    return -earth_radius_m * np.sin(e), (earth_radius_m * np.cos(e)) ** 2
+
+
+def _slant_range_m(r, near_m, across2_m2):
+    """slant_range_m from the orbit radius ``r`` and the elevation's _slant_terms."""
+    return near_m + np.sqrt(r * r - across2_m2)
+
+
+#: _slant_terms of the signals' edge-of-coverage elevations by their contents (the same signals epoch after epoch)
+_EDGE_TERMS = BoundedCache(16)
 
 
 def sat_radius_from_range_m(range_m, el_deg, earth_radius_m=k.R_EARTH_MEAN_M):
@@ -138,10 +153,14 @@ def received_power_dbw(system, code, range_m, el_deg, sat_radius_m=None, power_m
 
 def _received_power_dbw(p_min, el_min, range_m, el_deg, sat_radius_m, power_margin_db):
     rho = np.asarray(range_m, dtype=np.float64)
-    if np.any(rho <= 0):
+    if (rho <= 0).any():
         raise ValueError("receiver.cn0: parameter 'range_m' must be > 0")
     r_sat = sat_radius_from_range_m(rho, el_deg) if sat_radius_m is None else np.asarray(sat_radius_m)
-    rho_edge = slant_range_m(r_sat, el_min)
+    key = (np.shape(el_min), array_key(el_min))       # the shape too: array_key holds a scalar as one value
+    terms = _EDGE_TERMS.get(key)
+    if terms is None:
+        terms = _EDGE_TERMS.put(key, _slant_terms(el_min, k.R_EARTH_MEAN_M))
+    rho_edge = _slant_range_m(r_sat, *terms)
     return p_min + power_margin_db + SAT_PATTERN_PATH_SHARE * 20.0 * np.log10(rho_edge / rho)
 
 
