@@ -335,7 +335,9 @@ class Receiver:
 
     def _geometry(self, b: _Block) -> None:
         """Geometry at the transmit time, seen at the true reception time (light time, Earth rotation)."""
-        b.sol = self._light_time(b.rx_ep[b.e_sat], b.vel_ep[b.e_sat], b.t_true_sat, b.bias_sat, b.st, b.rows.omega)
+        # rows of (N, 3) arrays by take: the values of fancy indexing at a third of its cost
+        b.sol = self._light_time(b.rx_ep.take(b.e_sat, axis=0), b.vel_ep.take(b.e_sat, axis=0), b.t_true_sat,
+                                 b.bias_sat, b.st, b.rows.omega)
         b.rho = b.sol.range_m[b.sat_i]
         b.rho_dot = b.sol.range_rate_mps[b.sat_i]
         b.el_j = b.el[b.sat_i]
@@ -561,7 +563,7 @@ class Receiver:
         (t_sv, t_code, t_freq, t_pr, t_phase, t_dop, t_cn0, t_lli, t_lock, t_dts, t_ddts, t_iono, t_tropo, t_el,
          t_rho) = (x[sel] for x in (b.rows.sv_j, b.codes, b.freq, b.pr, b.phase, b.dop, b.cn0_meas, b.lli, b.lock,
                                      b.dts, b.ddts, b.iono_model, b.tropo, b.el_j, b.rho))
-        t_pos, t_vel = b.sol.sat_pos_ecef_m[sat_tr], b.sol.sat_vel_ecef_mps[sat_tr]
+        t_pos, t_vel = b.sol.sat_pos_ecef_m.take(sat_tr, axis=0), b.sol.sat_vel_ecef_mps.take(sat_tr, axis=0)
         if b.spoofed is not None:         # captured rows: the satellites at the counterfeit's transmit times
             t_pos, t_vel = b.spoofed.satellites(sel, t_pos, t_vel)
         out = []
