@@ -374,7 +374,7 @@ class Scene:
                 np.remainder(np.degrees(az, out=az), 360.0, out=az)
             else:
                 az = None
-            el = np.minimum(np.maximum(uz, -1.0), 1.0)                    # np.clip's numbers (NaN kept)
+            el = np.clip(uz, -1.0, 1.0)
             np.degrees(np.arcsin(el, out=el), out=el)
         else:
             if az_deg is None or el_deg is None:
