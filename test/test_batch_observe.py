@@ -307,3 +307,44 @@ def test_trackers_with_only_slip_chances_step_together_unless_one_slips(monkeypa
     for a, b in zip(alone, together):
         assert a.rng.bit_generator.state == b.rng.bit_generator.state
     assert slipped_epochs > 0 and all(alone[r].is_tracked("G01", "1C") for r in range(3))
+
+
+def test_signal_rows_shared_by_receivers_configured_alike():
+    """Receivers configured alike but for their seeds (a fleet's robots) share the signal rows of a set of
+    satellites (engine._SHARED_ROWS), each with its own multipath slots; the shared rows are those a receiver
+    computes alone; a receiver configured otherwise (code biases, profile) computes its own."""
+    from gnss_sim_ros2.core.ephemeris.provider import open_ephemeris
+    from gnss_sim_ros2.core.receiver import engine
+    from gnss_sim_ros2.core.receiver.config import ReceiverConfig
+    from gnss_sim_ros2.core.signal_plans import gps_day
+    from gnss_sim_ros2.core.time import GnssTime
+
+    t = GnssTime.from_iso("2025-06-01T10:00:00")
+    with tempfile.TemporaryDirectory() as tmp:
+        provider, _ = open_ephemeris("synthetic", t, 60.0, "GRECJ", workdir=tmp)
+    st = provider.states(t, systems="GRECJ")
+    args = (np.asarray(st.sv), np.asarray(st.glo_channel), gps_day(t.sec), np.asarray(st.health))
+    # a receiver that has seen other satellites first: its multipath slots differ from a fresh one's
+    first = np.asarray(st.sv)[::-1][:5]
+    engine._SHARED_ROWS.clear()
+    a = engine.Receiver(ReceiverConfig(seed=1))
+    b = engine.Receiver(ReceiverConfig(seed=2))
+    b._rows_of(first, np.zeros(5, dtype=np.int64), gps_day(t.sec), np.zeros(5, dtype=np.int64))
+    rows_a, rows_b = a._rows_of(*args), b._rows_of(*args)
+    assert rows_a is not rows_b and rows_a.lam is rows_b.lam             # shared, each its own object
+    assert not np.array_equal(rows_a.mp_idx, rows_b.mp_idx)              # each receiver's own slots
+    engine._SHARED_ROWS.clear()
+    alone = engine.Receiver(ReceiverConfig(seed=2))
+    alone._rows_of(first, np.zeros(5, dtype=np.int64), gps_day(t.sec), np.zeros(5, dtype=np.int64))
+    rows_alone = alone._rows_of(*args)
+    for name in ("lam", "gd_factor", "p_min", "el_min", "omega", "sv_j", "code_bias_m", "sisre_sigma", "mp_idx",
+                 "sig_key", "dll_factor"):
+        x, y = getattr(rows_b, name), getattr(rows_alone, name)
+        assert x.dtype == y.dtype and x.tobytes() == y.tobytes(), name
+    for x, y in zip(rows_b.signal_rows, rows_alone.signal_rows):
+        assert x.tobytes() == y.tobytes()
+    biased = engine.Receiver(ReceiverConfig(seed=2, code_bias_m={"G": {"1C": 1.5}}))
+    rows_biased = biased._rows_of(*args)
+    assert rows_biased.lam is not rows_b.lam and rows_biased.code_bias_m.max() == 1.5
+    other = engine.Receiver(ReceiverConfig(seed=2, profile="ublox_m8t"))
+    assert len(other._rows_of(*args).lam) != len(rows_b.lam)

@@ -53,6 +53,8 @@ IS-GPS-200N 20.3.3.3.3, RTKLIB manual E.5):
 """
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 
 from .. import constants as k
@@ -86,6 +88,18 @@ VISIBLE, BLOCKED, ATTENUATED, REFLECTED_ONLY = (VisibilityState.VISIBLE, Visibil
 _VISIBLE_I, _ATTENUATED_I = int(VISIBLE), int(ATTENUATED)
 
 
+#: the signal rows of receivers configured alike (Receiver._configured_rows), by (_rows_config_key, satellites key)
+_SHARED_ROWS = BoundedCache(256)
+
+
+def _rows_config_key(cfg: ReceiverConfig) -> tuple:
+    """The configuration fields Receiver._configured_rows reads, as a hashable key."""
+    return (tuple(sorted((s, tuple(c)) for s, c in cfg.profile.items())),
+            tuple(sorted(cfg.excluded_signals.items())),
+            tuple(sorted((g, tuple(sorted(c.items()))) for g, c in (cfg.code_bias_m or {}).items())),
+            tuple(sorted((s, float(v)) for s, v in cfg.sisre_m.items())), int(cfg.world_seed))
+
+
 class Receiver:
     """A receiver tracking the satellites of one ephemeris provider from a moving antenna."""
 
@@ -106,6 +120,8 @@ class Receiver:
         self._geo_key = None
         self._geo = (0.0, 0.0, 0.0)
         self._signal_cache = BoundedCache(64)
+        #: what _configured_rows depends on besides the satellites: the key of the rows receivers share
+        self._rows_config_key = _rows_config_key(config)
         #: which signals each satellite transmits on a date (core/signal_plans/plans.yaml)
         self._plans = default_plans()
         self._keep_cache = BoundedCache(64)
@@ -140,6 +156,20 @@ class Receiver:
         hit = self._signal_cache.get(key)
         if hit is not None:
             return hit
+        shared_key = (self._rows_config_key, key)
+        shared = _SHARED_ROWS.get(shared_key)
+        if shared is None:
+            shared = _SHARED_ROWS.put(shared_key, self._configured_rows(svs, glo_channel, day, health))
+        rows = copy.copy(shared)
+        # multipath states: one slot per (sv, code), kept for the receiver's lifetime (this receiver's own)
+        rows.mp_idx = self.code_multipath.slots(rows.sv_j, rows.signal_rows[1])
+        self._signal_cache.put(key, rows)
+        return rows
+
+    def _configured_rows(self, svs, glo_channel, day: int, health) -> SignalRows:
+        """_rows_of's rows but the multipath slots: a function of the satellites, the day, their health and the
+        configuration's fields in _rows_config_key alone, so receivers configured alike (a fleet's robots, whose
+        seeds differ) share them (_SHARED_ROWS): a set of satellites rising costs one of them, not one per robot."""
         sat_i, codes, freq, chip, systems = [], [], [], [], []
         plans = self._plans
         profile = {s: tuple(c) for s, c in self.cfg.profile.items()}
@@ -171,9 +201,6 @@ class Receiver:
         rows.code_bias_m = hardware_bias.code_bias_m(self.cfg.code_bias_m, rows.sv_j, codes)
         rows.sisre_sigma = np.array([self.cfg.sisre_m.get(sv[0], 0.0) for sv in svs], dtype=float)
         rows.sisre_terms = self.world_terms.stacked([("sat", str(sv)) for sv in svs]) if len(svs) else None
-        # multipath states: one slot per (sv, code), kept for the receiver's lifetime
-        rows.mp_idx = self.code_multipath.slots(rows.sv_j, codes)
-        self._signal_cache.put(key, rows)
         return rows
 
     def _keep_mask(self, sv_all: np.ndarray) -> np.ndarray:
