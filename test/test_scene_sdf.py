@@ -403,7 +403,10 @@ def test_world_to_ecef_terms_kept_follow_the_fields(lat, lon, h, heading):
         p = rng.normal(size=shape) * 1e3
         got = sc.world_to_ecef(p)
         assert got.shape == shape and got.tobytes() == afresh(p).tobytes()
+    assert sc.world_from_ecef_t().tobytes() == sc.rotation_world_from_ecef().T.tobytes()
     sc.latitude_deg, sc.heading_deg = lat / 2.0, heading + 10.0
     p = rng.normal(size=(4, 3))
     assert sc.world_to_ecef(p).tobytes() == afresh(p).tobytes()
+    assert sc.world_from_ecef_t().tobytes() == sc.rotation_world_from_ecef().T.tobytes()
+    assert not sc.world_from_ecef_t().flags.writeable            # kept and shared: read-only
     assert sc == SphericalCoordinates(lat / 2.0, lon, h, heading + 10.0)     # the kept terms are not a field

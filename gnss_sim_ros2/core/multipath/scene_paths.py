@@ -36,7 +36,7 @@ def world_directions(scene, antenna_world_m, sat_ecef_m) -> np.ndarray:
     if sat.ndim == 2:
         sat = np.broadcast_to(sat, (len(a),) + sat.shape)
     d = sat - rx[:, None, :]
-    d = d @ scene.spherical.rotation_world_from_ecef().T
+    d = d @ scene.spherical.world_from_ecef_t()
     return d / np.linalg.norm(d, axis=-1, keepdims=True)
 
 

@@ -45,20 +45,29 @@ class SphericalCoordinates:
         """3x3: world vector = R @ ECEF vector."""
         return self.rotation_enu0_from_world().T @ frames.enu_rotation(self.latitude_deg, self.longitude_deg)
 
-    def _world_to_ecef_terms(self):
-        """(Rz(heading).T, ENU rotation, origin ECEF [m]) of the present field values, computed once per value
-        (world_to_ecef runs every epoch; the same products in the same order as frames.enu_to_ecef)."""
+    def _terms(self):
+        """(Rz(heading).T, ENU rotation at the origin, origin ECEF [m], rotation_world_from_ecef().T) of the present
+        field values, computed once per value and read-only (world_to_ecef and the cast's frames run every epoch;
+        the same products in the same order as frames.enu_to_ecef and rotation_world_from_ecef)."""
         key = (self.latitude_deg, self.longitude_deg, self.elevation_m, self.heading_deg)
-        cached = self.__dict__.get("_terms")
+        cached = self.__dict__.get("_kept_terms")
         if cached is None or cached[0] != key:
+            heading_t = self.rotation_enu0_from_world().T
+            enu_rot = frames.enu_rotation(self.latitude_deg, self.longitude_deg)
             origin = np.array(frames.geodetic_to_ecef(self.latitude_deg, self.longitude_deg, self.elevation_m))
-            cached = self.__dict__["_terms"] = (key, self.rotation_enu0_from_world().T,
-                                                frames.enu_rotation(self.latitude_deg, self.longitude_deg), origin)
+            terms = (heading_t, enu_rot, origin, (heading_t @ enu_rot).T)
+            for t in terms:
+                t.setflags(write=False)
+            cached = self.__dict__["_kept_terms"] = (key, *terms)
         return cached[1:]
+
+    def world_from_ecef_t(self) -> np.ndarray:
+        """rotation_world_from_ecef().T (read-only, kept per field values): ECEF vectors (..., 3) @ it -> world."""
+        return self._terms()[3]
 
     def world_to_ecef(self, pos_world_m) -> np.ndarray:
         """World points [..., 3] -> ECEF [..., 3] (float64)."""
-        heading_t, enu_rot, origin = self._world_to_ecef_terms()
+        heading_t, enu_rot, origin, _ = self._terms()
         enu = np.asarray(pos_world_m, dtype=np.float64) @ heading_t
         return enu @ enu_rot + origin
 

@@ -291,16 +291,7 @@ class Scene:
         a = np.asarray(antenna_world_m, dtype=np.float64).reshape(-1, 3)
         if self.spherical is None:
             return np.broadcast_to(np.eye(3), (len(a), 3, 3)).copy()
-        return _world_from_enu_at_ecef(self.spherical.world_to_ecef(a), self._world_from_ecef_t())
-
-    def _world_from_ecef_t(self) -> np.ndarray:
-        """rotation_world_from_ecef().T of the present spherical coordinates, computed once per value."""
-        sc = self.spherical
-        key = (sc.latitude_deg, sc.longitude_deg, sc.heading_deg)
-        cached = self.__dict__.get("_w_t")
-        if cached is None or cached[0] != key:
-            cached = self.__dict__["_w_t"] = (key, sc.rotation_world_from_ecef().T)
-        return cached[1]
+        return _world_from_enu_at_ecef(self.spherical.world_to_ecef(a), self.spherical.world_from_ecef_t())
 
     def _local_enu_rows_at(self, antenna_world_m) -> np.ndarray:
         """(M, 3, 3): rows east, north, up in ECEF at the antennas' WGS 84 positions (frames.ecef_to_geodetic)."""
@@ -520,7 +511,7 @@ class Scene:
         last = self.__dict__.get("_terms")
         if last is None or last[0] != key:
             last = self.__dict__["_terms"] = (key, _AntennaTerms(self.spherical.world_to_ecef(a_u),
-                                                                    self._world_from_ecef_t()))
+                                                                    self.spherical.world_from_ecef_t()))
         return last[1]
 
     def _fresnel_fraction(self, o, d, t0, k, lam, probe_m, tnear_m):
