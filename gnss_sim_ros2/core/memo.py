@@ -25,3 +25,12 @@ class BoundedCache(dict):
             self.clear()
         self[key] = value
         return value
+
+
+def read_only(values):
+    """``values`` (an array, or a tuple of values) with every numpy array in it made read-only, and returned: a
+    kept value handed to every caller must not be written into."""
+    for v in values if isinstance(values, tuple) else (values,):
+        if hasattr(v, "setflags"):
+            v.setflags(write=False)
+    return values

@@ -42,7 +42,7 @@ import numpy as np
 
 from gnss_sim_ros2.core import constants as k
 from gnss_sim_ros2.core import signals as _signals
-from gnss_sim_ros2.core.memo import BoundedCache
+from gnss_sim_ros2.core.memo import BoundedCache, read_only
 from gnss_sim_ros2.core.multipath import antenna as _antenna
 
 from . import signal_tables
@@ -159,7 +159,7 @@ def _received_power_dbw(p_min, el_min, range_m, el_deg, sat_radius_m, power_marg
     key = (np.shape(el_min), array_key(el_min))       # the shape too: array_key holds a scalar as one value
     terms = _EDGE_TERMS.get(key)
     if terms is None:
-        terms = _EDGE_TERMS.put(key, _slant_terms(el_min, k.R_EARTH_MEAN_M))
+        terms = _EDGE_TERMS.put(key, read_only(_slant_terms(el_min, k.R_EARTH_MEAN_M)))
     rho_edge = _slant_range_m(r_sat, *terms)
     return p_min + power_margin_db + SAT_PATTERN_PATH_SHARE * 20.0 * np.log10(rho_edge / rho)
 

@@ -39,7 +39,7 @@ import numpy as np
 
 from gnss_sim_ros2.core import signals as _signals
 from gnss_sim_ros2.core.bessel import i0e
-from gnss_sim_ros2.core.memo import BoundedCache
+from gnss_sim_ros2.core.memo import BoundedCache, read_only
 from gnss_sim_ros2.core.receiver.signal_rows import array_key
 
 
@@ -86,7 +86,7 @@ def _front_end(d, b):
         _positive("frontend_bw_chips", b)
         d_eff = np.where(d >= np.pi / b, d, np.where(d > 1.0 / b, 1.0 / b + b / (np.pi - 1.0) * (d - 1.0 / b) ** 2,
                                                      1.0 / b))
-        hit = _FRONT_END.put(key, (d_eff, d > 1.0 / b))
+        hit = _FRONT_END.put(key, read_only((d_eff, d > 1.0 / b)))
     return hit
 
 

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import frames
+from ..memo import read_only
 from .sdf_xml import SdfError, child, floats, where
 
 
@@ -55,9 +56,7 @@ class SphericalCoordinates:
             heading_t = self.rotation_enu0_from_world().T
             enu_rot = frames.enu_rotation(self.latitude_deg, self.longitude_deg)
             origin = np.array(frames.geodetic_to_ecef(self.latitude_deg, self.longitude_deg, self.elevation_m))
-            terms = (heading_t, enu_rot, origin, (heading_t @ enu_rot).T)
-            for t in terms:
-                t.setflags(write=False)
+            terms = read_only((heading_t, enu_rot, origin, (heading_t @ enu_rot).T))
             cached = self.__dict__["_kept_terms"] = (key, *terms)
         return cached[1:]
 
