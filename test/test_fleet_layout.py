@@ -285,11 +285,11 @@ def test_in_process_link_one_context_and_executor(monkeypatch):
 
 
 def test_tf_handed_in_process_is_fed_once():
-    """A /tf message a trajectory player of the process hands (nodes/in_process.py) is fed to the TF tree at once;
-    the middleware's copy of it is then dropped, while a message of another publisher (not handed) is fed."""
-    import copy
-
+    """A /tf message a trajectory player of the process hands (nodes/tf_stream.py: with its bytes) is fed to the
+    TF tree at once; the middleware's copy of it (the same bytes) is then dropped, while a message of another
+    publisher (not handed) is fed, and so is the same message published again."""
     import rclpy
+    from rclpy.serialization import serialize_message
 
     from gnss_sim_ros2.messages.tf import tf_message, transform_to_msg
     from gnss_sim_ros2.nodes.tf_source import TfSource
@@ -306,17 +306,31 @@ def test_tf_handed_in_process_is_fed_once():
             stamp = rclpy.time.Time(seconds=sec).to_msg()
             return tf_message([transform_to_msg("world", child, stamp, [1.0, 2.0, 3.0], 0.5)])
 
+        from tf2_msgs.msg import TFMessage
+
+        pub = node.create_publisher(TFMessage, "/tf", 100)
+        executor = rclpy.executors.SingleThreadedExecutor(context=context)
+        executor.add_node(node)
+
+        def through_middleware(data, n_fed):
+            pub.publish(data)                     # what the player publishes: the bytes it hands
+            for _ in range(200):
+                executor.spin_once(timeout_sec=0.02)
+                if len(fed) >= n_fed and not tf._stream._handed:
+                    return
+
         handed = message(10, "robot0/base_link")
-        tf._handed(handed)
+        data = serialize_message(handed)
+        tf._stream.from_process((handed, data))
         assert fed == [handed]
-        tf._from_middleware(copy.deepcopy(handed))          # the middleware's copy of the message handed
-        assert fed == [handed]
-        other = message(10, "robot1/base_link")               # another publisher's, at the same stamp
-        tf._from_middleware(other)
-        assert fed == [handed, other]
-        again = copy.deepcopy(handed)                         # the same message published again: fed
-        tf._from_middleware(again)
-        assert fed == [handed, other, again]
+        through_middleware(data, 1)                        # the middleware's copy of the message handed
+        assert fed == [handed] and not tf._stream._handed
+        other = message(10, "robot1/base_link")            # another publisher's, at the same stamp
+        through_middleware(serialize_message(other), 2)
+        assert len(fed) == 2 and fed[1].transforms[0].child_frame_id == "robot1/base_link"
+        through_middleware(data, 3)                        # the same message published again: fed
+        assert len(fed) == 3 and fed[2] == handed
+        executor.shutdown()
         tf.close()
         node.destroy_node()
     finally:

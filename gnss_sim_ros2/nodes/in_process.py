@@ -11,9 +11,10 @@ is taken from it alone).  The publisher still publishes on the topic for every o
 users).  Nodes in different processes or contexts are never linked: their messages go through the middleware as
 before.  Used where the nodes share a process: nodes/ephemeris_node.py offers the satellite states, which the
 visibility nodes take; nodes/fleet_visibility_node.py offers each robot's visibility, nodes/fleet_receiver_node.py
-and gnss-sim run's driver (commands/run/outputs.py) take them; nodes/trajectory_player.py offers /tf, which
-nodes/tf_source.py takes beside its middleware subscription (/tf has many publishers: a message handed is fed at
-once, the middleware's copy of it dropped).  So in the fleet layout one epoch runs from the states published to
+and gnss-sim run's driver (commands/run/outputs.py) take them; each receiver (nodes/receiver_session.py) offers its
+fix and status, which the driver takes; nodes/trajectory_player.py offers /tf, which nodes/tf_stream.py (the TF tree
+and the driver's missing-frame rule) takes beside its middleware subscription (/tf has many publishers: a message
+handed is used at once, the middleware's copy of it dropped undecoded).  So in the fleet layout one epoch runs from the states published to
 every robot's observations published in one callback, with no middleware hop in between.
 ``GNSS_SIM_IN_PROCESS=off`` turns the hand-over off (every message through the middleware).
 

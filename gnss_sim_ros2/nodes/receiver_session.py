@@ -33,6 +33,11 @@ from gnss_sim_ros2.messages.conversions import (
 from gnss_sim_ros2.messages.diagnostics import diagnostic_array, diagnostic_status
 from gnss_sim_ros2.messages.solution import fix_to_msg, status_to_msg, vel_to_msg
 from gnss_sim_ros2.messages.streams import nmea_to_msg, rtcm_to_msg
+from gnss_sim_ros2.nodes.in_process import Offer
+
+#: the publishers whose messages are also handed in-process (nodes/in_process.py): gnss-sim run's driver takes
+#: every robot's fix and status
+HANDED = ("fix", "status")
 
 
 class ReceiverSession:
@@ -52,6 +57,7 @@ class ReceiverSession:
         self.params: dict = {}
         self.chain = None                  # core.receiver.chain.ReceiverChain (configure .. cleanup)
         self.pubs: dict = {}
+        self.offers: dict = {}             # HANDED's publishers handed in-process (configure .. cleanup)
         self.pairing = EpochPairing()      # the states and visibility bytes by stamp (sec, nanosec) until both came
         self.tcp = None                    # core.rtcm.tcp_server.RtcmTcpServer (configure .. cleanup)
         self.unfinished: list = []         # epochs observed and published, their fix not yet (process .. finish)
@@ -82,6 +88,7 @@ class ReceiverSession:
             "nmea": pub(String, "nmea", 100),
             "diag": pub(DiagnosticArray, "/diagnostics", 10),
         }
+        self.offers = {key: Offer(self.node, self.pubs[key]) for key in HANDED}
         if p["scenario"]:              # the scenario's events (core/threats) in the scene of scenario_world
             from gnss_sim_ros2.core.threats.runtime import ThreatRuntime
             from gnss_sim_ros2.core.threats.scenario import load_scenario
@@ -118,6 +125,9 @@ class ReceiverSession:
     def cleanup(self):
         self.finish()
         self.paired.clear()
+        for offer in self.offers.values():
+            offer.withdraw()
+        self.offers = {}
         self.pubs = {}
         for srv in self.threat_services:
             self.node.destroy_service(srv)
@@ -198,17 +208,18 @@ class ReceiverSession:
         nmea = self.wanted("nmea")
         ep = self.chain.finish(t, ecef, states, obs, sol, nmea=nmea)
         sol = ep.sol
-        fix, vel, status = self.wanted("fix"), self.wanted("vel"), self.wanted("status")
+        fix, status = self._receivers("fix"), self._receivers("status")
+        vel = self.wanted("vel")
         if fix or vel or status:
             header = Header(stamp=Time(sec=stamp[0], nanosec=stamp[1]), frame_id=self.params["antenna_frame"])
             if fix:
-                self.pubs["fix"].publish(fix_to_msg(header, sol))
+                self._send("fix", fix_to_msg(header, sol), fix)
             if vel:
                 self.pubs["vel"].publish(vel_to_msg(header, sol))
             if status:
                 bands = self.chain.threats.status(t) if self.chain.threats is not None else None
-                self.pubs["status"].publish(status_to_msg(header, obs, sol,
-                                                          self.chain.settings.receiver.elevation_mask_deg, bands))
+                self._send("status", status_to_msg(header, obs, sol, self.chain.settings.receiver.elevation_mask_deg,
+                                                   bands), status)
         if nmea:
             self.pubs["nmea"].publish(nmea_to_msg(ep.nmea))
         if "threats" in self.pubs and self.wanted("threats"):     # the epoch's truth labels (messages/threats.py)
@@ -223,6 +234,20 @@ class ReceiverSession:
                 self.tcp.write(ep.rtcm)
         if self.chain.epochs % 10 == 1 and self.wanted("diag"):
             self._diagnose(obs, sol)
+
+    def _receivers(self, key: str) -> tuple:
+        """Who gets the message of publisher ``key`` (a HANDED one): (published: anyone subscribes, the takers of
+        this process it is handed to); empty: nobody, no message built."""
+        takers = self.offers[key].takers() if key in self.offers else []
+        published = self.wanted(key)
+        return (published, takers) if published or takers else ()
+
+    def _send(self, key: str, msg, receivers: tuple):
+        published, takers = receivers
+        if published:
+            self.pubs[key].publish(msg)
+        for deliver in takers:
+            deliver(msg)
 
     def wanted(self, key: str) -> bool:
         """Whether the message of publisher ``key`` has anyone to go to: a topic without subscribers gets no

@@ -6,14 +6,13 @@ at the stamp (interpolated), or raise ``TransformError``.
 """
 from __future__ import annotations
 
-import collections
 import time
 
 import numpy as np
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from scipy.spatial.transform import Rotation
 
-from gnss_sim_ros2.nodes.in_process import Taker
+from gnss_sim_ros2.nodes.tf_stream import TfStream
 from gnss_sim_ros2.tf_tree import FrameWait, TransformError, TransformTree
 
 try:  # a ROS 2 install
@@ -31,7 +30,7 @@ class TfSource:
         self.on_update = on_update     # called after each /tf message (compact backend): a waiting lookup retries
         self.backend = "tf2_ros" if (HAVE_TF2_ROS and prefer_tf2_ros) else "compact"
         self._subs = []
-        self._taker = None
+        self._stream = None
         #: how far TF has come per frame group: the missing-frame rule (frame_missing)
         self.wait = FrameWait(timeout_s)
         if self.backend == "tf2_ros":
@@ -48,38 +47,12 @@ class TfSource:
             static_qos = QoSProfile(depth=100, durability=DurabilityPolicy.TRANSIENT_LOCAL,
                                     reliability=ReliabilityPolicy.RELIABLE)
             self._subs = [
-                node.create_subscription(TFMessage, "/tf", self._from_middleware, 100),
-                node.create_subscription(TFMessage, "/tf_static", lambda m: self._feed(m, True), static_qos),
-            ]
-            # a trajectory player of this process hands its /tf messages at once (nodes/in_process.py); the
-            # middleware subscription stays (/tf has many publishers), and the middleware's copy of a message
-            # handed is then dropped (its key: _handed_keys)
-            self._handed_keys: collections.deque = collections.deque(maxlen=256)
-            self._taker = Taker(node, "/tf", self._handed, lambda on: None)
+                node.create_subscription(TFMessage, "/tf_static", lambda m: self._feed(m, True), static_qos)]
+            # /tf: a trajectory player of this process hands its messages at once (nodes/tf_stream.py), the
+            # others' come through the middleware
+            self._stream = TfStream(node, lambda m: self._feed(m, False))
         #: newest dynamic stamp seen per child frame [s] (compact backend)
         self.latest_s: dict[str, float] = {}
-
-    @staticmethod
-    def _key(msg):
-        tfs = msg.transforms
-        if not tfs:
-            return None
-        first, last = tfs[0], tfs[-1]
-        return (len(tfs), first.header.stamp.sec, first.header.stamp.nanosec, first.child_frame_id,
-                last.header.stamp.sec, last.header.stamp.nanosec, last.child_frame_id)
-
-    def _handed(self, msg):
-        key = self._key(msg)
-        if key is not None:
-            self._handed_keys.append(key)
-        self._feed(msg, False)
-
-    def _from_middleware(self, msg):
-        key = self._key(msg)
-        if key is not None and key in self._handed_keys:
-            self._handed_keys.remove(key)      # fed when it was handed
-            return
-        self._feed(msg, False)
 
     def _progress(self, msg):
         self.wait.seen_transforms(msg.transforms, time.monotonic())
@@ -131,9 +104,9 @@ class TfSource:
             return False
 
     def close(self):
-        if self._taker is not None:
-            self._taker.close()
-            self._taker = None
+        if self._stream is not None:
+            self._stream.close()
+            self._stream = None
         for s in self._subs:
             self.node.destroy_subscription(s)
         self._subs = []

@@ -113,9 +113,16 @@ class TrajectoryPlayer(GnssSimNode):
             msgs += [transform_to_msg(p["world_frame"], p["base_frame"], stamp, pos[i], float(yaw[i]))
                      for i, stamp in enumerate(stamps)]
         msg = tf_message(msgs)
-        self.tf_pub.publish(msg)
-        for deliver in self.tf_offer.takers():
-            deliver(msg)
+        takers = self.tf_offer.takers()
+        if takers:       # handed with its bytes as published: a taker drops the middleware's copy (tf_stream.py)
+            from rclpy.serialization import serialize_message
+
+            data = serialize_message(msg)
+            self.tf_pub.publish(data)
+            for deliver in takers:
+                deliver((msg, data))
+        else:
+            self.tf_pub.publish(msg)
 
 
 def main(args=None):

@@ -24,9 +24,9 @@ class RunOutputs:
     def __init__(self, driver, cfg, args):
         from gnss_sim_msgs.msg import Observations, SatelliteStates
         from sensor_msgs.msg import NavSatFix
-        from tf2_msgs.msg import TFMessage
 
         from gnss_sim_ros2.nodes.latency_probe import LatencyProbe
+        from gnss_sim_ros2.nodes.tf_stream import TfStream
         from gnss_sim_ros2.tf_tree import FrameWait
 
         self.driver, self.cfg = driver, cfg
@@ -36,8 +36,7 @@ class RunOutputs:
         # how far TF has come: the missing-frame rule of the wait for an epoch's visibility (tf_tree.FrameWait; a
         # second later than the visibility node's own, whose error comes first)
         self.tf_wait = FrameWait(cfg.node("visibility")["tf_timeout_s"] + 1.0)
-        self._subs.append(driver.create_subscription(
-            TFMessage, "/tf", lambda m: self.tf_wait.seen_transforms(m.transforms, time.monotonic()), 100))
+        self.tf_stream = TfStream(driver, lambda m: self.tf_wait.seen_transforms(m.transforms, time.monotonic()))
         r0 = self.robots[0]              # one robot: the run's outputs (the RTK figures use its truth)
         self.status, self.fix, self.truth = r0.status, r0.fix, r0.truth
         # latency: the states published -> each robot's observations published (the middleware's publication
@@ -101,8 +100,10 @@ class RunOutputs:
                        d.create_subscription(Visibility, "/gnss/antenna2/visibility", on_vis, 1000)]
 
     def close(self):
+        self.tf_stream.close()
         for r in self.robots:
-            r.vis_taker.close()
+            for taker in r.takers:
+                taker.close()
         self.probe.close()
 
 
@@ -143,12 +144,18 @@ class RobotOutputs:
             self.last_vis = cols
 
         topic = self.topic
-        self.subs = [driver.create_subscription(ReceiverStatus, topic("status"), on_status, 100),
-                     driver.create_subscription(NavSatFix, topic("fix"), on_fix, 100)]
-        over_middleware = subscription_switch(
-            lambda: driver.create_subscription(Visibility, topic("visibility"), on_vis, 100, raw=True),
-            driver.destroy_subscription)
-        self.vis_taker = Taker(driver, topic("visibility"), on_handed, over_middleware)
+
+        def taker(name, deliver, subscribe):
+            """``name`` handed by a node of this process (nodes/in_process.py), else subscribed."""
+            return Taker(driver, topic(name), deliver, subscription_switch(subscribe, driver.destroy_subscription))
+
+        # the status and fix as the receiver hands them (the message objects: nothing serialised for the driver)
+        self.takers = [
+            taker("status", on_status, lambda: driver.create_subscription(ReceiverStatus, topic("status"),
+                                                                           on_status, 100)),
+            taker("fix", on_fix, lambda: driver.create_subscription(NavSatFix, topic("fix"), on_fix, 100)),
+            taker("visibility", on_handed, lambda: driver.create_subscription(Visibility, topic("visibility"), on_vis,
+                                                                              100, raw=True))]
 
     def topic(self, name: str) -> str:
         """This robot's topic ``name`` (/robot<k>/gnss/<name>, or /gnss/<name> for the one robot of a run)."""
