@@ -14,8 +14,8 @@ visibility nodes take; nodes/fleet_visibility_node.py offers each robot's visibi
 and gnss-sim run's driver (commands/run/outputs.py) take them; each receiver (nodes/receiver_session.py) offers its
 fix and status, which the driver takes; nodes/trajectory_player.py offers /tf, which nodes/tf_stream.py (the TF tree
 and the driver's missing-frame rule) takes beside its middleware subscription (/tf has many publishers: a message
-handed is used at once, the middleware's copy of it dropped undecoded).  So in the fleet layout one epoch runs from the states published to
-every robot's observations published in one callback, with no middleware hop in between.
+handed is used at once, the middleware's copy of it dropped undecoded).  So in the fleet layout one epoch runs from
+the states published to every robot's observations published in one callback, with no middleware hop in between.
 ``GNSS_SIM_IN_PROCESS=off`` turns the hand-over off (every message through the middleware).
 
 The registry is keyed by (context, executor, resolved topic name); the context by its rcl handle, new at every
