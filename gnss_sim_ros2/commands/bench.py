@@ -49,8 +49,11 @@ def add_arguments(p):
     p.add_argument("--fleet-robots", default="1,4,32", metavar="N[,N...]",
                    help="with --fleet: robot counts, one run each (1..64; 1 is needed for the added cost) [1,4,32]")
     p.add_argument("--fleet-rate", type=float, default=10.0, metavar="HZ", help="with --fleet: epoch rate [10]")
-    p.add_argument("--fleet-duration", type=float, default=60.0, metavar="S",
-                   help="with --fleet: simulated (= wall) seconds of each run [60]")
+    p.add_argument("--fleet-duration", type=float, default=20.0, metavar="S",
+                   help="with --fleet: simulated (= wall) seconds of each run [20]")
+    p.add_argument("--fleet-repeats", type=int, default=3, metavar="R",
+                   help="with --fleet: runs per robot count, in rounds over the counts (1..10): CPU and memory are "
+                        "their medians, latency the worst run's [3]")
     p.add_argument("--fleet-config", metavar="FILE", default=None,
                    help="with --fleet: gnss_sim parameter file of every run (e.g. multipath: 'off' in the visibility "
                    "section) [the defaults]")
@@ -91,13 +94,16 @@ def run_fleet_command(args) -> int:
 
     try:
         counts = check_counts(args.fleet_robots)
+        if not 1 <= args.fleet_repeats <= 10:
+            raise ValueError(f"option --fleet-repeats {args.fleet_repeats}: give 1 to 10 runs per robot count")
         if not (0 < args.fleet_rate <= 100 and args.fleet_duration >= 1):
             raise ValueError(f"options --fleet-rate {args.fleet_rate:g} / --fleet-duration {args.fleet_duration:g}: "
                              f"a rate in (0, 100] Hz and a duration of at least 1 s are needed")
         if args.fleet_config and not Path(args.fleet_config).is_file():
             raise ValueError(f"option --fleet-config {args.fleet_config}: no such file")
         report = run_fleet(counts, args.fleet_rate, args.fleet_duration,
-                           log=lambda m: print(m, file=sys.stderr, flush=True), config=args.fleet_config)
+                           log=lambda m: print(m, file=sys.stderr, flush=True), config=args.fleet_config,
+                           repeats=args.fleet_repeats)
     except (ValueError, RuntimeError) as exc:
         print(f"gnss-sim bench: error: {exc}", file=sys.stderr)
         return 2
