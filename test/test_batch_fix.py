@@ -76,8 +76,10 @@ def epochs(tmp_path_factory):
     return out
 
 
-def test_epochs_solved_together_give_each_epoch_its_own_bits(epochs):
-    cfg = SolverConfig()
+@pytest.mark.parametrize("clock_systems", ["", "GREC"])
+def test_epochs_solved_together_give_each_epoch_its_own_bits(epochs, clock_systems):
+    """Without clock_systems in sets of the same clock groups; with them (a receiver's systems) all in one set."""
+    cfg = SolverConfig(clock_systems=clock_systems)
     alone = [solve_pvt_many([e], cfg)[0] for e in epochs]
     assert len({len(e["sv"]) for e in epochs}) > 5                   # satellite sets of many sizes: padding
     assert sum(a.is_fix for a in alone) > 10 and sum(not a.is_fix for a in alone) >= 3
@@ -99,3 +101,37 @@ def test_pointwise_geodetic_is_the_scalar_path_bit_for_bit():
     one = np.array([[float(c) for c in ecef_to_geodetic(*p)] for p in v.tolist()])
     for got, want in zip((lat, lon, h), one.T):
         assert got.tobytes() == want.tobytes()
+
+
+def test_clock_systems_solve_receivers_alike_in_one_pass(epochs, monkeypatch):
+    """With the receiver's systems configured, epochs that lack a system (a robot that sees no Galileo) are solved
+    in one pass with the others (one _solve_epochs), and a clock group without satellites changes nothing but
+    the bits: positions, clocks, DOPs and the residual check as without it."""
+    from gnss_sim_ros2.core import solver
+
+    calls = []
+    real = solver._solve_epochs
+    monkeypatch.setattr(solver, "_solve_epochs", lambda ep, cfg: calls.append(len(ep)) or real(ep, cfg))
+    dropped = [i for i, e in enumerate(epochs) if {sv[0] for sv in e["sv"].tolist()}
+               != set("GREC") and len(e["sv"]) >= 8]
+    full = [i for i, e in enumerate(epochs) if len(e["sv"]) >= 8 and i not in dropped]
+    assert dropped and full
+    batch = [epochs[i] for i in dropped[:4] + full[:4]]
+    plain = solve_pvt_many(batch, SolverConfig())
+    assert len(calls) > 1                                  # by clock groups: several passes
+    calls.clear()
+    padded = solve_pvt_many(batch, SolverConfig(clock_systems="GREC"))
+    assert calls == [len(batch)]                           # one pass
+    for a, b in zip(plain, padded):
+        assert a.is_fix == b.is_fix and a.excluded == b.excluded and a.reason == b.reason
+        if a.is_fix:
+            np.testing.assert_allclose(b.pos_ecef_m, a.pos_ecef_m, rtol=0, atol=1e-6)
+            np.testing.assert_allclose([b.gdop, b.pdop, b.hdop, b.vdop, b.tdop],
+                                       [a.gdop, a.pdop, a.hdop, a.vdop, a.tdop], rtol=1e-9)
+            assert b.clock_bias_m.keys() == a.clock_bias_m.keys()
+
+
+def test_clock_systems_checked():
+    with pytest.raises(ValueError, match="clock_systems 'GX'"):
+        solve_pvt_many([{"sv": ["G01"], "sat_pos_ecef_m": [[2e7, 0, 0]], "pseudorange_m": [2e7]}],
+                       SolverConfig(clock_systems="GX"))

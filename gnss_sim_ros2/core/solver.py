@@ -85,6 +85,11 @@ class SolverConfig:
     max_gdop: float = 30.0                # RTKLIB default maxgdop
     #: systems whose clock is that of another system (QZSST and SBAS network time are GPST)
     clock_groups: Mapping[str, str] = field(default_factory=lambda: {"J": "G", "S": "G"})
+    #: the systems a receiver tracks (RINEX letters, e.g. "GRECJI"; "": those of the satellites given): its
+    #: epochs are solved with a clock column for each of their clock groups, one without satellites in an
+    #: epoch left out of that epoch's unknowns (_filled), so that the epochs of receivers configured alike
+    #: (a fleet's robots) are solved together whatever satellites each sees, each with the bits it gets alone
+    clock_systems: str = ""
 
 
 #: templates of the unset velocity fields (copied: np.full's own overhead is larger)
@@ -348,6 +353,22 @@ def _clock_group(sv_list, groups: Mapping[str, str]) -> np.ndarray:
     return np.array([groups.get(s[0], s[0]) for s in sv_list])
 
 
+_CONFIGURED_GROUPS: dict = {}
+
+
+def _configured_groups(cfg: SolverConfig) -> frozenset:
+    """The clock groups of ``cfg.clock_systems`` (empty: none configured); checked and kept per value."""
+    key = (cfg.clock_systems, tuple(cfg.clock_groups.items()))
+    hit = _CONFIGURED_GROUPS.get(key)
+    if hit is None:
+        bad = [s for s in cfg.clock_systems if s not in SYSTEM_ORDER]
+        if bad:
+            raise ValueError(f"SolverConfig.clock_systems {cfg.clock_systems!r}: {''.join(bad)!r} are not RINEX "
+                             f"system letters ({SYSTEM_ORDER})")
+        hit = _CONFIGURED_GROUPS[key] = frozenset(cfg.clock_groups.get(s, s) for s in cfg.clock_systems)
+    return hit
+
+
 _DEFAULT_CONFIG: list = []
 _SAT_TABLE_CACHE = BoundedCache(128)
 
@@ -453,9 +474,10 @@ def solve_pvt_many(epochs, config: SolverConfig | None = None) -> list[PvtSoluti
     (_geodetic_at, the per-epoch reductions over the padded satellites)."""
     cfg = config or _default_config()
     ep = [_epoch_inputs(e, cfg) for e in epochs]
+    configured = _configured_groups(cfg)
     sets: dict = {}
     for i, p in enumerate(ep):
-        sets.setdefault(frozenset(p.groups.tolist()), []).append(i)
+        sets.setdefault(configured.union(p.groups.tolist()), []).append(i)
     if len(sets) == 1:
         return _solve_epochs(ep, cfg)
     sols: list = [None] * len(ep)
@@ -479,7 +501,7 @@ def _solve_epochs(ep: list, cfg: SolverConfig) -> list[PvtSolution]:
 
     ok = flat([p.valid for p in ep]).astype(bool)
     groups = flat([p.groups for p in ep]).astype(str)
-    clock_sys = sorted(set(groups.tolist()), key=SYSTEM_ORDER.index)
+    clock_sys = sorted(_configured_groups(cfg).union(groups.tolist()), key=SYSTEM_ORDER.index)
     sat = np.zeros((k_n, n_max, 3))
     y = np.zeros((k_n, n_max))
     valid = np.zeros((k_n, n_max), dtype=bool)

@@ -95,7 +95,10 @@ class ChainSettings:
         kw["spoof_capture_margin_db"] = float(p.get("spoof_capture_margin_db", 3.0))
         kw.update({k: v for k, v in (receiver_overrides or {}).items() if v is not None and v != ""})
         out_dir = p.get("output_dir", "")
-        return cls(receiver=ReceiverConfig(**kw), solver=SolverConfig(elevation_mask_deg=p["elevation_mask_deg"]),
+        receiver = ReceiverConfig(**kw)
+        # the fixes' clock columns: the systems tracked (epochs of robots configured alike solved together)
+        return cls(receiver=receiver, solver=SolverConfig(elevation_mask_deg=p["elevation_mask_deg"],
+                                                          clock_systems=str(receiver.systems)),
                    interval_s=float(interval_s if interval_s is not None else 1.0 / p["rate_hz"]),
                    marker_name=p.get("marker_name", "GSIM"), preset=p["preset"],
                    output_dir=Path(out_dir) if out_dir else None,

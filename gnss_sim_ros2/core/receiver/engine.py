@@ -63,7 +63,7 @@ from .. import signals as sig
 from ..ephemeris.health import signal_usable
 from ..ephemeris.states import SatelliteStates
 from ..frames import az_el_at, ecef_to_geodetic
-from ..memo import BoundedCache
+from ..memo import BoundedCache, read_only
 from ..nequick import NeQuickG
 from ..signal_plans import default_plans, gps_day
 from ..time import GnssTime
@@ -158,8 +158,11 @@ class Receiver:
             return hit
         shared_key = (self._rows_config_key, key)
         shared = _SHARED_ROWS.get(shared_key)
-        if shared is None:
-            shared = _SHARED_ROWS.put(shared_key, self._configured_rows(svs, glo_channel, day, health))
+        if shared is None:      # handed to every receiver configured alike: read-only
+            shared = self._configured_rows(svs, glo_channel, day, health)
+            for value in vars(shared).values():
+                read_only(value)
+            _SHARED_ROWS.put(shared_key, shared)
         rows = copy.copy(shared)
         # multipath states: one slot per (sv, code), kept for the receiver's lifetime (this receiver's own)
         rows.mp_idx = self.code_multipath.slots(rows.sv_j, rows.signal_rows[1])
