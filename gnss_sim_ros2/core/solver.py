@@ -353,7 +353,7 @@ def _clock_group(sv_list, groups: Mapping[str, str]) -> np.ndarray:
     return np.array([groups.get(s[0], s[0]) for s in sv_list])
 
 
-_CONFIGURED_GROUPS: dict = {}
+_CONFIGURED_GROUPS = BoundedCache(64)
 
 
 def _configured_groups(cfg: SolverConfig) -> frozenset:
@@ -365,7 +365,7 @@ def _configured_groups(cfg: SolverConfig) -> frozenset:
         if bad:
             raise ValueError(f"SolverConfig.clock_systems {cfg.clock_systems!r}: {''.join(bad)!r} are not RINEX "
                              f"system letters ({SYSTEM_ORDER})")
-        hit = _CONFIGURED_GROUPS[key] = frozenset(cfg.clock_groups.get(s, s) for s in cfg.clock_systems)
+        hit = _CONFIGURED_GROUPS.put(key, frozenset(cfg.clock_groups.get(s, s) for s in cfg.clock_systems))
     return hit
 
 
