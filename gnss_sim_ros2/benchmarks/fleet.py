@@ -3,13 +3,12 @@
 For each robot count N, ``--fleet-repeats`` runs (in rounds over the counts) of ``gnss-sim run --realtime
 --layout fleet --robots N`` (a process of its own: the whole graph in it, one visibility node casting every robot's
 antenna per epoch, one receiver node stepping every robot's chain; every system, no bag, so the figures are the
-simulator's) and from its summary.json: the p99
-latency from the satellite states published to the worst robot's observations published (the middleware's
-publication times, nodes/latency_probe.py), the epochs without every robot's output, the run process's CPU time
-per epoch and peak memory.  Derived: the added cost of one more robot ((CPU(N) - CPU(1)) / (N - 1)) as a share
-of one robot's whole cost (CPU(1): the graph with one robot), and the memory per added robot likewise, from the
-medians of the runs (the CPU time of one run moves by 10-20 % with what else the machine does).  The load average is
-printed before and after each run: the machine may be shared.
+simulator's) and from its summary.json: the p99 latency from the satellite states published to the worst robot's
+observations published (the middleware's publication times, nodes/latency_probe.py), the epochs without every
+robot's output, the run process's CPU time per epoch and peak memory.  Derived: the added cost of one more robot
+((CPU(N) - CPU(1)) / (N - 1)) as a share of one robot's whole cost (CPU(1): the graph with one robot), and the
+memory per added robot likewise, from the medians of the runs (the CPU time of one run moves by 10-40 % with what
+else the machine does).  The load average is printed before and after each run: the machine may be shared.
 """
 from __future__ import annotations
 

@@ -47,7 +47,8 @@ def add_arguments(p):
                    "p99 states -> observations of the worst robot, epochs without output, added CPU and memory of "
                    "one more robot")
     p.add_argument("--fleet-robots", default="1,4,32", metavar="N[,N...]",
-                   help="with --fleet: robot counts, one run each (1..64; 1 is needed for the added cost) [1,4,32]")
+                   help="with --fleet: robot counts, --fleet-repeats runs each (1..64; 1 is needed for the added cost) "
+                        "[1,4,32]")
     p.add_argument("--fleet-rate", type=float, default=10.0, metavar="HZ", help="with --fleet: epoch rate [10]")
     p.add_argument("--fleet-duration", type=float, default=20.0, metavar="S",
                    help="with --fleet: simulated (= wall) seconds of each run [20]")
