@@ -19,10 +19,14 @@ and the ratio planner / raw (the issue's goal: >= 50 %); the CPU seconds of both
 the other processes on the machine take).
 
     .venv/bin/python bench/bench_plan.py [--cells 2000] [--repeat 3] [--synthetic-city] [--full] [--overlap]
-                                         [--share-tile-m M]
+                                         [--share-tile-m M] [--workers N]
 
 ``--share-tile-m``: the tiles whose cells share the per-(time, satellite) terms (planning/shared.py; 0: per cell,
 the planner before them; default: quality.DEFAULT_SHARE_TILE_M).
+
+``--workers N`` runs the cells' blocks (``--cells 9072``: 8 blocks) in this process and on a local Dask cluster of N
+workers, as ``gnss-sim plan --workers N``, and prints both by wall against raw Open3D on as many rays (raw Open3D
+casts on every core; one process leaves its own numpy work on one).
 
 ``--full`` plans every cell of the area instead (runner.run_blocks in this process, as ``gnss-sim plan`` without
 ``--workers``; no map or file written) and prints its time: the 1 km2 x 24 h plan timed, not extrapolated.
@@ -95,6 +99,9 @@ def main() -> int:
     ap.add_argument("--full", action="store_true", help="plan every cell of the 1 km2 area (minutes) and time it")
     ap.add_argument("--overlap", action="store_true",
                     help="quality.OVERLAP_FINISH on: a window's finish on a second thread during the next casts")
+    ap.add_argument("--workers", type=int, default=None,
+                    help="also run the cells' blocks on a local Dask cluster of N workers (as gnss-sim plan --workers "
+                         "N) and in this process, rays per second by wall against raw Open3D on as many rays")
     ap.add_argument("--share-tile-m", type=float, default=None,
                     help="PlanInputs.share_tile_m (0: per-cell terms; default: the planner's)")
     args = ap.parse_args()
@@ -103,8 +110,10 @@ def main() -> int:
     from gnss_sim_ros2.core.planning import quality
 
     quality.OVERLAP_FINISH = args.overlap
-    with tempfile.TemporaryDirectory() as tmp:
-        name, scene, box = scene_and_box(args.synthetic_city, Path(tmp))
+    if args.workers is not None and args.workers < 1:
+        ap.error(f"option --workers is {args.workers}: at least 1 worker")
+    tmp_dir = tempfile.TemporaryDirectory()          # the workers load the scene from its files (kept until exit)
+    name, scene, box = scene_and_box(args.synthetic_city, Path(tmp_dir.name))
     area = grid_area(2.0, box)
     rng = np.random.default_rng(0)
     n_pick = area.n_cells if args.full else min(args.cells, area.n_cells)
@@ -123,6 +132,8 @@ def main() -> int:
           f"{len(sky.t_s)} steps x {len(sky.sv)} satellites; tiles sharing terms {inp.share_tile_m:g} m")
     if args.full:
         return _full_plan(scene, vis, ant, inp)
+    if args.workers is not None:
+        return _workers_plan(scene, vis, ant, inp, args.workers, args.repeat, Path(tmp_dir.name))
     rays = raw_rays(scene, ant, sky.pos_ecef_m, vis.mask_deg)
     tensor = o3d.core.Tensor.from_numpy(rays)
     best, raw, cpu, raw_cpu = None, np.inf, np.inf, np.inf
@@ -167,6 +178,54 @@ def _full_plan(scene, vis, ant, inp) -> int:
           f"({total['rays'] / total['wall_s']:,.0f} rays/s; casts {total['cast_s']:.0f} s); RTK indicator share "
           f"{100 * out['rtk'].mean():.0f} %")
     return 0
+
+
+def _workers_plan(scene, vis, ant, inp, workers: int, repeat: int, scene_dir: Path) -> int:
+    """The cells' blocks as ``gnss-sim plan`` runs them: in this process and on a local Dask cluster of
+    ``workers`` (scene loaded by each worker from its files first, as a long plan pays it once), against raw Open3D
+    on as many rays, by wall (the work of the cluster's processes is not in this process's CPU time).  Interleaved,
+    best of ``repeat`` each; the fields of the two runs compared."""
+    import os
+
+    import open3d as o3d
+
+    from gnss_sim_ros2.core.planning import runner
+    from gnss_sim_ros2.core.sweep.driver import connect_cluster
+
+    if (scene_dir / "worlds").is_dir():                  # the Hong Kong model copied by city_scene
+        os.environ["GZ_SIM_RESOURCE_PATH"] = str(scene_dir / "models")   # inherited by the workers
+        spec = runner.SceneSpec(world=str(scene_dir / "worlds" / "hong_kong_city_only.world"), keep_dynamic=True)
+    else:
+        print("--workers needs the Hong Kong city model (a world the workers load from its files)")
+        return 2
+    runner._SCENES.clear()
+    runner._SCENES[spec] = scene
+    rays = raw_rays(scene, ant, inp.sat_pos_ecef_m, vis.mask_deg)
+    tensor = o3d.core.Tensor.from_numpy(rays)
+    client, cluster = connect_cluster(workers, None)
+    try:
+        client.run(lambda: spec.load() is not None)         # each worker loads the scene once, as a plan does
+        one = many = raw = np.inf
+        for _ in range(repeat):                              # interleaved, best of each
+            out1, tot1 = runner.run_blocks(spec, vis, ant, inp)
+            one = min(one, tot1["wall_s"])
+            outn, totn = runner.run_blocks(spec, vis, ant, inp, client=client)
+            many = min(many, totn["wall_s"])
+            raw = min(raw, _timed(lambda: scene.rays._opaque.test_occlusions(tensor, tnear=1e-3, nthreads=0)))
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+    same = all(np.array_equal(out1[k], outn[k], equal_nan=out1[k].dtype.kind == "f") for k in out1)  # NaN: no fix
+    n = tot1["rays"]
+    print(f"{len(ant):,} cells in {tot1['blocks']} blocks, {n:,} rays (raw rays built: {len(rays):,}); "
+          f"fields equal in both runs: {same}")
+    print(f"planner, this process      {n / one:12,.0f} rays/s   {one:7.2f} s")
+    print(f"planner, {workers} Dask workers   {n / many:12,.0f} rays/s   {many:7.2f} s")
+    print(f"raw Open3D occlusions      {len(rays) / raw:12,.0f} rays/s   {raw:7.2f} s")
+    print(f"planner / raw by wall: {100 * (n / one) / (len(rays) / raw):.0f} % in this process, "
+          f"{100 * (n / many) / (len(rays) / raw):.0f} % on {workers} workers")
+    return 0 if same else 1
 
 
 def _timed(fn) -> float:

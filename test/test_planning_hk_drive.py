@@ -11,10 +11,11 @@ import pytest
 from test_urban_hk_drive import hk  # noqa: F401  (the drive, its city model, ephemeris and real file: one loader)
 
 from gnss_sim_ros2.core.comparison import drive_check
+from gnss_sim_ros2.core.frames import az_el_from_ecef
 from gnss_sim_ros2.core.planning.predicted_cn0 import predictor_from_profile
 from gnss_sim_ros2.core.planning.quality import PlanInputs, path_quality
 from gnss_sim_ros2.core.planning.ranging import budget_from_profile
-from gnss_sim_ros2.core.planning.skill import count_agreement, skill
+from gnss_sim_ros2.core.planning.skill import count_agreement, feature_ceiling, skill
 from gnss_sim_ros2.core.planning.sky import plan_sky
 from gnss_sim_ros2.core.visibility import VisibilityOptions
 
@@ -29,7 +30,7 @@ THRESHOLDS_DBHZ = (30.0, 35.0, 40.0)
 def scored(hk):  # noqa: F811
     drive0, scene, prov, _, real_obs, _, drive_dir = hk
     real = drive_check.file_view(real_obs, drive0, drive0.truth_ecef_m, prov, scene, mask_deg=MASK_DEG)
-    out, by_cn0, counts = {}, {}, {}
+    out, by_cn0, counts, told = {}, {}, {}, {}
     for name, offset in (("as given", (0.0, 0.0)), ("placed", PLACED_OFFSET_M)):
         drive = drive_check.load_drive(drive_dir / "groundTruth_TST.csv", scene, offset_m=offset)
         sky = plan_sky(prov, drive.t, "GC")
@@ -58,7 +59,26 @@ def scored(hk):  # noqa: F811
                 by_cn0[(name, profile)] = {thr: skill(c >= thr, cn0 >= thr, considered) for thr in THRESHOLDS_DBHZ}
                 counts[(name, profile)] = {thr: count_agreement(c >= thr, cn0 >= thr, considered)
                                            for thr in THRESHOLDS_DBHZ}
-    return out, by_cn0, counts
+        if name == "placed":
+            told.update(_what_a_planner_knows(scene, drive, sky, states), cn0=cn0, considered=considered,
+                        fitted=pred["ublox_m8t_hk"])
+    return out, by_cn0, counts, told
+
+
+def _what_a_planner_knows(scene, drive, sky, states) -> dict:
+    """Per satellite-epoch, integer features a planner has before the drive: the model's state, the satellite,
+    its elevation in 5-deg bins and its margin above the model's skyline at its azimuth in 5-deg bins
+    (Scene.horizon_profile at the antenna, 1 deg azimuth steps)."""
+    az, el, _ = az_el_from_ecef(drive.truth_ecef_m[:, None, :], sky.pos_ecef_m)     # NaN where absent
+    skyline = np.array([scene.horizon_profile(a, 1.0, iterations=4)[1] for a in drive.antenna_world_m])
+    az_i = np.floor(np.nan_to_num(az)).astype(int) % 360
+    margin = np.nan_to_num(el) - np.take_along_axis(skyline, az_i, axis=1)
+    return {"state": states.astype(np.int64),
+            "sv": np.broadcast_to(np.arange(states.shape[1]), states.shape),
+            "el_bin": np.floor(np.nan_to_num(el) / 5.0).astype(np.int64),
+            "margin_bin": np.clip(np.floor(margin / 5.0), -4, 4).astype(np.int64),
+            "system": np.broadcast_to((sky.system == "G").astype(np.int64), states.shape),
+            "epoch": np.broadcast_to(np.arange(states.shape[0])[:, None], states.shape)}
 
 
 def _print(label, s):
@@ -128,3 +148,39 @@ def test_good_satellite_counts_per_epoch(scored):
     assert fit[35.0]["within"][1] >= fit[35.0]["base_within"][1] + 0.02
     assert fit[30.0]["within"][1] >= fit[30.0]["base_within"][1] + 0.03
     assert fit[35.0]["within"][1] >= los[35.0]["within"][1] + 0.2     # the predicted C/N0 fixes the over-count
+
+
+def test_what_the_models_features_can_tell_about_good_satellites(scored):
+    """Issue 30's 0.88 per satellite-epoch against what the planner's information can give on this drive at best:
+    skill.feature_ceiling, the accuracy of the best yes/no rule of the features (each combination answered by its
+    majority), in-sample (fitted on the answers themselves: an upper bound) and fitted on one half of the drive,
+    scored on the other (both ways).  Figures in docs/PLANNING.md."""
+    told = scored[3]
+    m = told["considered"]
+    sets = {"state": ("state",), "state, system, elevation": ("state", "system", "el_bin"),
+            "state, satellite, elevation": ("state", "sv", "el_bin"),
+            "state, satellite, elevation, skyline margin": ("state", "sv", "el_bin", "margin_bin")}
+    first = told["epoch"] < told["epoch"].max() // 2 + 1
+    ceil = {}
+    for thr in (30.0, 35.0):
+        good = told["cn0"] >= thr
+        with np.errstate(invalid="ignore"):
+            planner = skill(told["fitted"] >= thr, good, m)
+        print(f">= {thr:g} dB-Hz: planner (ublox_m8t_hk) accuracy {planner['accuracy']:.3f}, base rate "
+              f"{planner['base_rate']:.3f}")
+        for label, keys in sets.items():
+            feats = [told[k] for k in keys]
+            c = feature_ceiling(feats, good, m)
+            halves = [feature_ceiling(feats, good, m, fit=f)["accuracy"] for f in (first, ~first)]
+            ceil[(thr, label)] = c["accuracy"]
+            print(f"  best rule of {label}: in-sample {c['accuracy']:.3f} ({c['groups']} combinations); fitted on "
+                  f"one half, scored on the other {halves[0]:.3f} / {halves[1]:.3f}")
+    # measured 2026-12-05 (placed, n = 9700): >= 35 dB-Hz in-sample 0.695 (state), 0.754 (+ system, elevation),
+    # 0.769 (+ satellite), 0.816 (+ skyline margin, 238 combinations: over-fitted, 0.687 / 0.755 on the half it did
+    # not see); the planner 0.743.  Issue 30's 0.88 is above what any rule of these features scores on this drive,
+    # even fitted on it.
+    assert ceil[(35.0, "state, satellite, elevation")] < 0.88
+    assert ceil[(35.0, "state, satellite, elevation, skyline margin")] < 0.88
+    with np.errstate(invalid="ignore"):
+        planner35 = skill(told["fitted"] >= 35.0, told["cn0"] >= 35.0, m)["accuracy"]
+    assert planner35 >= ceil[(35.0, "state, system, elevation")] - 0.03   # the planner uses most of what they carry

@@ -69,3 +69,46 @@ def count_agreement(predicted, observed, considered=None, tolerances=(0, 1, 2)) 
     return {"n_epochs": int(rows.sum()), "mean_predicted": float(n_pred.mean()),
             "mean_observed": float(n_obs.mean()), "constant": constant,
             "within": within, "base_within": base, "skill": gain}
+
+
+def feature_ceiling(features, observed, considered=None, fit=None) -> dict:
+    """What ``features`` can tell about boolean ``observed`` at best: the accuracy of the best yes/no prediction
+    that is a function of the features alone (each combination of feature values answered by its majority).
+
+    ``features``: integer arrays (bin continuous ones first) broadcastable to ``observed``'s shape; scored over the
+    ``considered`` entries (all by default).  Without ``fit`` the majorities are those of the scored entries
+    themselves (in-sample): no predictor from these features scores more on this sample, so a target above it
+    needs other information.  With ``fit`` (boolean, same shape) the majorities come from the considered ``fit``
+    entries and the score from the considered others (a combination not met in the fit part answered by the fit
+    part's majority): what such a rule, fitted once, carries to data it did not see.
+
+    Returns n (entries scored), accuracy, base_rate (the scored entries' majority share), groups (feature
+    combinations met where the majorities come from)."""
+    o = np.asarray(observed, bool)
+    m = np.ones(o.shape, bool) if considered is None else np.asarray(considered, bool)
+    if m.shape != o.shape:
+        raise ValueError(f"feature_ceiling: considered {m.shape} differs from observed {o.shape}")
+    if not len(features):
+        raise ValueError("feature_ceiling: no feature given")
+    try:
+        cols = [np.broadcast_to(np.asarray(f), o.shape)[m] for f in features]
+    except ValueError:
+        raise ValueError(f"feature_ceiling: features {[np.shape(f) for f in features]} do not broadcast to "
+                         f"observed {o.shape}") from None
+    if any(c.dtype.kind not in "biu" for c in cols):
+        raise ValueError("feature_ceiling: features must be integer arrays (bin continuous ones first)")
+    y = o[m]
+    train = np.ones(y.shape, bool) if fit is None else np.broadcast_to(np.asarray(fit, bool), o.shape)[m]
+    score = np.ones(y.shape, bool) if fit is None else ~train
+    if not train.any() or not score.any():
+        raise ValueError("feature_ceiling: no entry to fit on or none to score")
+    _, group = np.unique(np.stack(cols, axis=1), axis=0, return_inverse=True)
+    group = group.reshape(-1)
+    n_groups = int(group.max()) + 1
+    yes = np.bincount(group[train], weights=y[train], minlength=n_groups)
+    total = np.bincount(group[train], minlength=n_groups)
+    overall = 2 * y[train].sum() > train.sum()           # the fit part's majority (ties: "no")
+    answer = np.where(total > 0, 2 * yes > total, overall)
+    p_obs = float(y[score].mean())
+    return {"n": int(score.sum()), "accuracy": float(np.mean(answer[group[score]] == y[score])),
+            "base_rate": max(p_obs, 1.0 - p_obs), "groups": int(np.count_nonzero(total))}
