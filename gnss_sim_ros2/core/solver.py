@@ -365,7 +365,7 @@ def _configured_groups(cfg: SolverConfig) -> frozenset:
         if bad:
             raise ValueError(f"SolverConfig.clock_systems {cfg.clock_systems!r}: {''.join(bad)!r} are not RINEX "
                              f"system letters ({SYSTEM_ORDER})")
-        hit = _CONFIGURED_GROUPS.put(key, frozenset(cfg.clock_groups.get(s, s) for s in cfg.clock_systems))
+        hit = _CONFIGURED_GROUPS.put(key, frozenset(_clock_group(cfg.clock_systems, cfg.clock_groups).tolist()))
     return hit
 
 
