@@ -189,12 +189,13 @@ def _workers_plan(scene, vis, ant, inp, workers: int, repeat: int, scene_dir: Pa
 
     import open3d as o3d
 
+    from gnss_sim_ros2.core.comparison.drive_check import CITY_WORLD
     from gnss_sim_ros2.core.planning import runner
     from gnss_sim_ros2.core.sweep.driver import connect_cluster
 
-    if (scene_dir / "worlds").is_dir():                  # the Hong Kong model copied by city_scene
+    if (scene_dir / CITY_WORLD).is_file():               # the Hong Kong model copied by city_scene
         os.environ["GZ_SIM_RESOURCE_PATH"] = str(scene_dir / "models")   # inherited by the workers
-        spec = runner.SceneSpec(world=str(scene_dir / "worlds" / "hong_kong_city_only.world"), keep_dynamic=True)
+        spec = runner.SceneSpec(world=str(scene_dir / CITY_WORLD), keep_dynamic=True)
     else:
         print("--workers needs the Hong Kong city model (a world the workers load from its files)")
         return 2

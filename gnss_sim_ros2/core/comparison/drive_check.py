@@ -258,11 +258,15 @@ def write_trajectory_csv(drive: Drive, path) -> Path:
     return path
 
 
+#: the world of ``hk-tst-city-model``, relative to the model's folder (and to city_scene's ``workdir``)
+CITY_WORLD = Path("worlds") / "hong_kong_city_only.world"
+
+
 def city_scene(model_dir, workdir):
     """The Hong Kong city model (``hk-tst-city-model``: models/, worlds/hong_kong_city_only.world) as a Scene:
     copied into ``workdir`` with the gzipped terrain mesh unpacked (its README), then loaded from the SDF."""
     src, dst = Path(model_dir), Path(workdir)
-    world = src / "worlds" / "hong_kong_city_only.world"
+    world = src / CITY_WORLD
     if not world.is_file():
         raise ValueError(f"{world}: no such world file (hk-tst-city-model)")
     for sub in ("models", "worlds"):
@@ -275,7 +279,7 @@ def city_scene(model_dir, workdir):
     os.environ["GZ_SIM_RESOURCE_PATH"] = str(dst / "models")
     try:
         # the city model's buildings are not marked <static> (the world was made for visuals): keep them
-        return Scene.from_sdf(dst / "worlds" / "hong_kong_city_only.world", keep_dynamic=True)
+        return Scene.from_sdf(dst / CITY_WORLD, keep_dynamic=True)
     finally:
         if old is None:
             os.environ.pop("GZ_SIM_RESOURCE_PATH", None)
